@@ -1,0 +1,24 @@
+"""Shared test helpers: run the project's programs as real subprocesses with hard timeouts."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def run_cli(*args: str, timeout: float = 120.0, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    """Run ``python -m ...`` (or a script) to completion; the child is killed on timeout."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    return subprocess.run([sys.executable, *args], capture_output=True, text=True, timeout=timeout,
+                          cwd=cwd or ROOT, env=env)
+
+
+@pytest.fixture
+def cli():
+    return run_cli

@@ -1,0 +1,218 @@
+"""Design guidelines: exact values, and each bound checked by brute force on the potentials themselves."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from zswarm.design import check, epsilon, prop1_curve
+from zswarm.formation import closed_form_spacing, equilibria, pair_potential
+from zswarm.params import DEFAULT_PARAMS, PAPER_PARAMS, PotentialParams
+from zswarm.potentials import field, formation_terms, goal_terms, obstacle_terms, saturate
+
+PAPER = PAPER_PARAMS.potential
+
+
+def integrate_1d(p: PotentialParams, starts, goal_x, obstacle_x, t_end=80.0, dt=2e-3, v_max=1.0):
+    """Move robots along x under the full 2-D multiplicative field; return final and closest-to-obstacle x."""
+    x = np.column_stack([np.asarray(starts, float), np.zeros(len(starts))])
+    n = len(x)
+    closest = np.full(n, np.inf)
+    idx = np.arange(n)
+    none, empty = np.zeros(0, dtype=np.intp), np.zeros((0, 2))
+    for _ in range(int(t_end / dt)):
+        psi_o = x - np.array([obstacle_x, 0.0])
+        closest = np.minimum(closest, np.linalg.norm(psi_o, axis=1))
+        _, f = field(x - np.array([goal_x, 0.0]), idx, psi_o, none, empty, p, "multiplicative")
+        x = x + dt * saturate(f, v_max)
+    return x[:, 0], closest
+
+
+# --- Section 3.2.3 worked example (l_g = 2, l_o = 0.2, d_m^go = d_m^ro = 0.2) ----------------------
+
+def test_section_323_exact_values():
+    r = check(PAPER_PARAMS)
+    # Independent brute force: the maximum of eq 18 on a very fine grid.
+    x = np.linspace(1e-7, 2.0, 4_000_001)
+    assert r.prop1["lower_bound"] == pytest.approx(prop1_curve(x, 0.2, PAPER).max(), rel=1e-9)
+    assert r.prop1["lower_bound"] == pytest.approx(0.019408, abs=2e-6)  # the paper read 0.022 off Fig 9
+    assert r.prop1["d_0_go"] == pytest.approx(0.123436, abs=2e-6)  # paper: 0.122
+    assert r.prop2["upper_bound"] == pytest.approx(0.382793, abs=2e-6)  # paper: 0.383
+    assert r.prop2["d_0_ro_at_bound"] == pytest.approx(0.259497, abs=2e-6)  # paper: 0.281
+    no_margin = check(PAPER_PARAMS.with_values({"d_m_go": 0.0}))
+    assert no_margin.prop1["lower_bound"] == pytest.approx(0.138060, abs=2e-6)  # paper: 0.151
+
+
+def test_alpha_changes_sign_at_d_0_go():
+    r = check(PAPER_PARAMS)
+    d0 = r.prop1["d_0_go"]
+    # At d_0^go the net collinear force vanishes for c_g = 0 (obstacle push = obstacle's goal-term pull)
+    p = PAPER.__class__(**{**PAPER.__dict__, "c_g": 1e-12})
+    for s, sign in ((d0 * 0.99, -1), (d0 * 1.01, 1)):
+        x = np.array([[-s, 0.0]])
+        _, f = field(x, np.zeros(1, dtype=np.intp), x - np.array([0.2, 0.0]), np.zeros(0, dtype=np.intp),
+                     np.zeros((0, 2)), p, "multiplicative")
+        assert np.sign(f[0, 0]) == -sign  # pushed away (left) inside d_0^go, towards the goal beyond
+
+
+# --- Prop 1 and Prop 2 flip where the bounds say ---------------------------------------------------
+
+STARTS = np.linspace(-1.5, -0.3, 7)
+
+
+@pytest.mark.parametrize("d_go", [0.2, 0.1])
+def test_prop1_bound_flips_goal_reachability(d_go):
+    """R-G-O collinear (Fig 7): above the lower bound every start reaches the goal; below, some stall."""
+    lb = check(PAPER_PARAMS.with_values({"d_m_go": d_go})).prop1["lower_bound"]
+    c_g = PAPER.c_g
+    above = PAPER.__class__(**{**PAPER.__dict__, "c_o": c_g / (lb * 1.05)})
+    below = PAPER.__class__(**{**PAPER.__dict__, "c_o": c_g / (lb * 0.95)})
+    final_above, _ = integrate_1d(above, STARTS, 0.0, d_go)
+    final_below, _ = integrate_1d(below, STARTS, 0.0, d_go)
+    assert np.all(np.abs(final_above) < 0.02)
+    assert np.any(np.abs(final_below) > 0.05)
+
+
+def test_prop2_exact_bound_flips_obstacle_clearance_and_eq22_is_sufficient():
+    """R-O-G collinear (Fig 8): the robot stops at d_0^ro >= d_m^ro iff c_g/c_o <= exact bound."""
+    r = check(PAPER_PARAMS)
+    d_ro, exact, eq22 = 0.2, r.prop2["exact_upper_bound"], r.prop2["upper_bound"]
+    assert eq22 <= exact
+    kw = PAPER.__dict__
+    runs = {name: PAPER.__class__(**{**kw, "c_o": PAPER.c_g / ratio})
+            for name, ratio in (("eq22", eq22 * 0.99), ("in", exact * 0.98), ("out", exact * 1.02))}
+    start = [-1.5]
+    for name, p in runs.items():
+        _, closest = integrate_1d(p, start, 0.2, 0.0, t_end=30.0)
+        if name == "out":
+            assert closest[0] < d_ro
+        else:
+            assert closest[0] >= d_ro
+    # and the robot rests at d_0^ro for the actual paper ratio
+    final, _ = integrate_1d(PAPER, start, 0.2, 0.0, t_end=30.0)
+    assert -final[0] == pytest.approx(r.prop2["d_0_ro"], abs=1e-3)
+
+
+# --- Props 3-5 against their force balances --------------------------------------------------------
+
+def test_epsilon_eq_34_from_numeric_maxima():
+    p, n = PAPER, 10
+    r = np.linspace(0, 10, 1_000_001)
+    rep = np.max(2 * p.c_r / p.l_r**2 * r * np.exp(-r**2 / p.l_r**2))
+    att = np.max(2 * p.c_a / p.l_a**2 * r * np.exp(-r**2 / p.l_a**2))
+    assert epsilon(p, n) == pytest.approx((n - 1) * (rep + att) / (2 * p.c_a_prime * n), rel=1e-6)
+    assert epsilon(p, 1) == 0.0 and math.isinf(epsilon(p.__class__(**{**p.__dict__, "c_a_prime": 0.0}), 5))
+
+
+def test_prop3_swarm_settles_inside_epsilon():
+    """All-to-all swarm under eq 28 alone: every agent ends within epsilon of the centre."""
+    p, n = DEFAULT_PARAMS.potential, 10
+    rng = np.random.default_rng(3)
+    x = rng.uniform(-4, 4, (n, 2))
+    i, k = np.nonzero(~np.eye(n, dtype=bool))
+    for _ in range(4000):
+        _, f = formation_terms(x[i] - x[k], p)
+        x = x + 0.01 * np.stack([np.bincount(i, f[:, 0], n), np.bincount(i, f[:, 1], n)], axis=1)
+    spread = np.linalg.norm(x - x.mean(axis=0), axis=1).max()
+    assert spread <= epsilon(p, n)
+
+
+def test_prop3_fails_when_sensing_radius_is_below_two_epsilon():
+    eps = epsilon(DEFAULT_PARAMS.potential, 10)
+    assert check(DEFAULT_PARAMS.with_values({"sensing_radius": 2 * eps * 1.01})).prop3["holds"]
+    assert not check(DEFAULT_PARAMS.with_values({"sensing_radius": 2 * eps * 0.99})).prop3["holds"]
+
+
+def test_prop4_flips_with_the_force_balance_at_the_worst_distances():
+    """Eq 37 is eq 39 at |psi_o| = l_o/sqrt2 and |psi_f| = l_a/sqrt2: obstacle push vs c_p agents' pull."""
+    r = check(PAPER_PARAMS).prop4
+    assert r["c_p"] == 10 and r["lhs"] == pytest.approx(15.0)
+    for factor, expect in ((1.02, True), (0.98, False)):
+        c_o = r["rhs"] * PAPER.l_o * factor
+        p = PAPER.__class__(**{**PAPER.__dict__, "c_o": c_o})
+        assert check(PAPER_PARAMS.with_values({"c_o": c_o})).prop4["holds"] is expect
+        push = obstacle_terms(np.array([[p.l_o / math.sqrt(2), 0.0]]), p)[1][0, 0]
+        no_repulsion = PAPER.__class__(**{**p.__dict__, "c_r": 0.0})
+        pull = -formation_terms(np.array([[p.l_a / math.sqrt(2), 0.0]]), no_repulsion)[1][0, 0]
+        assert bool(push > r["c_p"] * pull) is expect
+
+
+def test_prop5_flips_with_pair_repulsion_vs_goal_pull():
+    base = DEFAULT_PARAMS
+    r = check(base).prop5
+    d_mf, d_r = r["d_m_f"], base.swarm.robot_radius
+    for factor, expect in ((1.02, True), (0.98, False)):
+        p = base.potential.__class__(**{**base.potential.__dict__, "c_r": r["rhs"] * factor,
+                                        "c_a": 0.0, "c_a_prime": 0.0})
+        repulsion = formation_terms(np.array([[d_mf, 0.0]]), p)[1][0, 0]
+        goal_pull = -goal_terms(np.array([[d_r, 0.0]]), p)[1][0, 0]
+        assert bool(repulsion > goal_pull) is expect
+
+
+# --- formation spacing --------------------------------------------------------------------------------
+
+def test_paper_pair_potential_has_no_stable_spacing():
+    r = np.linspace(0, 10, 200_001)
+    u = pair_potential(r, PAPER)
+    assert np.argmin(u) == 0 and np.all(np.diff(u) > 0)  # monotone: collapse
+    eq = equilibria(PAPER)
+    assert eq.attracts_at_contact and not eq.is_stable
+    report = check(PAPER_PARAMS)
+    assert report.formation["stable"] is False and not report.ok and "formation" in report.failures()
+    assert report.formation["closed_form_spacing"] == pytest.approx(math.sqrt(math.log(6) / 3))
+
+
+def test_default_spacing_is_the_brute_force_minimum():
+    p = DEFAULT_PARAMS.potential
+    r = np.linspace(1e-6, 10, 2_000_001)
+    spacing = check(DEFAULT_PARAMS).formation["equilibrium_spacing"]
+    assert spacing == pytest.approx(r[np.argmin(pair_potential(r, p))], abs=1e-5)
+    assert check(DEFAULT_PARAMS).ok
+
+
+def test_closed_form_is_exact_without_quadratic_term():
+    p = PotentialParams(l_a=1.0, l_r=0.5, c_a=0.5, c_r=1.0, c_a_prime=0.0)
+    assert closed_form_spacing(p) == pytest.approx(equilibria(p).spacing, rel=1e-9)
+
+
+# --- CLI -------------------------------------------------------------------------------------------
+
+def test_cli_json_keys_and_exit_codes(cli):
+    ok = cli("-m", "zswarm", "design", "--json")
+    assert ok.returncode == 0, ok.stderr
+    out = json.loads(ok.stdout)
+    assert out["ok"] is True
+    assert {"lower_bound", "d_0_go", "holds", "detail"} <= out["prop1"].keys()
+    assert {"upper_bound", "d_0_ro"} <= out["prop2"].keys() and "epsilon" in out["prop3"]
+    for k in ("prop4", "prop5"):
+        assert {"lhs", "rhs", "holds"} <= out[k].keys()
+    assert {"equilibrium_spacing", "closed_form_spacing", "stable"} <= out["formation"].keys()
+    assert set(out["params"]) >= {"l_o", "c_a_prime", "n_agents", "d_m_ro"}
+    paper = cli("-m", "zswarm", "design", "--paper", "--json")
+    assert paper.returncode == 1 and json.loads(paper.stdout)["formation"]["equilibrium_spacing"] is None
+
+
+@pytest.mark.parametrize("args,needle", [(["--set", "l_o=-1"], "l_o must be"),
+                                         (["--set", "zz=1"], "unknown parameter"),
+                                         (["--nope"], "unrecognized arguments")])
+def test_cli_usage_errors_are_one_line_exit_2(cli, args, needle):
+    res = cli("-m", "zswarm", "design", *args)
+    assert res.returncode == 2 and needle in res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1 and "Traceback" not in res.stderr
+
+
+def test_cli_save_writes_a_valid_recording(cli, tmp_path):
+    import shutil
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    out = tmp_path / "design.rrd"
+    res = cli("-m", "zswarm", "design", "--save", str(out))
+    assert res.returncode == 0 and out.stat().st_size > 1000
+    rerun = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")
+    verify = subprocess.run([rerun, "rrd", "verify", str(out)], capture_output=True, text=True, timeout=60)
+    assert verify.returncode == 0, verify.stderr
+    bad = cli("-m", "zswarm", "design", "--save", str(tmp_path / "missing" / "x.rrd"))
+    assert bad.returncode == 2 and "cannot write" in bad.stderr

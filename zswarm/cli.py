@@ -1,0 +1,34 @@
+"""``zswarm`` / ``python -m zswarm``: one entry point, a subcommand per task."""
+
+from __future__ import annotations
+
+import sys
+from typing import Sequence
+
+from zswarm.cli_util import Parser, run_main
+
+
+def build_parser() -> Parser:
+    from zswarm import design_cli
+
+    parser = Parser(prog="zswarm", description="Decentralized APF swarms (Kim, Wang & Shin 2006).")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
+    design = sub.add_parser("design", help="check a parameter set against Propositions 1-5",
+                            description="Check a parameter set against the paper's design guidelines. "
+                                        "Exit 0 when all hold, 1 when one fails, 2 on a usage error.")
+    design_cli.add_arguments(design)
+    design.set_defaults(run=design_cli.run)
+    return parser
+
+
+def _main(argv: Sequence[str] | None) -> int:
+    args = build_parser().parse_args(argv)
+    return int(args.run(args))
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    return run_main(_main, argv)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
