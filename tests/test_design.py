@@ -150,6 +150,33 @@ def test_prop5_flips_with_pair_repulsion_vs_goal_pull():
         assert bool(repulsion > goal_pull) is expect
 
 
+def test_contact_criterion_flips_where_a_touching_pair_stops_separating():
+    """Two agents 1e-4 apart at the goal, N - 2 others far away (only c'_a reaches them)."""
+    base = DEFAULT_PARAMS
+    p, n = base.potential, base.swarm.n_agents
+    c_r_star = p.l_r**2 / 2 * (p.c_a_prime * n + p.c_g / p.l_g**2 + 2 * p.c_a / p.l_a**2)
+    others = 20.0 * np.column_stack([np.cos(np.arange(n - 2)), np.sin(np.arange(n - 2))])
+    for factor, expect in ((1.03, True), (0.97, False)):
+        q = p.__class__(**{**p.__dict__, "c_r": c_r_star * factor})
+        assert check(base.with_values({"c_r": q.c_r}), swarm=False).contact["holds"] is expect
+        x = np.vstack([[[5e-5, 0.0], [-5e-5, 0.0]], others])
+        i, k = np.nonzero(~np.eye(n, dtype=bool))
+        _, f = formation_terms(x[i] - x[k], q)
+        force = np.stack([np.bincount(i, f[:, 0], n), np.bincount(i, f[:, 1], n)], axis=1)
+        force += goal_terms(x, q)[1]
+        separating = (force[0, 0] - force[1, 0]) > 0
+        assert bool(separating) is expect
+
+
+def test_swarm_check_catches_what_props_1_to_5_miss():
+    """A set that passes Props 1-5 and the pair spacing can still crush agents together in a swarm."""
+    nearest_two = PAPER_PARAMS.with_values({"l_a": 1.228, "l_r": 0.5493})
+    r = check(nearest_two)
+    assert all(r.to_json()[f"prop{i}"]["holds"] for i in range(1, 6)) and r.formation["stable"]
+    assert not r.swarm["holds"] and r.swarm["min_pair_distance"] < 2 * nearest_two.swarm.robot_radius
+    assert check(DEFAULT_PARAMS).swarm["holds"]
+
+
 # --- formation spacing --------------------------------------------------------------------------------
 
 def test_paper_pair_potential_has_no_stable_spacing():

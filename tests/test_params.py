@@ -13,10 +13,10 @@ def test_paper_values_are_the_printed_ones():
     assert PAPER_PARAMS.swarm.n_agents == 10
 
 
-def test_defaults_differ_from_paper_only_in_l_a():
+def test_defaults_differ_from_paper_in_the_documented_values():
     paper, default = PAPER_PARAMS.flat(), DEFAULT_PARAMS.flat()
     changed = {k for k in FIELDS if FIELDS[k].group == "potential" and paper[k] != default[k]}
-    assert changed == {"l_a"}
+    assert changed == {"l_a", "l_r", "c_r"}  # README, "Defaults"
 
 
 @pytest.mark.parametrize("name,value", [("l_o", 0.0), ("l_g", -1.0), ("c_g", 0.0), ("c_o", -0.1),

@@ -9,7 +9,7 @@ from zswarm.cli_util import Parser, run_main
 
 
 def build_parser() -> Parser:
-    from zswarm import design_cli
+    from zswarm import design_cli, sim_cli
 
     parser = Parser(prog="zswarm", description="Decentralized APF swarms (Kim, Wang & Shin 2006).")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
@@ -18,6 +18,21 @@ def build_parser() -> Parser:
                                         "Exit 0 when all hold, 1 when one fails, 2 on a usage error.")
     design_cli.add_arguments(design)
     design.set_defaults(run=design_cli.run)
+
+    sim = sub.add_parser("sim", help="run the centralized reference simulation of a scenario",
+                         description="Simulate a scenario with the vectorized reference simulator.")
+    sim_cli.add_sim_arguments(sim)
+    sim.set_defaults(run=sim_cli.run_sim)
+
+    scen = sub.add_parser("scenarios", help="list the registered scenarios")
+    scen.add_argument("--json", action="store_true")
+    scen.set_defaults(run=sim_cli.run_scenarios)
+
+    bench = sub.add_parser("bench", help="benchmarks")
+    bench_sub = bench.add_subparsers(dest="bench", required=True, parser_class=Parser)
+    bench_sim = bench_sub.add_parser("sim", help="simulator steps per second for growing N")
+    sim_cli.add_bench_sim_arguments(bench_sim)
+    bench_sim.set_defaults(run=sim_cli.run_bench_sim)
     return parser
 
 

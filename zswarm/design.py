@@ -37,7 +37,8 @@ from typing import Any
 
 import numpy as np
 
-from zswarm.formation import closed_form_spacing, equilibria, formation_offset
+from zswarm.cluster import squeeze
+from zswarm.formation import closed_form_spacing, equilibria, formation_offset, h_stable
 from zswarm.numeric import maximize, sign_changes
 from zswarm.params import FIELDS, Params, PotentialParams
 
@@ -182,7 +183,13 @@ def formation(params: Params) -> dict[str, Any]:
         why = "the pair potential has no stable spacing"
     if closed is not None and eq.spacing is not None:
         why += f"; eq 27's closed form, which ignores c'_a, gives {closed:.4g}"
-    return {"equilibrium_spacing": eq.spacing, "closed_form_spacing": closed, "stable": eq.is_stable,
+    hs = h_stable(p)
+    if not hs:
+        why += (f"; not H-stable (c_r l_r^2 = {p.c_r * p.l_r**2:.3g} vs c_a l_a^2 = {p.c_a * p.l_a**2:.3g}, "
+                f"l_r = {p.l_r:g} vs l_a = {p.l_a:g}): without the sensing radius, the more agents, the "
+                f"tighter they would pack")
+    return {"equilibrium_spacing": eq.spacing, "closed_form_spacing": closed,
+            "stable": eq.is_stable, "h_stable": hs,
             "attracts_at_contact": eq.attracts_at_contact, "c_f": formation_offset(p),
             "unstable_spacings": list(eq.unstable), "detail": why}
 
@@ -204,6 +211,49 @@ def prop5(params: Params, spacing: float | None) -> dict[str, Any]:
             "detail": detail}
 
 
+def contact(params: Params) -> dict[str, Any]:
+    """Beyond the paper: two agents that touch must be pushed apart, however the swarm squeezes them.
+
+    Two agents a, b at a small offset delta: their own pair force separates them at rate -2 g(0)
+    (eq 28 near r = 0); every other sensed agent k pulls both with the quadratic term -2 c'_a psi, which
+    closes delta at rate 2 c'_a for each of the N - 2 others whatever their distance; near the goal its
+    curvature closes it at up to 2 c_g/l_g^2. With g(0) = -2 c_r/l_r^2 + 2 c_a/l_a^2 + 2 c'_a, the pair
+    separates (to first order, others far) iff
+
+        2 c_r/l_r^2 - 2 c_a/l_a^2 > c'_a N + c_g/l_g^2.
+
+    Otherwise agents squeezed together by the swarm merge (min distance 0), whatever d^f is.
+    """
+    p, n = params.potential, params.swarm.n_agents
+    lhs = 2.0 * p.c_r / p.l_r**2 - 2.0 * p.c_a / p.l_a**2
+    rhs = p.c_a_prime * n + p.c_g / p.l_g**2
+    holds = lhs > rhs
+    detail = (
+        f"repulsion at contact 2c_r/l_r^2 - 2c_a/l_a^2 = {lhs:.4g} {'>' if holds else '<='} {rhs:.4g} = "
+        f"c'_a N + c_g/l_g^2, the squeeze of {n - 2} other agents and the goal"
+        + ("" if holds else ": agents pressed together merge")
+    )
+    return {"holds": holds, "lhs": lhs, "rhs": rhs, "margin": lhs - rhs, "detail": detail}
+
+
+def swarm_rest(params: Params, spacing: float | None) -> dict[str, Any]:
+    """Beyond the paper, by brute force: a swarm pressed against an obstacle by the goal (Fig 10)."""
+    p, s, m = params.potential, params.swarm, params.margins
+    r = squeeze(p, s.n_agents, s.sensing_radius, s.v_max)
+    need = max(2.0 * s.robot_radius, spacing / 10.0 if spacing else 0.0)
+    holds = r.min_pair_distance >= need and r.min_obstacle_distance >= m.d_m_ro
+    detail = (
+        f"{r.n_agents} agents pressed against an obstacle by the goal (Fig 10) come {r.min_pair_distance:.3g} "
+        f"from each other ({'>=' if r.min_pair_distance >= need else '<'} {need:.3g} = max(2 d^r, d^f/10)) "
+        f"and {r.min_obstacle_distance:.3g} from the obstacle "
+        f"({'>=' if r.min_obstacle_distance >= m.d_m_ro else '<'} d_m^ro = {m.d_m_ro:g})"
+    )
+    return {"holds": holds, "min_pair_distance": r.min_pair_distance, "required_pair_distance": need,
+            "min_obstacle_distance": r.min_obstacle_distance, "n_simulated": r.n_agents,
+            "final_median_nearest": r.final_median_nearest, "margin": r.min_pair_distance - need,
+            "detail": detail}
+
+
 @dataclass(frozen=True)
 class DesignReport:
     params: Params
@@ -213,19 +263,25 @@ class DesignReport:
     prop4: dict[str, Any]
     prop5: dict[str, Any]
     formation: dict[str, Any]
-
-    @property
-    def ok(self) -> bool:
-        return all(getattr(self, f"prop{i}")["holds"] for i in range(1, 6)) and self.formation["stable"]
+    contact: dict[str, Any]
+    swarm: dict[str, Any] | None  # None: not evaluated (the pair potential has no stable spacing)
 
     def failures(self) -> list[str]:
         out = [f"prop{i}" for i in range(1, 6) if not getattr(self, f"prop{i}")["holds"]]
-        return out + ([] if self.formation["stable"] else ["formation"])
+        out += [] if self.formation["stable"] else ["formation"]
+        out += [] if self.contact["holds"] else ["contact"]
+        return out + ([] if self.swarm is not None and self.swarm["holds"] else ["swarm"])
+
+    @property
+    def ok(self) -> bool:
+        return not self.failures()
 
     def to_json(self) -> dict[str, Any]:
-        clean = lambda d: {k: _json_number(v) for k, v in d.items()}  # noqa: E731
+        clean = lambda d: None if d is None else {k: _json_number(v) for k, v in d.items()}  # noqa: E731
         return {"params": self.params.flat(), **{f"prop{i}": clean(getattr(self, f"prop{i}"))
-                for i in range(1, 6)}, "formation": clean(self.formation), "ok": self.ok}
+                for i in range(1, 6)}, "formation": clean(self.formation), "contact": clean(self.contact),
+                "swarm": clean(self.swarm),
+                "ok": self.ok}
 
 
 def _json_number(v: Any) -> Any:
@@ -236,12 +292,16 @@ def _json_number(v: Any) -> Any:
     return v
 
 
-def check(params: Params) -> DesignReport:
-    """Judge a parameter set against Propositions 1-5 and the formation's stability."""
+def check(params: Params, swarm: bool = True) -> DesignReport:
+    """Judge a parameter set against Propositions 1-5, the pair spacing and the swarm at rest.
+
+    ``swarm=False`` skips the (slower) swarm-at-rest simulation; the report then lists it as failed.
+    """
     form = formation(params)
     spacing = form["equilibrium_spacing"] or form["closed_form_spacing"]
+    swarm = swarm_rest(params, form["equilibrium_spacing"]) if swarm and form["stable"] else None
     return DesignReport(params, prop1(params), prop2(params), prop3(params), prop4(params),
-                        prop5(params, spacing), form)
+                        prop5(params, spacing), form, contact(params), swarm)
 
 
 POTENTIAL_FIELDS = [name for name, spec in FIELDS.items() if spec.group == "potential"]
@@ -263,9 +323,10 @@ def nearest_passing(params: Params, factors: np.ndarray | None = None,
 
     def passes(change: dict[str, float]) -> bool:
         try:
-            return check(params.with_values(change)).ok
+            candidate = params.with_values(change)
         except ValueError:
             return False
+        return check(candidate, swarm=False).failures() == ["swarm"] and check(candidate).ok
 
     for name in names:
         for f in factors[order]:

@@ -45,6 +45,9 @@ def render(report: DesignReport) -> str:
         ("Formation", {"holds": report.formation["stable"], "detail": report.formation["detail"]},
          f"d^f = {_fmt(report.formation['equilibrium_spacing'])} "
          f"(eq 27: {_fmt(report.formation['closed_form_spacing'])})"),
+        ("Contact", report.contact, f"{_fmt(report.contact['lhs'])} > {_fmt(report.contact['rhs'])}"),
+        ("Swarm", report.swarm or {"holds": False, "detail": "not simulated: no stable pair spacing"},
+         "closest pair " + _fmt((report.swarm or {}).get("min_pair_distance"))),
     ]
     p = report.params.flat()
     lines = ["parameters: " + "  ".join(f"{k}={_fmt(v)}" for k, v in p.items()), ""]

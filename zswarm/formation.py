@@ -20,6 +20,15 @@ and c_f = -(c_r e^{-s/l_r^2} - c_a e^{-s/l_a^2} + c'_a s) makes the minimum valu
 The OCR'd text prints ``c_a c'_a`` inside the logarithm; that mixes units (c'_a is a strength per
 length^2) and is not what g(r) = 0 gives, so it is not used. Because eq 27 ignores c'_a, the true
 spacing is found numerically as well (:func:`equilibria`).
+
+H-stability (not in the paper). A pair spacing is not enough: in a swarm every agent adds up N - 1
+attractions, and with a soft (bounded) repulsion the sum can squeeze agents onto each other, more so
+as N grows (Ruelle's H-stability; D'Orsogna et al., PRL 96, 104302, 2006). The Gaussian part of eq 26
+is H-stable when its 2-D Fourier transform is non-negative,
+
+    u_hat(k) = pi (c_r l_r^2 e^{-k^2 l_r^2/4} - c_a l_a^2 e^{-k^2 l_a^2/4}) >= 0 for all k,
+
+i.e. c_r l_r^2 >= c_a l_a^2 with l_r <= l_a (the repulsion is stronger in total and shorter-ranged).
 """
 
 from __future__ import annotations
@@ -98,6 +107,19 @@ def equilibria(p: PotentialParams, samples: int = 40_001) -> Equilibria:
         attracts_at_contact=bool(g[0] > 0),
         disperses=bool(g[-1] < 0),
     )
+
+
+def fourier_gaussian_part(k: np.ndarray, p: PotentialParams) -> np.ndarray:
+    """u_hat(k) of the two Gaussians of eq 26 (2-D Fourier transform)."""
+    k2 = np.square(k)
+    return np.pi * (p.c_r * p.l_r**2 * np.exp(-k2 * p.l_r**2 / 4.0)
+                    - p.c_a * p.l_a**2 * np.exp(-k2 * p.l_a**2 / 4.0))
+
+
+def h_stable(p: PotentialParams) -> bool:
+    """The Gaussian part of eq 26 is positive definite (no catastrophic collapse as N grows)."""
+    k = np.linspace(0.0, 60.0 / min(p.l_r, p.l_a), 20_001)
+    return bool(np.all(fourier_gaussian_part(k, p) >= -1e-12 * (p.c_r * p.l_r**2 + p.c_a * p.l_a**2)))
 
 
 def formation_offset(p: PotentialParams) -> float:

@@ -89,12 +89,12 @@ class PotentialParams:
 
     l_o: float = 0.2
     l_g: float = 2.0
-    l_a: float = 1.66
-    l_r: float = 1.0
+    l_a: float = 2.6
+    l_r: float = 0.47
     c_o: float = 3.0
     c_g: float = 1.0
     c_a: float = 0.5
-    c_r: float = 1.0 / 3.0
+    c_r: float = 0.5
     c_a_prime: float = 0.1
 
     def __post_init__(self) -> None:
@@ -107,7 +107,7 @@ class SwarmParams:
 
     n_agents: int = 10
     v_max: float = 1.0
-    sensing_radius: float = 6.0
+    sensing_radius: float = 12.0
     robot_radius: float = 0.05
 
     def __post_init__(self) -> None:
@@ -192,6 +192,6 @@ PAPER_POTENTIAL = PotentialParams(
 )
 PAPER_PARAMS = Params(potential=PAPER_POTENTIAL)
 
-#: The shipped default: the paper's set with l_a = 1.66 instead of 1/2, the nearest set that passes
-#: every check (``zswarm design --paper --nearest``; see README, "Defaults").
+#: The shipped default: the paper's set with l_a = 2.6, l_r = 0.47 (the nearest passing set that
+#: ``zswarm design --paper --nearest`` finds, rounded) and c_r = 1/2 for a margin (see README, "Defaults").
 DEFAULT_PARAMS = Params()

@@ -1,0 +1,28 @@
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from zswarm.neighbours import ObstacleIndex, pairs_within
+
+
+@settings(max_examples=100, deadline=None)
+@given(seed=st.integers(0, 10_000), n=st.integers(0, 80), radius=st.floats(0.05, 3.0),
+       spread=st.floats(0.1, 20.0))
+def test_grid_pairs_equal_brute_force(seed, n, radius, spread):
+    x = np.random.default_rng(seed).uniform(-spread, spread, (n, 2))
+    i, j = pairs_within(x, radius)
+    d = np.linalg.norm(x[:, None] - x[None], axis=-1)
+    bi, bj = np.nonzero((d <= radius) & ~np.eye(n, dtype=bool))
+    assert sorted(zip(i.tolist(), j.tolist())) == sorted(zip(bi.tolist(), bj.tolist()))
+
+
+@settings(max_examples=100, deadline=None)
+@given(seed=st.integers(0, 10_000), n=st.integers(1, 50), m=st.integers(0, 20), radius=st.floats(0.1, 3.0))
+def test_obstacle_sensing_uses_the_boundary_distance(seed, n, m, radius):
+    rng = np.random.default_rng(seed)
+    x = rng.uniform(-5, 5, (n, 2))
+    centers, radii = rng.uniform(-5, 5, (m, 2)), rng.uniform(0, 1.5, m)
+    a, k = ObstacleIndex(centers, radii, radius).sensed(x)
+    gap = np.linalg.norm(x[:, None] - centers[None], axis=-1) - radii[None]
+    ba, bk = np.nonzero(gap <= radius)
+    assert sorted(zip(a.tolist(), k.tolist())) == sorted(zip(ba.tolist(), bk.tolist()))

@@ -1,0 +1,157 @@
+"""The reference simulator reproduces the paper's qualitative results, deterministically."""
+
+import json
+
+import numpy as np
+import pytest
+
+from zswarm.cli_util import UsageError
+from zswarm.potentials import sense_one
+from zswarm.scenarios import SCENARIOS, get_scenario, load_scenario_file
+from zswarm.sim import Simulator, simulate
+
+
+def test_goal_near_obstacle_additive_traps_multiplicative_reaches():
+    """Figs 3-6: eq 12 leaves every agent stuck away from the goal; eq 14 brings each within d_m^go."""
+    scenario = get_scenario("goal-near-obstacle")
+    d_m_go = scenario.params.margins.d_m_go
+    add = simulate(scenario, 0, combination="additive", keep_trajectory=True)
+    mul = simulate(scenario, 0, combination="multiplicative", keep_trajectory=True)
+    final_add = np.linalg.norm(add.trajectory[-1], axis=1)
+    final_mul = np.linalg.norm(mul.trajectory[-1], axis=1)
+    assert np.all(final_add > d_m_go) and np.all(final_mul < d_m_go)
+    # and the additive agents' distance to the goal has stopped shrinking: a trap, not a slow approach
+    earlier = np.linalg.norm(add.trajectory[-41], axis=1)
+    assert np.max(np.abs(final_add - earlier)) < 2e-3
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_static_goal_splits_and_regroups_without_collisions(seed):
+    """Fig 13: one group, then more than one component while passing the obstacles, then one again."""
+    s = simulate(get_scenario("static-goal"), seed).summary
+    assert s["max_components_after_joined"] > 1
+    assert s["final_components"] == 1
+    assert s["collisions"] == 0 and s["obstacle_collisions"] == 0
+    assert s["capture_time"] is not None and s["final_centroid_goal_distance"] < 0.1
+
+
+@pytest.mark.parametrize("name", ["moving-prey", "moving-prey-straight", "moving-prey-evasive"])
+def test_moving_prey_is_tracked_with_bounded_lag(name):
+    """Fig 14: the swarm catches the slower prey and stays within the capture radius afterwards."""
+    scenario = get_scenario(name)
+    s = simulate(scenario, 0).summary
+    assert s["capture_time"] is not None and s["collisions"] == 0
+    assert s["max_lag_after_capture"] <= scenario.capture_radius + 0.05
+
+
+def test_same_seed_same_summary_bytes_different_seed_different_start():
+    scenario = get_scenario("static-goal")
+    a = json.dumps(simulate(scenario, 7, duration=5.0).summary, sort_keys=True)
+    b = json.dumps(simulate(scenario, 7, duration=5.0).summary, sort_keys=True)
+    assert a == b
+    p7 = Simulator(scenario, 7).positions
+    assert np.array_equal(p7, Simulator(scenario, 7).positions)
+    assert not np.allclose(p7, Simulator(scenario, 8).positions)
+
+
+def test_vectorized_step_equals_each_agent_deciding_alone():
+    """The simulator's batched forces equal what each agent computes from what it alone senses."""
+    scenario = get_scenario("static-goal", {"sensing_radius": 1.5})
+    sim = Simulator(scenario, 3)
+    for _ in range(40):
+        _, v = sim.potential_and_velocity(sim.positions, sim.prey)
+        sim.advance(v)
+    _, v = sim.potential_and_velocity(sim.positions, sim.prey)
+    centers, radii = scenario.obstacle_arrays()
+    p = scenario.params.swarm
+    for k, pos in enumerate(sim.positions):
+        others = np.delete(sim.positions, k, axis=0)
+        sensed = sense_one(pos, centers, radii, others, p.sensing_radius)
+        np.testing.assert_allclose(sim.controller.velocity(pos, sim.prey, sensed, p.v_max), v[k],
+                                   rtol=1e-12, atol=1e-14)
+
+
+def test_every_scenario_spawns_apart_and_clear_of_obstacles():
+    for name in SCENARIOS:
+        scenario = get_scenario(name)
+        x = Simulator(scenario, 0).positions
+        assert len(x) == scenario.n_agents
+        d = np.linalg.norm(x[:, None] - x[None], axis=-1) + np.eye(len(x)) * 9
+        assert d.min() >= 2 * scenario.params.swarm.robot_radius
+        centers, radii = scenario.obstacle_arrays()
+        if len(centers):
+            gap = np.linalg.norm(x[:, None] - centers[None], axis=-1) - radii[None]
+            assert gap.min() > 0.2
+
+
+def test_large_swarm_scales_with_n():
+    small, big = get_scenario("large-swarm", {"n_agents": 100}), get_scenario("large-swarm", {"n_agents": 400})
+    assert small.n_agents == 100 and big.n_agents == 400 and len(big.obstacles) > len(small.obstacles)
+    s = simulate(small, 0, duration=2.0)
+    assert s.summary["n_agents"] == 100
+
+
+def test_toml_scenario_round_trip_and_errors(tmp_path):
+    f = tmp_path / "mine.toml"
+    f.write_text('name = "mine"\nduration = 3.0\nspawn = [-3, -1, -2, 1]\n[params]\nn_agents = 4\n'
+                 'c_o = 2.5\n[prey]\nkind = "circle"\nspeed = 0.1\ncenter = [0, 0]\nradius = 0.5\n'
+                 '[[obstacles]]\nx = -1.0\ny = 0.0\nradius = 0.3\n')
+    s = load_scenario_file(f)
+    assert s.name == "mine" and s.n_agents == 4 and s.params.potential.c_o == 2.5
+    assert s.prey.kind == "circle" and s.obstacles[0].radius == 0.3
+    assert simulate(get_scenario(str(f)), 0).summary["n_agents"] == 4
+    for text, needle in (("nme = 1\n", "unknown keys"), ("[params]\nc_o = -1\n", "c_o must be"),
+                         ("duration = [\n", "not valid TOML"), ("[prey]\nkind = 'x'\n", "prey kind")):
+        f.write_text(text)
+        with pytest.raises(UsageError, match=needle) as err:
+            load_scenario_file(f)
+        assert "\n" not in str(err.value)
+    with pytest.raises(UsageError, match="does not exist"):
+        load_scenario_file(tmp_path / "nope.toml")
+    with pytest.raises(UsageError, match="unknown scenario"):
+        get_scenario("fig-99")
+
+
+def test_cli_sim_json_and_recording(cli, tmp_path):
+    import shutil
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    out = tmp_path / "run.rrd"
+    res = cli("-m", "zswarm", "sim", "--scenario", "moving-prey", "--seed", "2", "--duration", "4",
+              "--record", str(out), "--json")
+    assert res.returncode == 0, res.stderr
+    s = json.loads(res.stdout)
+    for key in ("scenario", "n_agents", "seed", "potential", "final_mean_goal_distance",
+                "final_centroid_goal_distance", "capture_time", "min_pair_distance", "collisions",
+                "min_obstacle_clearance", "obstacle_collisions", "max_components", "final_components",
+                "max_cohesion", "epsilon"):
+        assert key in s
+    assert s["scenario"] == "moving-prey" and s["seed"] == 2 and s["steps"] == 80
+    rerun = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")
+    verify = subprocess.run([rerun, "rrd", "verify", str(out)], capture_output=True, text=True, timeout=60)
+    assert verify.returncode == 0, verify.stderr
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["sim", "--scenario", "nope"], "unknown scenario"),
+    (["sim", "--duration", "-1"], "--duration"),
+    (["sim", "--potential", "both"], "--potential"),
+    (["sim", "--set", "v_max=0"], "v_max must be"),
+    (["sim", "--record", "/nonexistent/dir/x.rrd"], "does not exist"),
+    (["sim", "--scenario", "/tmp/definitely-missing.toml"], "does not exist"),
+])
+def test_cli_sim_usage_errors(cli, args, needle):
+    res = cli("-m", "zswarm", *args)
+    assert res.returncode == 2 and needle in res.stderr and "Traceback" not in res.stderr
+
+
+def test_cli_scenarios_and_bench(cli):
+    listing = cli("-m", "zswarm", "scenarios", "--json")
+    assert {s["name"] for s in json.loads(listing.stdout)} == set(SCENARIOS)
+    bench = cli("-m", "zswarm", "bench", "sim", "--sizes", "10,50", "--steps", "5", "--json")
+    out = json.loads(bench.stdout)
+    assert [r["n_agents"] for r in out["runs"]] == [10, 50]
+    assert all(r["steps_per_second"] > 0 and r["steps"] == 5 for r in out["runs"])
+    assert out["cost_ratio_10000_1000"] is None

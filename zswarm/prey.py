@@ -1,0 +1,77 @@
+"""The prey (the goal of the swarm) and how it moves: static, straight, circular or evasive.
+
+Section 5: the target moves slower than the agents' top speed. :func:`step` advances the prey by one
+time step from the state at the start of the step, so a simulator and the distributed world that call
+it with the same inputs move the prey identically.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+PreyKind = Literal["static", "straight", "circle", "evasive"]
+PREY_KINDS: tuple[PreyKind, ...] = ("static", "straight", "circle", "evasive")
+
+
+@dataclass(frozen=True)
+class PreyMotion:
+    """How the prey moves.
+
+    - ``static``: stays at its start (Fig 13).
+    - ``straight``: constant ``speed`` along ``heading_deg``.
+    - ``circle``: constant ``speed`` on a circle of ``radius`` about ``center`` (counter-clockwise).
+    - ``evasive``: flees the nearest agent it senses within ``sense_radius`` at ``speed``; it stays
+      inside ``bounds`` (x_min, y_min, x_max, y_max), sliding along the edge it meets.
+    """
+
+    kind: PreyKind = "static"
+    speed: float = 0.0
+    heading_deg: float = 0.0
+    center: tuple[float, float] = (0.0, 0.0)
+    radius: float = 1.0
+    sense_radius: float = 1.5
+    bounds: tuple[float, float, float, float] = (-5.0, -5.0, 5.0, 5.0)
+
+    def __post_init__(self) -> None:
+        if self.kind not in PREY_KINDS:
+            raise ValueError(f"prey kind must be one of {', '.join(PREY_KINDS)} (got {self.kind!r})")
+        for name in ("speed", "radius", "sense_radius"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"prey {name} must be a finite number >= 0 (got {value!r})")
+        if self.kind == "circle" and self.radius <= 0:
+            raise ValueError("prey radius must be > 0 for a circular prey")
+        x0, y0, x1, y1 = self.bounds
+        if not (x0 < x1 and y0 < y1):
+            raise ValueError(f"prey bounds must be (x_min, y_min, x_max, y_max) with min < max (got {self.bounds})")
+
+
+def step(motion: PreyMotion, prey: np.ndarray, dt: float, agents: np.ndarray) -> np.ndarray:
+    """The prey's position after ``dt`` (agents: (N, 2) positions, used only by the evasive prey)."""
+    prey = np.asarray(prey, dtype=float)
+    if motion.kind == "static" or motion.speed == 0.0:
+        return prey.copy()
+    if motion.kind == "straight":
+        h = math.radians(motion.heading_deg)
+        return prey + motion.speed * dt * np.array([math.cos(h), math.sin(h)])
+    if motion.kind == "circle":
+        c = np.asarray(motion.center, dtype=float)
+        rel = prey - c
+        angle = math.atan2(rel[1], rel[0]) + motion.speed * dt / motion.radius
+        return c + motion.radius * np.array([math.cos(angle), math.sin(angle)])
+    # evasive
+    agents = np.asarray(agents, dtype=float).reshape(-1, 2)
+    if len(agents) == 0:
+        return prey.copy()
+    away = prey - agents
+    dist = np.sqrt(np.einsum("ij,ij->i", away, away))
+    k = int(np.argmin(dist))
+    if dist[k] > motion.sense_radius or dist[k] == 0.0:
+        return prey.copy()
+    moved = prey + motion.speed * dt * away[k] / dist[k]
+    x0, y0, x1, y1 = motion.bounds
+    return np.array([min(max(moved[0], x0), x1), min(max(moved[1], y0), y1)])

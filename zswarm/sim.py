@@ -1,0 +1,161 @@
+"""The centralized reference simulator: the same equations, vectorized over the whole swarm.
+
+Each step (explicit Euler, step ``dt``):
+
+    v_k     = sat(-grad U_i(P_k), v_max)      (eq 5 / eq 36 with the speed limit)
+    P_{k+1} = P_k + dt v_k
+    prey_{k+1} = prey.step(prey_k, P_k)
+
+where agent i's potential uses only the obstacles and neighbours within its sensing radius, found with
+a cell grid (:mod:`zswarm.neighbours`). Every quantity agent i uses is what a distributed agent would
+have sensed at step k, so a lockstep distributed run reproduces these trajectories.
+Deterministic: the same scenario and seed give the same trajectories, bit for bit.
+"""
+
+from __future__ import annotations
+
+import platform
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from zswarm import __version__
+from zswarm import prey as prey_motion
+from zswarm.design import epsilon
+from zswarm.formation import equilibria
+from zswarm.metrics import MetricContext, Summary, step_metrics
+from zswarm.neighbours import ObstacleIndex, pairs_within
+from zswarm.potentials import Combination, field as apf_field, make_controller, obstacle_offsets, saturate
+from zswarm.scenarios import Scenario
+
+_NO_PAIRS = np.zeros(0, dtype=np.intp)
+
+
+class Simulator:
+    """State of a simulated swarm and its step function."""
+
+    def __init__(self, scenario: Scenario, seed: int, combination: Combination | None = None) -> None:
+        self.scenario = scenario
+        self.seed = seed
+        self.combination: Combination = combination or scenario.combination
+        p = scenario.params
+        self.controller = make_controller(p.potential, self.combination, scenario.formation)
+        self.rng = np.random.default_rng(seed)
+        self.positions = scenario.initial_positions(self.rng)
+        self.ids = np.arange(len(self.positions))
+        self.prey = np.array(scenario.prey_start, dtype=float)
+        centers, radii = scenario.obstacle_arrays()
+        self.obstacles = ObstacleIndex(centers, radii, p.swarm.sensing_radius)
+        self.step_index = 0
+
+    @property
+    def t(self) -> float:
+        return self.step_index * self.scenario.dt
+
+    def potential_and_velocity(self, positions: np.ndarray, goal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Every agent's U_i and commanded velocity from what it senses at ``positions``."""
+        p = self.scenario.params
+        c = self.controller
+        if c.formation:
+            i, j = pairs_within(positions, p.swarm.sensing_radius)
+        else:
+            i = j = _NO_PAIRS
+        a, m = self.obstacles.sensed(positions)
+        psi_o = obstacle_offsets(positions[a], self.obstacles.centers[m], self.obstacles.radii[m])
+        u, f = apf_field(positions - goal, a, psi_o, i, positions[i] - positions[j], c.p, c.combination, c.c_f)
+        return u, saturate(f, p.swarm.v_max)
+
+    def advance(self, velocities: np.ndarray) -> None:
+        """Move the prey (from the agents' current positions), then the agents."""
+        dt = self.scenario.dt
+        self.prey = prey_motion.step(self.scenario.prey, self.prey, dt, self.positions)
+        self.positions = self.positions + dt * velocities
+        self.step_index += 1
+
+
+def versions() -> dict[str, str]:
+    import msgpack
+    import rerun
+    import zenoh
+
+    return {"zswarm": __version__, "python": sys.version.split()[0], "numpy": np.__version__,
+            "rerun-sdk": rerun.__version__, "eclipse-zenoh": getattr(zenoh, "__version__", "?"),
+            "msgpack": ".".join(map(str, msgpack.version)), "platform": platform.platform()}
+
+
+def metric_context(scenario: Scenario, obstacles: ObstacleIndex) -> MetricContext:
+    p = scenario.params
+    return MetricContext(robot_radius=p.swarm.robot_radius, sensing_radius=p.swarm.sensing_radius,
+                         spacing=equilibria(p.potential).spacing if scenario.formation else None,
+                         obstacles=obstacles)
+
+
+@dataclass
+class RunResult:
+    summary: dict[str, Any]
+    metrics: Summary
+    trajectory: np.ndarray | None = None  # (steps + 1, N, 2) when kept
+    prey_trajectory: np.ndarray | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+def simulate(scenario: Scenario, seed: int, *, combination: Combination | None = None,
+             duration: float | None = None, record: Path | None = None, record_every: int = 1,
+             metrics_every: int = 1, keep_trajectory: bool = False, sensing_discs: bool = False,
+             argv: list[str] | None = None) -> RunResult:
+    """Run a scenario to its end; optionally record it to Rerun and keep the trajectories."""
+    sim = Simulator(scenario, seed, combination)
+    p = scenario.params
+    steps = int(round((duration if duration is not None else scenario.duration) / scenario.dt))
+    ctx = metric_context(scenario, sim.obstacles)
+    summary = Summary(capture_radius=scenario.capture_radius,
+                      epsilon=epsilon(p.potential, sim.positions.shape[0]))
+    traj = np.empty((steps + 1, *sim.positions.shape)) if keep_trajectory else None
+    prey_traj = np.empty((steps + 1, 2)) if keep_trajectory else None
+    header = {"scenario": scenario.name, "n_agents": int(len(sim.positions)), "seed": seed,
+              "potential": sim.combination, "duration": steps * scenario.dt, "steps": steps,
+              "dt": scenario.dt}
+    rec = None
+    if record is not None:
+        from zswarm import swarm_log
+        from zswarm.recording import open_recording
+
+        rec = open_recording(record, "zswarm-sim", swarm_log.blueprint(),
+                             recording_id=f"sim-{scenario.name}-{seed}")
+        swarm_log.log_config(rec, {**header, "scenario_definition": scenario.to_dict(),
+                                   "versions": versions(), "argv": argv or sys.argv})
+        swarm_log.log_obstacles(rec, sim.obstacles.centers, sim.obstacles.radii)
+    trail: list[np.ndarray] = []
+    for k in range(steps + 1):
+        u, v = sim.potential_and_velocity(sim.positions, sim.prey)
+        if traj is not None:
+            traj[k], prey_traj[k] = sim.positions, sim.prey
+        if k % metrics_every == 0 or k == steps:
+            metrics, colliding, contacts = step_metrics(sim.positions, v, sim.prey, ctx, float(u.sum()))
+            summary.add(sim.t, metrics, colliding, contacts)
+            if rec is not None and (k % record_every == 0 or k == steps):
+                _log_step(rec, sim, v, metrics, trail, p.swarm.sensing_radius if sensing_discs else None)
+        if k < steps:
+            sim.advance(v)
+    result = {**header, **summary.result()}
+    if rec is not None:
+        from zswarm import swarm_log
+        from zswarm.recording import close_recording
+
+        swarm_log.log_summary(rec, result)
+        close_recording(rec)
+    return RunResult(result, summary, traj, prey_traj)
+
+
+def _log_step(rec, sim: Simulator, v: np.ndarray, metrics: dict[str, float], trail: list[np.ndarray],
+              sensing_radius: float | None) -> None:
+    from zswarm import swarm_log
+
+    swarm_log.set_time(rec, sim.step_index, sim.t)
+    trail.append(sim.prey.copy())
+    swarm_log.log_swarm(rec, sim.ids, sim.positions, v, sensing_radius)
+    swarm_log.log_prey(rec, sim.prey, np.array(trail[-400:]))
+    swarm_log.log_metrics(rec, metrics)
