@@ -1,0 +1,1 @@
+"""Agent processes: ``python -m agents --id I --run RUN [zenoh args] [--set NAME=VALUE ...]``."""

@@ -1,0 +1,211 @@
+"""Launch a zswarm run: a Zenoh router, the world and N agent processes, on one machine or several.
+
+    python launch.py                                   # the demo: 10 agents chase a moving prey, 30 s
+    python launch.py --agents 20 --scenario static-goal --record sg.rrd
+    python launch.py --role router,world --listen tcp/0.0.0.0:7447 --agents 20      # machine A
+    python launch.py --role agents --connect tcp/A:7447 --ids 10-19 --agents 20     # machine B
+
+At the end, or on Ctrl-C, the agents are stopped first, then the world (which flushes the recording
+and writes the summary), then the router; every child is reaped.
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Sequence
+
+from zswarm.cli_util import Parser, UsageError, run_main
+from zswarm.procs import Children, free_port, port_in_use, wait_for_port
+from zswarm.recording import check_writable
+from zswarm.runspec import CLOCKS
+
+ROLES = ("router", "world", "agents")
+
+
+def parse_ids(text: str) -> list[int]:
+    ids: list[int] = []
+    try:
+        for part in text.split(","):
+            lo, sep, hi = part.partition("-")
+            ids.extend(range(int(lo), int(hi) + 1) if sep else [int(lo)])
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected ids like 0-9 or 3,5,7 (got {text!r})") from None
+    if not ids or min(ids) < 0:
+        raise argparse.ArgumentTypeError(f"expected non-negative ids (got {text!r})")
+    return ids
+
+
+def parse_roles(text: str) -> list[str]:
+    roles = [r.strip() for r in text.split(",") if r.strip()]
+    bad = [r for r in roles if r not in ROLES]
+    if bad or not roles:
+        raise argparse.ArgumentTypeError(f"roles are {', '.join(ROLES)} (comma-separated); got {text!r}")
+    return roles
+
+
+def build_parser() -> Parser:
+    p = Parser(prog="launch.py", description="Start a zswarm run: router, world and agents.")
+    p.add_argument("--agents", type=int, default=None, help="number of agents N (default: the scenario's)")
+    p.add_argument("--scenario", default="moving-prey", help="scenario name or .toml file (default moving-prey)")
+    p.add_argument("--duration", type=float, default=30.0, help="simulated seconds (default 30)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--set", dest="assignments", action="append", default=[], metavar="NAME=VALUE")
+    p.add_argument("--potential", choices=("additive", "multiplicative"), default=None)
+    p.add_argument("--clock", choices=CLOCKS, default="free")
+    p.add_argument("--time-scale", type=float, default=1.0)
+    p.add_argument("--run", default=None, help="run id (default: run-SEED-TIME)")
+    p.add_argument("--record", type=Path, default=Path("run.rrd"), help="recording (default run.rrd)")
+    p.add_argument("--summary", type=Path, default=None, help="summary JSON (default: beside the recording)")
+    p.add_argument("--trajectory", type=Path, default=None, help="observed positions per step (.npz)")
+    p.add_argument("--role", type=parse_roles, default=list(ROLES),
+                   help="what this machine runs: router,world,agents (default all three)")
+    p.add_argument("--connect", default=None, metavar="ENDPOINT",
+                   help="router to join when this machine runs no router, e.g. tcp/10.0.0.1:7447")
+    p.add_argument("--listen", default=None, metavar="ENDPOINT",
+                   help="router endpoint (default tcp/127.0.0.1:FREE_PORT)")
+    p.add_argument("--ids", type=parse_ids, default=None, help="agent ids this machine runs, e.g. 10-19")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    return p
+
+
+def run_args(args: argparse.Namespace, run: str) -> list[str]:
+    out = ["--run", run, "--scenario", args.scenario, "--seed", str(args.seed), "--clock", args.clock,
+           "--time-scale", str(args.time_scale)]
+    for a in args.assignments:
+        out += ["--set", a]
+    if args.agents is not None:
+        out += ["--set", f"n_agents={args.agents}"]
+    if args.potential:
+        out += ["--potential", args.potential]
+    return out
+
+
+def _endpoint_host_port(endpoint: str) -> tuple[str, int]:
+    try:
+        proto, rest = endpoint.split("/", 1)
+        host, port = rest.rsplit(":", 1)
+        return host.strip("[]"), int(port)
+    except ValueError:
+        raise UsageError(f"endpoint {endpoint!r} must look like tcp/HOST:PORT") from None
+
+
+def _validate(args: argparse.Namespace) -> tuple[str, int]:
+    """Check everything a child would reject, before any child starts. Returns the agent count."""
+    from zswarm.params import parse_assignments
+    from zswarm.scenarios import get_scenario
+
+    overrides = parse_assignments(args.assignments)
+    if args.agents is not None:
+        if args.agents < 1:
+            raise UsageError(f"--agents must be >= 1 (got {args.agents})")
+        overrides["n_agents"] = args.agents
+    scenario = get_scenario(args.scenario, overrides)
+    if not args.duration > 0:
+        raise UsageError(f"--duration must be > 0 (got {args.duration})")
+    if "world" in args.role:
+        for path in (args.record, args.summary, args.trajectory):
+            if path is not None:
+                check_writable(path)
+    if "router" not in args.role and args.connect is None:
+        raise UsageError("without the router role, give --connect tcp/HOST:PORT of the router")
+    return scenario.name, scenario.n_agents
+
+
+def _launch(argv: Sequence[str] | None) -> int:
+    args = build_parser().parse_args(argv)
+    _, n = _validate(args)
+    run = args.run or f"run-{args.seed}-{int(time.time())}"
+    if args.summary is None:
+        args.summary = args.record.with_suffix(".json")
+    endpoint = args.connect
+    if "router" in args.role:
+        endpoint = args.listen or f"tcp/127.0.0.1:{free_port()}"
+        host, port = _endpoint_host_port(endpoint)
+        if port_in_use(host if host not in ("0.0.0.0", "::") else "127.0.0.1", port):
+            raise UsageError(f"port {port} on {host} is already in use; pick another with --listen")
+    kids = Children()
+    interrupted = False
+
+    def on_signal(signum, _frame) -> None:
+        nonlocal interrupted
+        interrupted = True
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGTERM, on_signal)
+    try:
+        if "router" in args.role:
+            router = kids.spawn("router", ["-m", "zswarm.router", "--listen", endpoint],
+                                stdout=subprocess.DEVNULL)
+            host, port = _endpoint_host_port(endpoint)
+            if not wait_for_port("127.0.0.1" if host in ("0.0.0.0", "::") else host, port, 10.0, router):
+                raise UsageError(f"the router did not start on {endpoint} (port taken? address not local?)")
+        common = run_args(args, run) + ["--connect", endpoint]
+        world = None
+        if "world" in args.role:
+            wargs = ["-m", "world", *common, "--record", str(args.record), "--summary", str(args.summary),
+                     "--duration", str(args.duration), "--progress", "0" if args.quiet else "2"]
+            if args.trajectory is not None:
+                wargs += ["--trajectory", str(args.trajectory)]
+            world = kids.spawn("world", wargs)
+        if "agents" in args.role:
+            for i in args.ids if args.ids is not None else range(n):
+                kids.spawn(f"agent-{i}", ["-m", "agents", "--id", str(i), *common], stdout=subprocess.DEVNULL)
+        if not args.quiet:
+            print(f"launch: run {run!r}, {len(kids.named('agent'))} agent processes, router {endpoint}",
+                  flush=True)
+        return _supervise(kids, world, args)
+    except KeyboardInterrupt:
+        print("launch: stopping (agents, then the world, then the router)", file=sys.stderr, flush=True)
+        kids.stop_all()
+        _report(args, None)
+        return 130 if not interrupted else 143
+    finally:
+        kids.stop_all()
+
+
+def _supervise(kids: Children, world, args: argparse.Namespace) -> int:
+    """Wait for the world to finish (or, without a world, for the agents / for Ctrl-C)."""
+    crashed: set[str] = set()
+    while True:
+        for c in kids.children:
+            code = c.proc.poll()
+            if code not in (None, 0) and c.name not in crashed and c is not world:
+                crashed.add(c.name)
+                print(f"launch: {c.name} exited with code {code}; the others carry on", file=sys.stderr,
+                      flush=True)
+        if world is not None and not world.alive():
+            break
+        if world is None and "agents" in args.role and not any(c.alive() for c in kids.named("agent")):
+            break
+        router = kids.named("router")
+        if router and not router[0].alive():
+            print("launch: the router died", file=sys.stderr, flush=True)
+            return 1
+        time.sleep(0.1)
+    if world is None:
+        return 0
+    Children.stop(kids.named("agent"), 5.0)  # they end on the world's final tick; this reaps them
+    code = world.proc.returncode
+    _report(args, code)
+    return 0 if code == 0 else (2 if code == 2 else 1)
+
+
+def _report(args: argparse.Namespace, code: int | None) -> None:
+    if "world" not in args.role or args.quiet:
+        return
+    if args.record.exists():
+        print(f"launch: recording {args.record} (open with: rerun {args.record}); summary {args.summary}",
+              flush=True)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    return run_main(_launch, argv, prog="launch.py")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,62 @@
+"""Helpers to run real router/world/agent processes in tests; everything is reaped in ``finally``."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import subprocess
+import time
+from pathlib import Path
+from typing import Iterator
+
+from zswarm.procs import Children, free_port, wait_for_port
+
+
+@contextlib.contextmanager
+def processes() -> Iterator[Children]:
+    kids = Children()
+    try:
+        yield kids
+    finally:
+        kids.stop_all(grace=3.0)
+
+
+def start_router(kids: Children, host: str = "127.0.0.1") -> str:
+    port = free_port(host)
+    endpoint = f"tcp/{host}:{port}"
+    router = kids.spawn("router", ["-m", "zswarm.router", "--listen", endpoint], stdout=subprocess.DEVNULL)
+    assert wait_for_port(host, port, 10.0, router), "router did not start"
+    return endpoint
+
+
+def run_args(run: str, scenario: str, *extra: str) -> list[str]:
+    return ["--run", run, "--scenario", scenario, *extra]
+
+
+def start_world(kids: Children, endpoint: str, run: str, scenario: str, tmp: Path, *extra: str,
+                name: str = "world") -> tuple:
+    summary, record, traj = tmp / f"{run}.json", tmp / f"{run}.rrd", tmp / f"{run}.npz"
+    child = kids.spawn(name, ["-m", "world", *run_args(run, scenario, *extra), "--connect", endpoint,
+                              "--summary", str(summary), "--record", str(record), "--trajectory", str(traj),
+                              "--progress", "0"], stdout=subprocess.DEVNULL)
+    return child, summary, record, traj
+
+
+def start_agent(kids: Children, endpoint: str, run: str, scenario: str, agent: int, *extra: str):
+    return kids.spawn(f"agent-{agent}", ["-m", "agents", "--id", str(agent),
+                                         *run_args(run, scenario, *extra), "--connect", endpoint],
+                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+
+
+def wait_exit(child, timeout: float) -> int:
+    try:
+        return child.proc.wait(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        raise AssertionError(f"{child.name} did not finish within {timeout} s") from None
+
+
+def load_summary(path: Path) -> dict:
+    deadline = time.monotonic() + 5
+    while not path.exists() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    return json.loads(path.read_text())

@@ -1,0 +1,184 @@
+"""The distributed swarm with real processes and a real router (every child reaped, hard timeouts)."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from swarm_procs import (load_summary, processes, start_agent, start_router, start_world, wait_exit)
+from zswarm.procs import ROOT
+from zswarm.replay import load_run
+from zswarm.scenarios import get_scenario
+from zswarm.sim import simulate
+
+
+def rerun_verify(path: Path) -> None:
+    rerun = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")
+    res = subprocess.run([rerun, "rrd", "verify", str(path)], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+
+
+@pytest.mark.parametrize("scenario,duration", [("moving-prey", 30.0), ("static-goal", 32.0)])
+def test_lockstep_swarm_reproduces_the_reference_and_catches_the_prey(tmp_path, scenario, duration):
+    n = get_scenario(scenario).n_agents
+    with processes() as kids:
+        endpoint = start_router(kids)
+        world, summary_path, record, traj = start_world(kids, endpoint, "ls", scenario, tmp_path,
+                                                        "--clock", "lockstep", "--duration", str(duration))
+        agents = [start_agent(kids, endpoint, "ls", scenario, i, "--clock", "lockstep") for i in range(n)]
+        assert len({a.pid for a in agents} | {world.pid}) == n + 1  # each agent is its own process
+        assert wait_exit(world, 240) == 0
+        for a in agents:
+            assert wait_exit(a, 20) == 0
+    summary = load_summary(summary_path)
+    assert summary["capture_time"] is not None and summary["collisions"] == 0
+    assert summary["agents_reporting"] == n and summary["missed_lockstep_poses"] == 0
+    ref = simulate(get_scenario(scenario), 0, duration=duration, keep_trajectory=True)
+    observed = np.load(traj)["positions"]
+    assert observed.shape == ref.trajectory.shape
+    assert np.max(np.abs(observed - ref.trajectory)) < 1e-6  # at every step, every agent
+    rerun_verify(record)
+    run = load_run(record)
+    assert len(run.frames) == ref.trajectory.shape[0]
+    assert all(set(f.ids.tolist()) == set(range(n)) for f in run.frames)  # every agent's trajectory
+    np.testing.assert_allclose(np.stack([f.positions for f in run.frames]), ref.trajectory, atol=1e-6)
+    assert run.config["seed"] == 0 and "versions" in run.config and run.summary["collisions"] == 0
+
+
+def test_free_running_swarm_agrees_with_the_reference_on_the_outcome(tmp_path):
+    with processes() as kids:
+        endpoint = start_router(kids)
+        world, summary_path, record, _ = start_world(kids, endpoint, "free", "moving-prey", tmp_path,
+                                                     "--duration", "30")
+        for i in range(10):
+            start_agent(kids, endpoint, "free", "moving-prey", i)
+        assert wait_exit(world, 120) == 0
+    s = load_summary(summary_path)
+    ref = s["reference"]
+    assert (s["capture_time"] is None) == (ref["capture_time"] is None) and s["capture_time"] is not None
+    assert s["collisions"] == ref["collisions"] == 0
+    assert s["final_components"] == ref["final_components"]
+    assert set(s["vs_reference"]) >= {"capture_time", "min_pair_distance", "final_centroid_goal_distance"}
+    assert s["pose_age_ms"]["p50"] is not None and s["ticks"] > 0 and s["messages_rejected"] == 0
+    rerun_verify(record)
+
+
+def test_groups_far_apart_receive_none_of_each_others_poses(tmp_path):
+    starts = {0: "-3,0", 1: "-3,0.6", 2: "40,0", 3: "40,0.6"}
+    args = ("--set", "n_agents=4", "--set", "sensing_radius=1.0")
+    with processes() as kids:
+        endpoint = start_router(kids)
+        world, summary_path, _, _ = start_world(kids, endpoint, "far", "static-goal", tmp_path, *args,
+                                                "--duration", "4")
+        for i, start in starts.items():
+            start_agent(kids, endpoint, "far", "static-goal", i, *args, f"--start={start}")
+        assert wait_exit(world, 60) == 0
+    heard = {int(k): set(v) for k, v in load_summary(summary_path)["heard"].items()}
+    assert heard[0] == {1} and heard[1] == {0}  # they did hear their own group
+    assert heard[2] == {3} and heard[3] == {2}
+
+
+def test_two_runs_on_one_router_do_not_see_each_other(tmp_path):
+    args = ("--set", "n_agents=2", "--set", "sensing_radius=1.0", "--duration", "4")
+    with processes() as kids:
+        endpoint = start_router(kids)
+        wa, sa, _, _ = start_world(kids, endpoint, "runA", "static-goal", tmp_path, *args, name="world-a")
+        wb, sb, _, _ = start_world(kids, endpoint, "runB", "static-goal", tmp_path, *args, name="world-b")
+        for run, ids in (("runA", (0, 1)), ("runB", (2, 3))):
+            for i, start in zip(ids, ("-3,0", "-3,0.6")):  # the same places
+                start_agent(kids, endpoint, run, "static-goal", i, *args[:4], f"--start={start}")
+        assert wait_exit(wa, 60) == 0 and wait_exit(wb, 60) == 0
+    a, b = load_summary(sa), load_summary(sb)
+    assert {int(k): set(v) for k, v in a["heard"].items()} == {0: {1}, 1: {0}}
+    assert {int(k): set(v) for k, v in b["heard"].items()} == {2: {3}, 3: {2}}
+
+
+def test_killing_one_agent_leaves_the_others_running_and_is_recorded(tmp_path):
+    with processes() as kids:
+        endpoint = start_router(kids)
+        world, summary_path, record, _ = start_world(kids, endpoint, "kill", "moving-prey", tmp_path,
+                                                     "--set", "n_agents=5", "--duration", "8")
+        agents = [start_agent(kids, endpoint, "kill", "moving-prey", i, "--set", "n_agents=5")
+                  for i in range(5)]
+        deadline = time.monotonic() + 60
+        while not record.exists() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        time.sleep(4.0)
+        agents[2].proc.send_signal(signal.SIGKILL)
+        time.sleep(1.0)
+        assert all(a.alive() for k, a in enumerate(agents) if k != 2)
+        assert wait_exit(world, 60) == 0
+        assert all(wait_exit(a, 10) == 0 for k, a in enumerate(agents) if k != 2)
+    s = load_summary(summary_path)
+    assert [d["id"] for d in s["departures"] if d["t"] < 7.9] == [2]
+    assert s["agents_reporting"] == 5 and s["final_components"] >= 1
+    run = load_run(record)
+    assert 2 in run.frames[1].ids and 2 not in run.frames[-1].ids and len(run.frames[-1].ids) == 4
+
+
+def _our_processes(marker: str) -> list[int]:
+    out = []
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                if marker in (d / "cmdline").read_bytes().decode(errors="replace"):
+                    out.append(int(d.name))
+            except OSError:
+                pass
+    return out
+
+
+def test_launch_runs_a_swarm_and_leaves_nothing_behind(tmp_path):
+    res = subprocess.run([sys.executable, str(ROOT / "launch.py"), "--agents", "4", "--duration", "4",
+                          "--run", "launchtest", "--record", str(tmp_path / "l.rrd")], cwd=tmp_path,
+                         capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    assert "rerun " in res.stdout and (tmp_path / "l.json").exists()
+    rerun_verify(tmp_path / "l.rrd")
+    assert _our_processes("launchtest") == []
+
+
+def test_launch_ctrl_c_flushes_the_recording_and_reaps_everyone(tmp_path):
+    proc = subprocess.Popen([sys.executable, str(ROOT / "launch.py"), "--agents", "3", "--duration", "60",
+                             "--run", "ctrlctest", "--record", str(tmp_path / "c.rrd"), "--quiet"],
+                            cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while not (tmp_path / "c.rrd").exists() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        time.sleep(3.0)
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    rerun_verify(tmp_path / "c.rrd")
+    assert (tmp_path / "c.json").exists()
+    assert _our_processes("ctrlctest") == []
+
+
+@pytest.mark.parametrize("argv,needle", [
+    (["-m", "agents", "--id", "0", "--connect", "tcp/127.0.0.1:1"], "cannot open a zenoh session"),
+    (["-m", "agents", "--id", "0", "--start", "1;2"], "--start expects X,Y"),
+    (["-m", "agents", "--id", "99", "--scenario", "moving-prey"], "has no spawn position"),
+    (["-m", "world", "--scenario", "nope"], "unknown scenario"),
+    (["launch.py", "--agents", "0"], "--agents must be"),
+    (["launch.py", "--role", "agents"], "--connect"),
+    (["launch.py", "--ids", "x-y"], "--ids"),
+])
+def test_process_usage_errors_are_one_line(argv, needle):
+    args = [str(ROOT / argv[0])] + argv[1:] if argv[0].endswith(".py") else argv
+    res = subprocess.run([sys.executable, *args], capture_output=True, text=True, timeout=60,
+                         env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert res.returncode == 2, res.stderr
+    assert needle in res.stderr and "Traceback" not in res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1

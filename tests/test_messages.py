@@ -1,0 +1,102 @@
+"""Wire messages: round trips, and no input whatsoever makes decode raise anything but DecodeError."""
+
+import math
+
+import msgpack
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from zswarm import messages as msg
+
+finite = st.floats(-1e5, 1e5, allow_nan=False)
+poses = st.builds(msg.Pose, st.integers(0, 10_000), st.integers(0, 2**40), st.floats(0, 2e9),
+                  st.integers(-1, 10**6), finite, finite, finite, finite)
+hist = st.dictionaries(st.integers(0, msg.MAX_HIST_BINS - 1), st.integers(0, 10**6), max_size=20)
+stats = st.builds(msg.Stats, st.integers(0, 1000), st.integers(0, 10**9), st.integers(0, 10**9),
+                  st.dictionaries(st.sampled_from(msg.REASONS), st.integers(0, 100), max_size=3),
+                  st.integers(0, 10**6), st.integers(0, 10**6), hist, hist, st.booleans(),
+                  st.dictionaries(st.text(max_size=8), finite, max_size=3),
+                  st.lists(st.integers(0, 1000), max_size=10).map(tuple))
+messages = st.one_of(
+    poses,
+    st.builds(msg.Prey, st.integers(0, 2**40), st.floats(0, 2e9), st.integers(-1, 10**6), finite, finite),
+    st.builds(msg.Tick, st.integers(0, 10**6), st.floats(0, 2e9), finite, finite, st.booleans()),
+    st.builds(msg.Obstacles, st.lists(st.tuples(finite, finite), max_size=20).map(tuple),
+              st.just(())).map(lambda o: msg.Obstacles(o.centers, tuple(0.5 for _ in o.centers))),
+    stats,
+)
+
+
+@settings(max_examples=300, deadline=None)
+@given(m=messages)
+def test_round_trip(m):
+    assert msg.decode(msg.encode(m)) == m
+
+
+@settings(max_examples=1000, deadline=None)
+@given(data=st.binary(max_size=512))
+def test_random_bytes_never_crash_the_decoder(data):
+    try:
+        msg.decode(data)
+    except msg.DecodeError as exc:
+        assert exc.reason in msg.REASONS
+
+
+json_like = st.recursive(st.none() | st.booleans() | st.integers(-2**63, 2**64 - 1) | st.floats() | st.text(max_size=5),
+                         lambda c: st.lists(c, max_size=4) | st.dictionaries(st.text(max_size=3), c, max_size=4),
+                         max_leaves=20)
+
+
+@settings(max_examples=1000, deadline=None)
+@given(m=messages, key=st.sampled_from(["v", "k", "id", "seq", "t", "s", "p", "u", "c", "r", "ages", "h", "f"]),
+       value=json_like)
+def test_mutated_fields_are_rejected_or_valid(m, key, value):
+    obj = msgpack.unpackb(msg.encode(m), raw=False, strict_map_key=False)
+    obj[key] = value
+    try:
+        out = msg.decode(msgpack.packb(obj, use_bin_type=True))
+    except msg.DecodeError as exc:
+        assert exc.reason in msg.REASONS
+    else:
+        assert out is not None
+
+
+@pytest.mark.parametrize("obj,reason", [
+    ({"v": 2, "k": "pose"}, "version"),
+    ({"v": 1, "k": "teleport"}, "kind"),
+    ({"v": 1, "k": "pose", "id": 1, "seq": 1, "t": 0.0, "s": -1, "p": [math.nan, 0.0], "u": [0, 0]}, "nonfinite"),
+    ({"v": 1, "k": "pose", "id": 1, "seq": 1, "t": 0.0, "s": -1, "p": [math.inf, 0.0], "u": [0, 0]}, "nonfinite"),
+    ({"v": 1, "k": "pose", "id": 1, "seq": 1, "t": 0.0, "s": -1, "p": [1e9, 0.0], "u": [0, 0]}, "range"),
+    ({"v": 1, "k": "pose", "id": -3, "seq": 1, "t": 0.0, "s": -1, "p": [0, 0], "u": [0, 0]}, "range"),
+    ({"v": 1, "k": "pose", "id": 1, "seq": 1, "t": 0.0, "s": -1, "p": [0], "u": [0, 0]}, "schema"),
+    ({"v": 1, "k": "pose", "id": True, "seq": 1, "t": 0.0, "s": -1, "p": [0, 0], "u": [0, 0]}, "schema"),
+    ({"v": 1, "k": "obst", "c": [[0, 0]] * (msg.MAX_OBSTACLES + 1), "r": [0] * (msg.MAX_OBSTACLES + 1)}, "size"),
+    ({"v": 1, "k": "obst", "c": [[0, 0]], "r": [-1.0]}, "range"),
+    ([1, 2, 3], "malformed"),
+])
+def test_specific_rejections(obj, reason):
+    with pytest.raises(msg.DecodeError) as err:
+        msg.decode(msgpack.packb(obj, use_bin_type=True))
+    assert err.value.reason == reason
+
+
+def test_oversized_and_truncated_payloads():
+    with pytest.raises(msg.DecodeError) as err:
+        msg.decode(b"\x00" * (msg.MAX_PAYLOAD + 1))
+    assert err.value.reason == "size"
+    good = msg.encode(msg.Pose(1, 1, 0.0, -1, 0.0, 0.0, 0.0, 0.0))
+    with pytest.raises(msg.DecodeError) as err:
+        msg.decode(good[:-3])
+    assert err.value.reason == "malformed"
+
+
+def test_histogram_percentiles():
+    h = {}
+    for ms in range(1, 101):  # 1..100 ms
+        b = msg.to_bin(float(ms))
+        h[b] = h.get(b, 0) + 1
+    assert msg.percentile(h, 0.5) == pytest.approx(50.75, abs=1.0)
+    assert msg.percentile(h, 0.99) == pytest.approx(99.75, abs=1.0)
+    assert msg.percentile({}, 0.5) is None
+    assert msg.merge([{1: 2}, {1: 3, 4: 1}]) == {1: 5, 4: 1}

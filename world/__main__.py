@@ -1,0 +1,5 @@
+import sys
+
+from world.main import main
+
+sys.exit(main())

@@ -1,0 +1,106 @@
+"""``python -m world``: host obstacles and prey, observe the swarm, record the run."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import signal
+import sys
+import time
+from pathlib import Path
+from typing import Sequence
+
+from world.world import World
+from zswarm import messages as msg
+from zswarm.cli_util import Parser, UsageError, run_main
+from zswarm.recording import check_writable
+from zswarm.runspec import add_run_args, spec_from_args
+from zswarm.transport import Bridge, add_zenoh_args, config_from_args, open_session
+
+
+def build_parser() -> Parser:
+    parser = Parser(prog="world", description="The zswarm world: obstacles, prey, recording, metrics.")
+    add_run_args(parser)
+    parser.add_argument("--record", type=Path, metavar="FILE.rrd", help="write a Rerun recording")
+    parser.add_argument("--summary", type=Path, metavar="FILE.json", help="write the run summary here")
+    parser.add_argument("--trajectory", type=Path, metavar="FILE.npz",
+                        help="also save the observed positions per step (numpy .npz)")
+    parser.add_argument("--duration", type=float, default=None, help="simulated seconds (default: scenario's)")
+    parser.add_argument("--start-timeout", type=float, default=30.0,
+                        help="wait this long for all agents to be alive before starting (default 30 s)")
+    parser.add_argument("--step-timeout", type=float, default=5.0,
+                        help="lockstep: longest wait for the poses of a step (default 5 s)")
+    parser.add_argument("--progress", type=float, default=2.0, help="seconds between progress lines (0: none)")
+    add_zenoh_args(parser)
+    return parser
+
+
+async def run_world(args, spec) -> dict:
+    loop = asyncio.get_running_loop()
+    session = open_session(config_from_args(args), what="world")
+    queue: asyncio.Queue = asyncio.Queue()
+    bridge = Bridge(session, loop, queue)
+    world = World(spec, bridge, args.record, args.summary, args.trajectory, list(sys.argv))
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        loop.add_signal_handler(sig, world.stop.set)
+    keys = spec.keys
+    declared = []
+    steps = int(round((args.duration if args.duration is not None else spec.scenario.duration) / spec.scenario.dt))
+    try:
+        world.open_recording()
+        declared.append(bridge.queryable(keys.obstacles, world.answer_obstacles))
+        declared.append(bridge.subscribe(keys.all_poses, "pose"))
+        declared.append(bridge.subscribe(keys.all_stats, "stats"))
+        declared.append(bridge.subscribe_liveliness(keys.all_alive, "alive"))
+
+        async def pump() -> None:
+            while True:
+                world.handle(await queue.get())
+
+        pump_task = asyncio.ensure_future(pump())
+        print(f"world: run {spec.run!r}, scenario {spec.scenario.name}, {spec.scenario.n_agents} agents, "
+              f"{spec.clock} clock; waiting for the agents", flush=True)
+        await world.wait_for_agents(args.start_timeout)
+        if spec.clock == "lockstep":
+            await world.run_lockstep(steps, args.progress, args.step_timeout)
+        else:
+            await world.run_free(steps, args.progress)
+        expected = set(world.state.alive)
+        world.publish(keys.tick, msg.encode(msg.Tick(world.step_index + 1, time.time(),
+                                                     float(world.prey[0]), float(world.prey[1]), final=True)))
+        deadline = loop.time() + 3.0  # let the agents' final stats arrive
+        stats = world.state.stats
+        while loop.time() < deadline and not all(i in stats and stats[i].final for i in expected):
+            await asyncio.sleep(0.05)
+        pump_task.cancel()
+        return world.finish(steps)
+    finally:
+        bridge.close()
+        for d in reversed(declared):
+            try:
+                d.undeclare()
+            except Exception:
+                pass
+        session.close()
+
+
+def _main(argv: Sequence[str] | None) -> int:
+    args = build_parser().parse_args(argv)
+    spec = spec_from_args(args)
+    for path in (args.record, args.summary, args.trajectory):
+        if path is not None:
+            check_writable(path)
+    if args.duration is not None and not args.duration > 0:
+        raise UsageError(f"--duration must be > 0 (got {args.duration})")
+    result = asyncio.run(run_world(args, spec))
+    keys = ("capture_time", "collisions", "min_pair_distance", "final_components", "messages_rejected")
+    print("world: done " + json.dumps({k: result.get(k) for k in keys}), flush=True)
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    return run_main(_main, argv, prog="world")
+
+
+if __name__ == "__main__":
+    sys.exit(main())
