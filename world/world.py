@@ -301,6 +301,7 @@ class World:
             "messages_rejected": sum(rejected.values()), "rejected_by_reason": rejected,
             "pose_age_ms": {"p50": msg.percentile(ages, 0.5), "p99": msg.percentile(ages, 0.99)},
             "pose_latency_ms": {"p50": msg.percentile(lat, 0.5), "p99": msg.percentile(lat, 0.99)},
+            "poses_received": sum(lat.values()),
             "ticks": ticks, "late_ticks": late, "on_time_ratio": (1 - late / ticks) if ticks else None,
             "startup_s": self.all_alive_after,
             "departures": self.state.departures,

@@ -33,7 +33,20 @@ def build_parser() -> Parser:
     bench_sim = bench_sub.add_parser("sim", help="simulator steps per second for growing N")
     sim_cli.add_bench_sim_arguments(bench_sim)
     bench_sim.set_defaults(run=sim_cli.run_bench_sim)
+    bench_net = bench_sub.add_parser("net", help="distributed swarm: latency, ticks on time, load, memory")
+    bench_net.add_argument("--agents", type=lambda s: [sim_cli.positive_int(x) for x in s.split(",")],
+                           default=[10], help="N, or a comma-separated list (default 10)")
+    bench_net.add_argument("--duration", type=sim_cli.positive_float, default=15.0,
+                           help="simulated = wall seconds per run (default 15)")
+    bench_net.add_argument("--json", action="store_true")
+    bench_net.set_defaults(run=_bench_net)
     return parser
+
+
+def _bench_net(args) -> int:
+    from zswarm.bench_net import main_bench
+
+    return main_bench(args)
 
 
 def _main(argv: Sequence[str] | None) -> int:

@@ -202,6 +202,18 @@ def large_swarm(n_agents: int = 300) -> Scenario:
     )
 
 
+def bench_field(n_agents: int = 50) -> Scenario:
+    """Transport benchmark: agents spread at constant density (0.5 per unit area) over a square that
+    grows with N, sensing radius 1; the prey is far away, so each agent only keeps its formation."""
+    side = math.sqrt(n_agents / 0.5)
+    return Scenario(
+        name="bench-field",
+        description="Transport benchmark: N agents at constant density, prey out of reach.",
+        params=DEFAULT_PARAMS.with_values({"n_agents": n_agents, "sensing_radius": 1.0}),
+        prey_start=(1000.0, 0.0), spawn=(-side / 2, -side / 2, side / 2, side / 2), duration=15.0,
+    )
+
+
 SCENARIOS: dict[str, Callable[[], Scenario]] = {
     "goal-near-obstacle": goal_near_obstacle,
     "static-goal": static_goal,
@@ -210,6 +222,7 @@ SCENARIOS: dict[str, Callable[[], Scenario]] = {
     "moving-prey-evasive": moving_prey("evasive"),
     "narrow-passage": narrow_passage,
     "large-swarm": large_swarm,
+    "bench-field": bench_field,
 }
 
 
@@ -222,8 +235,8 @@ def get_scenario(name: str, overrides: dict[str, Any] | None = None) -> Scenario
     if name.endswith(".toml"):
         scenario = load_scenario_file(Path(name))
     elif name in SCENARIOS:
-        if name == "large-swarm" and "n_agents" in overrides:
-            scenario = large_swarm(int(overrides["n_agents"]))
+        if name in ("large-swarm", "bench-field") and "n_agents" in overrides:
+            scenario = (large_swarm if name == "large-swarm" else bench_field)(int(overrides["n_agents"]))
         else:
             scenario = SCENARIOS[name]()
     else:
