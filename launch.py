@@ -22,7 +22,7 @@ from typing import Sequence
 from zswarm.cli_util import Parser, UsageError, run_main
 from zswarm.procs import Children, free_port, port_in_use, wait_for_port
 from zswarm.recording import check_writable
-from zswarm.runspec import CLOCKS
+from zswarm.runspec import CLOCKS, add_fault_args, faults_from_args
 
 ROLES = ("router", "world", "agents")
 
@@ -70,6 +70,7 @@ def build_parser() -> Parser:
                    help="router endpoint (default tcp/127.0.0.1:FREE_PORT)")
     p.add_argument("--ids", type=parse_ids, default=None, help="agent ids this machine runs, e.g. 10-19")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
+    add_fault_args(p)
     return p
 
 
@@ -82,6 +83,8 @@ def run_args(args: argparse.Namespace, run: str) -> list[str]:
         out += ["--set", f"n_agents={args.agents}"]
     if args.potential:
         out += ["--potential", args.potential]
+    out += ["--latency", args.latency, "--jitter", args.jitter, "--dropout", str(args.dropout),
+            "--burst", str(args.burst), "--distance-loss", str(args.distance_loss)]
     return out
 
 
@@ -105,6 +108,7 @@ def _validate(args: argparse.Namespace) -> tuple[str, int]:
             raise UsageError(f"--agents must be >= 1 (got {args.agents})")
         overrides["n_agents"] = args.agents
     scenario = get_scenario(args.scenario, overrides)
+    faults_from_args(args)
     if not args.duration > 0:
         raise UsageError(f"--duration must be > 0 (got {args.duration})")
     if "world" in args.role:

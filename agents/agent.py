@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from zswarm import messages as msg
+from zswarm.faults import OBSTACLE_SOURCE, PREY_SOURCE
 from zswarm.potentials import Controller, make_controller, sense_one
 from zswarm.runspec import RunSpec
 from zswarm.transport import Bridge, cells_in_disc
@@ -48,6 +49,8 @@ class Counters:
     latency: dict[int, int] = field(default_factory=dict)
     obstacle_queries_failed: int = 0
     heard: set[int] = field(default_factory=set)
+    seq_received: int = 0
+    seq_lost: int = 0
 
     def reject(self, reason: str, agent: int, detail: str) -> None:
         if reason not in self.rejected:  # log once per reason
@@ -63,7 +66,7 @@ class Counters:
 
 class Agent:
     def __init__(self, spec: RunSpec, agent_id: int, bridge: Bridge, start: np.ndarray,
-                 staleness: float = 0.5, lockstep_wait: float = 2.0) -> None:
+                 staleness: float = 0.5, lockstep_wait: float = 0.25) -> None:
         self.spec, self.id, self.bridge = spec, agent_id, bridge
         self.keys = spec.keys
         p = spec.scenario.params
@@ -74,6 +77,8 @@ class Agent:
         self.step = 0
         self.seq = 0
         self.staleness, self.lockstep_wait = staleness, lockstep_wait
+        # cells within R + 2 v_max dt: whoever can enter the sensing disc next step is already heard
+        self.subscription_radius = self.radius + 2.0 * self.v_max * self.dt
         self.neighbours: dict[int, Neighbour] = {}
         self.prey: np.ndarray | None = None
         self.prey_by_step: dict[int, np.ndarray] = {}
@@ -90,6 +95,8 @@ class Agent:
         self.ticks: asyncio.Queue[msg.Tick] = asyncio.Queue()
         self.pose_arrived = asyncio.Event()
         self.stop = asyncio.Event()
+        self.injector = None  # a FaultInjector when faults are injected
+        self.last_seq: dict[int, int] = {}
 
     # --- inbound ---------------------------------------------------------------------------------------
 
@@ -115,6 +122,42 @@ class Agent:
         else:
             self.counters.reject("kind", self.id, f"{type(m).__name__} on {tag} key")
 
+    def fault_source(self, tag: str, key: str, payload: bytes) -> tuple[int, float | None] | None:
+        """The link a message arrives on, and (poses) its sender's distance over the sensing radius."""
+        if tag == "prey":
+            return (PREY_SOURCE, None)
+        if key.startswith(self.keys.obstacles):
+            return (OBSTACLE_SOURCE, None)
+        if tag in ("pose", "reply"):
+            who = self.keys.agent_of(key)
+            if who is None:
+                return None
+            try:
+                m = msg.decode(payload)
+            except msg.DecodeError:
+                return (who, None)  # let it through to be rejected and counted
+            ratio = math.hypot(m.x - self.position[0], m.y - self.position[1]) / self.radius \
+                if isinstance(m, msg.Pose) else None
+            return (who, ratio)
+        return None
+
+    def _count_sequence(self, pose: msg.Pose) -> None:
+        """Observed loss from sequence numbers: a gap of g (at most 50: longer means out of range)
+        counts g - 1 lost; a late arrival that filled a gap is taken back."""
+        last = self.last_seq.get(pose.id)
+        c = self.counters
+        if last is None:
+            c.seq_received += 1
+        elif pose.seq > last:
+            gap = pose.seq - last - 1
+            if gap <= 50:
+                c.seq_lost += gap
+            c.seq_received += 1
+        elif pose.seq < last and c.seq_lost > 0:
+            c.seq_lost -= 1
+            c.seq_received += 1
+        self.last_seq[pose.id] = max(pose.seq, last or 0)
+
     def _on_pose(self, key: str, pose: msg.Pose) -> None:
         if self.keys.agent_of(key) != pose.id:
             self.counters.reject("schema", self.id, f"pose of {pose.id} under key {key}")
@@ -122,6 +165,7 @@ class Agent:
         if pose.id == self.id:
             return
         now = time.time()
+        self._count_sequence(pose)
         self.counters.heard.add(pose.id)
         self.counters.add(self.counters.latency, (now - pose.stamp) * 1000.0)
         nb = self.neighbours.get(pose.id)
@@ -163,7 +207,7 @@ class Agent:
     async def update_cells(self) -> None:
         """Subscribe to the cells the sensing disc overlaps; ask new cells for their agents at once."""
         x, y = map(float, self.position)
-        wanted = cells_in_disc(self.keys, x, y, self.radius)
+        wanted = cells_in_disc(self.keys, x, y, self.subscription_radius)
         for cell in [c for c in self.cells if c not in wanted]:
             self.cells.pop(cell).undeclare()
             self.cell_since.pop(cell, None)
@@ -233,7 +277,10 @@ class Agent:
         c = self.counters
         return msg.encode(msg.Stats(self.id, c.sent, c.received, dict(c.rejected), c.late_ticks, c.ticks,
                                     dict(c.ages), dict(c.latency), final,
-                                    {"obstacle_queries_failed": float(c.obstacle_queries_failed)},
+                                    {"obstacle_queries_failed": float(c.obstacle_queries_failed),
+                                     "seq_received": float(c.seq_received), "seq_lost": float(c.seq_lost),
+                                     "injected_drops": float(self.injector.faults.dropped if self.injector else 0),
+                                     "injected_passed": float(self.injector.faults.passed if self.injector else 0)},
                                     tuple(sorted(c.heard))[:msg.MAX_HEARD]))
 
     async def publish_stats(self) -> None:
@@ -271,43 +318,33 @@ class Agent:
                 pass
 
     async def _await_step_poses(self, step: int) -> None:
-        """Bounded wait for the step poses of the agents that must be heard.
+        """Make sure it has the step pose of every agent that can be within its radius now.
 
-        The world's tick k+1 follows every pose of step k through the router, so those poses have
-        normally arrived already. The agent waits only for neighbours it heard at step k-1 that are
-        surely still inside its sensing disc (hence in its cells); one that may have left is not
-        waited for, since its next pose may go to a cell it does not hear.
+        It subscribes to the cells within R + 2 v_max dt, so every agent that can be within R at
+        step k was heard at step k-1. It waits (briefly) for those; for any still missing, and for
+        cells it subscribed to during this step (a subscription may reach the router after a
+        neighbour published), it asks the cells where they can be for their pose of this step.
         """
-        inside = self.radius - 2.0 * self.v_max * self.dt
-        deadline = asyncio.get_running_loop().time() + self.lockstep_wait
-        while True:
-            missing = [nb for nb in self.neighbours.values() if step not in nb.by_step and
-                       nb.latest.step == step - 1 and
-                       math.hypot(nb.latest.x - self.position[0], nb.latest.y - self.position[1]) <= inside]
-            remaining = deadline - asyncio.get_running_loop().time()
-            if not missing or remaining <= 0:
-                break
+        reach = self.subscription_radius
+        expected = [nb for nb in self.neighbours.values()
+                    if step not in nb.by_step and (step - 1 in nb.by_step or nb.latest.step >= step - 1)
+                    and math.hypot(nb.latest.x - self.position[0], nb.latest.y - self.position[1]) <= reach]
+        loop = asyncio.get_running_loop()
+        deadline = loop.time() + self.lockstep_wait
+        while expected and loop.time() < deadline:
             self.pose_arrived.clear()
             try:
-                await asyncio.wait_for(self.pose_arrived.wait(), remaining)
+                await asyncio.wait_for(self.pose_arrived.wait(), deadline - loop.time())
             except asyncio.TimeoutError:
                 break
-        await self._pull_step_poses(step)
-
-    async def _pull_step_poses(self, step: int) -> None:
-        """Ask for step poses where a publication may have slipped past: cells subscribed during this
-        step (the subscription may have reached the router after a neighbour published), and cells
-        of neighbours near the edge of the disc that have not been heard for this step."""
-        edge = self.radius + 2.0 * self.v_max * self.dt
+            expected = [nb for nb in expected if step not in nb.by_step]
         cells = {c for c, since in self.cell_since.items() if since >= step}
-        for nb in self.neighbours.values():
-            if (step not in nb.by_step and nb.latest.step == step - 1
-                    and math.hypot(nb.latest.x - self.position[0], nb.latest.y - self.position[1]) <= edge):
-                cells |= {c for c in self.cells if c in cells_in_disc(self.keys, nb.latest.x, nb.latest.y,
-                                                                      2.0 * self.v_max * self.dt)}
-        for cell in cells:
-            for key, payload in await self.bridge.get(f"{self.keys.cell_poses(cell)}?step={step}", timeout=1.0):
-                self.handle(("pose", key, payload, False))
+        for nb in expected:
+            cells |= cells_in_disc(self.keys, nb.latest.x, nb.latest.y, 2.0 * self.v_max * self.dt)
+        replies = await asyncio.gather(*(self.bridge.get(f"{self.keys.cell_poses(c)}?step={step}", timeout=1.0)
+                                         for c in cells))
+        for key, payload in (r for batch in replies for r in batch):
+            self.handle(("pose", key, payload, False))
 
     async def run_lockstep(self) -> None:
         while not self.stop.is_set():

@@ -10,6 +10,7 @@ from typing import Sequence
 import numpy as np
 
 from agents.agent import Agent
+from zswarm.faults import FaultInjector
 from zswarm.cli_util import Parser, UsageError, run_main
 from zswarm.runspec import RunSpec, add_run_args, spec_from_args
 from zswarm.transport import Bridge, add_zenoh_args, config_from_args, open_session
@@ -23,8 +24,9 @@ def build_parser() -> Parser:
                         "for this id and seed)")
     parser.add_argument("--staleness", type=float, default=0.5,
                         help="free clock: ignore neighbour data older than this many seconds (default 0.5)")
-    parser.add_argument("--lockstep-wait", type=float, default=2.0,
-                        help="lockstep: longest wait for a neighbour's pose of the step (default 2 s)")
+    parser.add_argument("--lockstep-wait", type=float, default=0.25,
+                        help="lockstep: wait this long for expected poses of a step before asking the "
+                             "cells for them (default 0.25 s)")
     parser.add_argument("--start-timeout", type=float, default=20.0,
                         help="give up if the world has not answered for this long at start (default 20 s)")
     add_run_args(parser)
@@ -53,6 +55,10 @@ async def run_agent(spec: RunSpec, args) -> int:
     queue: asyncio.Queue = asyncio.Queue()
     bridge = Bridge(session, loop, queue)
     agent = Agent(spec, args.id, bridge, start, args.staleness, args.lockstep_wait)
+    if spec.faults.active:
+        injector = FaultInjector(spec.faults, args.id, loop, queue.put_nowait, agent.fault_source)
+        bridge.deliver, bridge.reply_filter = injector.deliver, injector.filter_replies
+        agent.injector = injector
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, agent.stop.set)
     keys = spec.keys

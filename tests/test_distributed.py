@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import signal
@@ -51,6 +52,13 @@ def test_lockstep_swarm_reproduces_the_reference_and_catches_the_prey(tmp_path, 
     assert all(set(f.ids.tolist()) == set(range(n)) for f in run.frames)  # every agent's trajectory
     np.testing.assert_allclose(np.stack([f.positions for f in run.frames]), ref.trajectory, atol=1e-6)
     assert run.config["seed"] == 0 and "versions" in run.config and run.summary["collisions"] == 0
+    replay = subprocess.run([sys.executable, "-m", "zswarm", "replay", str(record), "--json"],
+                            capture_output=True, text=True, timeout=120, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert replay.returncode == 0, replay.stdout + replay.stderr
+    replayed = json.loads(replay.stdout)
+    assert replayed["replay"]["matches_stored_summary"] is True
+    for key in ("capture_time", "collisions", "min_pair_distance", "max_components", "final_energy"):
+        assert replayed[key] == summary[key]  # exactly: same float64 states, same code
 
 
 def test_free_running_swarm_agrees_with_the_reference_on_the_outcome(tmp_path):

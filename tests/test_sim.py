@@ -155,3 +155,26 @@ def test_cli_scenarios_and_bench(cli):
     assert [r["n_agents"] for r in out["runs"]] == [10, 50]
     assert all(r["steps_per_second"] > 0 and r["steps"] == 5 for r in out["runs"])
     assert out["cost_ratio_10000_1000"] is None
+
+
+def test_replay_reproduces_the_simulator_summary_and_compare_prints_both(cli, tmp_path):
+    a, b = tmp_path / "a.rrd", tmp_path / "b.rrd"
+    assert cli("-m", "zswarm", "sim", "--scenario", "static-goal", "--duration", "6", "--record", str(a)).returncode == 0
+    assert cli("-m", "zswarm", "sim", "--scenario", "static-goal", "--duration", "6", "--seed", "1",
+               "--record", str(b)).returncode == 0
+    res = cli("-m", "zswarm", "replay", str(a), "--json")
+    assert res.returncode == 0, res.stderr
+    out = json.loads(res.stdout)
+    direct = simulate(get_scenario("static-goal"), 0, duration=6.0).summary
+    assert out["replay"]["matches_stored_summary"] is True and out["replay"]["frames"] == 121
+    for key in ("min_pair_distance", "final_energy", "max_cohesion", "final_centroid_goal_distance"):
+        assert out[key] == direct[key]
+    cmp = cli("-m", "zswarm", "compare", str(a), str(b), "--json")
+    both = json.loads(cmp.stdout)
+    assert both[str(a)]["min_pair_distance"] == direct["min_pair_distance"]
+    assert both[str(a)]["min_pair_distance"] != both[str(b)]["min_pair_distance"]
+    missing = cli("-m", "zswarm", "replay", str(tmp_path / "nope.rrd"))
+    assert missing.returncode == 2 and "does not exist" in missing.stderr
+    (tmp_path / "junk.rrd").write_bytes(b"not a recording")
+    junk = cli("-m", "zswarm", "replay", str(tmp_path / "junk.rrd"))
+    assert junk.returncode == 2 and "Traceback" not in junk.stderr

@@ -46,6 +46,10 @@ class WorldState:
     received: int = 0
 
 
+def _ratio(a: float, b: float) -> float | None:
+    return a / b if b else None
+
+
 class World:
     def __init__(self, spec: RunSpec, bridge: Bridge, record: Path | None, summary_path: Path | None,
                  trajectory: Path | None = None, argv: list[str] | None = None) -> None:
@@ -159,7 +163,7 @@ class World:
 
             swarm_log.set_time(self.rec, self.step_index, self.sim_time())
             self.trail.append(self.prey.copy())
-            swarm_log.log_swarm(self.rec, ids, pos, vel)
+            swarm_log.log_swarm(self.rec, self.sim_time(), ids, pos, vel)
             swarm_log.log_prey(self.rec, self.prey, np.array(self.trail[-400:]))
             swarm_log.log_metrics(self.rec, {**metrics, "agents_alive": float(len(self.state.alive))})
         return metrics
@@ -305,6 +309,11 @@ class World:
             "ticks": ticks, "late_ticks": late, "on_time_ratio": (1 - late / ticks) if ticks else None,
             "startup_s": self.all_alive_after,
             "departures": self.state.departures,
+            "requested_faults": self.spec.faults.requested(),
+            "observed_dropout": _ratio(sum((s.extra or {}).get("seq_lost", 0.0) for s in stats),
+                                       sum((s.extra or {}).get("seq_lost", 0.0) + (s.extra or {}).get("seq_received", 0.0)
+                                           for s in stats)),
+            "observed_latency_ms": msg.percentile(lat, 0.5),
             "heard": {str(s.id): list(s.heard) for s in stats},
             "missed_lockstep_poses": getattr(self, "missed_poses", 0),
             "world_late_ticks": getattr(self, "late_ticks", 0), "world_ticks": self.step_index + 1,

@@ -40,6 +40,10 @@ def build_parser() -> Parser:
                            help="simulated = wall seconds per run (default 15)")
     bench_net.add_argument("--json", action="store_true")
     bench_net.set_defaults(run=_bench_net)
+
+    from zswarm import replay_cli
+
+    replay_cli.add_arguments(sub)
     return parser
 
 

@@ -68,7 +68,7 @@ def load_run(path: Path) -> RunRecord:
             times = _seconds(rb.column("sim_time"))
             for row in range(rb.num_rows):
                 step = int(rb.column("step")[row].as_py())
-                t = float(times[row])
+                t = float(rb.column("t")[row].as_py()[0]) if "t" in cols else float(times[row])
                 ids = np.asarray(rb.column("id")[row].as_py(), dtype=np.int64)
                 xy = np.column_stack([rb.column("x")[row].as_py(), rb.column("y")[row].as_py()])
                 vel = np.column_stack([rb.column("vx")[row].as_py(), rb.column("vy")[row].as_py()])

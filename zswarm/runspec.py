@@ -11,6 +11,7 @@ import argparse
 from dataclasses import dataclass
 
 from zswarm.cli_util import UsageError, add_param_args
+from zswarm.faults import FaultModel, parse_duration
 from zswarm.params import parse_assignments
 from zswarm.potentials import COMBINATIONS, Combination
 from zswarm.scenarios import Scenario, get_scenario
@@ -31,6 +32,27 @@ def add_run_args(parser: argparse.ArgumentParser) -> None:
                        help="free: each agent on its own timer; lockstep: the world ticks (default free)")
     group.add_argument("--time-scale", type=float, default=1.0,
                        help="simulated seconds per wall second in free mode (default 1: dt=0.05 s at 20 Hz)")
+    add_fault_args(parser)
+
+
+def add_fault_args(parser: argparse.ArgumentParser) -> None:
+    group = parser.add_argument_group("faults (applied by every receiving agent, seeded by --seed)")
+    group.add_argument("--latency", default="0", help="fixed delay of every incoming message, e.g. 100ms")
+    group.add_argument("--jitter", default="0", help="uniform jitter around the delay, e.g. 20ms")
+    group.add_argument("--dropout", type=float, default=0.0, help="loss probability in [0, 1)")
+    group.add_argument("--burst", type=float, default=0.0,
+                       help="mean loss-burst length (Gilbert-Elliott); 0: independent losses")
+    group.add_argument("--distance-loss", type=float, default=0.0,
+                       help="pose loss probability at the sensing radius, growing with distance squared")
+
+
+def faults_from_args(args: argparse.Namespace) -> FaultModel:
+    try:
+        return FaultModel(latency=parse_duration(args.latency), jitter=parse_duration(args.jitter),
+                          dropout=args.dropout, burst=args.burst, distance_loss=args.distance_loss,
+                          seed=args.seed)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
 
 
 @dataclass(frozen=True)
@@ -41,6 +63,7 @@ class RunSpec:
     combination: Combination
     clock: str
     time_scale: float
+    faults: FaultModel = FaultModel()
 
     @property
     def keys(self) -> Keys:
@@ -58,4 +81,4 @@ def spec_from_args(args: argparse.Namespace) -> RunSpec:
     scenario = get_scenario(args.scenario, parse_assignments(args.assignments))
     return RunSpec(run=check_run_id(args.run), scenario=scenario, seed=args.seed,
                    combination=args.potential or scenario.combination, clock=args.clock,
-                   time_scale=args.time_scale)
+                   time_scale=args.time_scale, faults=faults_from_args(args))

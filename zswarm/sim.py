@@ -156,6 +156,6 @@ def _log_step(rec, sim: Simulator, v: np.ndarray, metrics: dict[str, float], tra
 
     swarm_log.set_time(rec, sim.step_index, sim.t)
     trail.append(sim.prey.copy())
-    swarm_log.log_swarm(rec, sim.ids, sim.positions, v, sensing_radius)
+    swarm_log.log_swarm(rec, sim.t, sim.ids, sim.positions, v, sensing_radius)
     swarm_log.log_prey(rec, sim.prey, np.array(trail[-400:]))
     swarm_log.log_metrics(rec, metrics)

@@ -68,8 +68,8 @@ def set_time(rec: rr.RecordingStream, step: int, t: float) -> None:
     rec.set_time(TIMELINE, duration=t)
 
 
-def log_swarm(rec: rr.RecordingStream, ids: np.ndarray, positions: np.ndarray, velocities: np.ndarray,
-              sensing_radius: float | None = None) -> None:
+def log_swarm(rec: rr.RecordingStream, t: float, ids: np.ndarray, positions: np.ndarray,
+              velocities: np.ndarray, sensing_radius: float | None = None) -> None:
     """Agents (with id labels), their velocity arrows, optional sensing discs and exact float64 state."""
     labels = [str(int(i)) for i in ids]
     rec.log(AGENTS, rr.Points2D(positions, radii=0.05, labels=labels, class_ids=ids,
@@ -77,7 +77,8 @@ def log_swarm(rec: rr.RecordingStream, ids: np.ndarray, positions: np.ndarray, v
     rec.log(VELOCITIES, rr.Arrows2D(origins=positions, vectors=velocities))
     if sensing_radius is not None:
         rec.log(SENSING, rr.Points2D(positions, radii=sensing_radius, colors=(120, 160, 255, 25)))
-    rec.log(STATE, rr.AnyValues(id=np.asarray(ids, dtype=np.int64), x=positions[:, 0].astype(np.float64),
+    rec.log(STATE, rr.AnyValues(t=np.array([t], dtype=np.float64), id=np.asarray(ids, dtype=np.int64),
+                                x=positions[:, 0].astype(np.float64),
                                 y=positions[:, 1].astype(np.float64), vx=velocities[:, 0].astype(np.float64),
                                 vy=velocities[:, 1].astype(np.float64)))
 

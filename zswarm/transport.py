@@ -208,6 +208,7 @@ class Bridge:
         self.loop = loop
         self.queue = queue
         self.deliver: Deliver = deliver or queue.put_nowait
+        self.reply_filter: Callable[[list[tuple[str, bytes]]], Any] | None = None
         self.closed = False
 
     def _hand_over(self, tag: str):
@@ -245,7 +246,10 @@ class Bridge:
                 if reply.ok is not None:
                     out.append((str(reply.ok.key_expr), reply.ok.payload.to_bytes()))
             return out
-        return await self.loop.run_in_executor(None, blocking)
+        replies = await self.loop.run_in_executor(None, blocking)
+        if self.reply_filter is not None:
+            replies = await self.reply_filter(replies)
+        return replies
 
     def close(self) -> None:
         self.closed = True
