@@ -4,6 +4,7 @@
     python launch.py --agents 20 --scenario static-goal --record sg.rrd
     python launch.py --role router,world --listen tcp/0.0.0.0:7447 --agents 20      # machine A
     python launch.py --role agents --connect tcp/A:7447 --ids 10-19 --agents 20     # machine B
+    python launch.py sweep --scenario static-goal --latency 0,100ms --dropout 0,0.3 --out sweep/
 
 At the end, or on Ctrl-C, the agents are stopped first, then the world (which flushes the recording
 and writes the summary), then the router; every child is reaped.
@@ -15,6 +16,7 @@ import argparse
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import Sequence
@@ -48,6 +50,27 @@ def parse_roles(text: str) -> list[str]:
     return roles
 
 
+def parse_kill(text: str) -> tuple[int, float]:
+    try:
+        k, t = text.split("@")
+        out = int(k), float(t)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected K@T, e.g. 3@10 (got {text!r})") from None
+    if out[0] < 1 or out[1] < 0:
+        raise argparse.ArgumentTypeError(f"expected K >= 1 and T >= 0 (got {text!r})")
+    return out
+
+
+def parse_outage(text: str) -> tuple[float, float]:
+    try:
+        t, d = (float(v) for v in text.split(":"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected T:S, e.g. 10:5 (got {text!r})") from None
+    if t < 0 or d <= 0:
+        raise argparse.ArgumentTypeError(f"expected T >= 0 and S > 0 (got {text!r})")
+    return t, d
+
+
 def build_parser() -> Parser:
     p = Parser(prog="launch.py", description="Start a zswarm run: router, world and agents.")
     p.add_argument("--agents", type=int, default=None, help="number of agents N (default: the scenario's)")
@@ -70,6 +93,12 @@ def build_parser() -> Parser:
                    help="router endpoint (default tcp/127.0.0.1:FREE_PORT)")
     p.add_argument("--ids", type=parse_ids, default=None, help="agent ids this machine runs, e.g. 10-19")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.add_argument("--kill", type=parse_kill, default=None, metavar="K@T",
+                   help="SIGKILL K agents, chosen with the seed, T seconds after the start")
+    p.add_argument("--restart-after", type=float, default=None, metavar="S",
+                   help="restart the killed agents S seconds later (they rejoin at their spawn position)")
+    p.add_argument("--world-outage", type=parse_outage, default=None, metavar="T:S",
+                   help="freeze the world (SIGSTOP) at T for S seconds: no prey, no obstacle answers")
     add_fault_args(p)
     return p
 
@@ -149,13 +178,16 @@ def _launch(argv: Sequence[str] | None) -> int:
             if not wait_for_port("127.0.0.1" if host in ("0.0.0.0", "::") else host, port, 10.0, router):
                 raise UsageError(f"the router did not start on {endpoint} (port taken? address not local?)")
         common = run_args(args, run) + ["--connect", endpoint]
+        args.agent_args = common
         world = None
         if "world" in args.role:
             wargs = ["-m", "world", *common, "--record", str(args.record), "--summary", str(args.summary),
                      "--duration", str(args.duration), "--progress", "0" if args.quiet else "2"]
             if args.trajectory is not None:
                 wargs += ["--trajectory", str(args.trajectory)]
-            world = kids.spawn("world", wargs)
+            world = kids.spawn("world", wargs, stdout=subprocess.PIPE)
+            world.started = threading.Event()
+            threading.Thread(target=_forward, args=(world, args.quiet), daemon=True).start()
         if "agents" in args.role:
             for i in args.ids if args.ids is not None else range(n):
                 kids.spawn(f"agent-{i}", ["-m", "agents", "--id", str(i), *common], stdout=subprocess.DEVNULL)
@@ -172,13 +204,74 @@ def _launch(argv: Sequence[str] | None) -> int:
         kids.stop_all()
 
 
+def _forward(world, quiet: bool) -> None:
+    """Pass the world's lines through, and note when its clock starts."""
+    for line in world.proc.stdout:
+        text = line.decode(errors="replace") if isinstance(line, bytes) else line
+        if text.startswith("world: started"):
+            world.started.set()
+        if not quiet or text.startswith("world: done"):
+            sys.stdout.write(text)
+            sys.stdout.flush()
+
+
+class Chaos:
+    """The scheduled crashes and outages of a run (--kill, --restart-after, --world-outage)."""
+
+    def __init__(self, kids: Children, world, args: argparse.Namespace) -> None:
+        import numpy as np
+
+        self.kids, self.world, self.args = kids, world, args
+        self.t0 = time.monotonic()
+        self.rng = np.random.default_rng([args.seed, 0xC0FFEE])
+        self.killed: list[int] = []
+        self.killed_at: float | None = None
+        self.done: set[str] = set()
+        self.expected: set[str] = set()
+
+    def tick(self) -> None:
+        """Times count from the start of the world's clock (or of the launch, without a world here)."""
+        if self.world is not None and not self.world.started.is_set():
+            self.t0 = time.monotonic()
+            return
+        a, t = self.args, time.monotonic() - self.t0
+        if a.kill and "kill" not in self.done and t >= a.kill[1]:
+            alive = [c for c in self.kids.named("agent") if c.alive()]
+            chosen = self.rng.choice(len(alive), size=min(a.kill[0], len(alive)), replace=False)
+            for k in sorted(chosen):
+                alive[k].proc.kill()
+                self.expected.add(alive[k].name)
+                self.killed.append(int(alive[k].name.split("-")[1]))
+            self.killed_at, _ = t, self.done.add("kill")
+            print(f"launch: killed agents {sorted(self.killed)} at {t:.1f} s", file=sys.stderr, flush=True)
+        if (a.restart_after is not None and self.killed_at is not None and "restart" not in self.done
+                and t >= self.killed_at + a.restart_after):
+            for i in self.killed:
+                self.kids.spawn(f"agent-{i}", ["-m", "agents", "--id", str(i), *a.agent_args],
+                                stdout=subprocess.DEVNULL)
+            self.done.add("restart")
+            print(f"launch: restarted agents {sorted(self.killed)} at {t:.1f} s", file=sys.stderr, flush=True)
+        if a.world_outage and self.world is not None:
+            start, length = a.world_outage
+            if "stop" not in self.done and t >= start:
+                self.world.proc.send_signal(signal.SIGSTOP)
+                self.done.add("stop")
+                print(f"launch: world frozen at {t:.1f} s", file=sys.stderr, flush=True)
+            if "cont" not in self.done and t >= start + length:
+                self.world.proc.send_signal(signal.SIGCONT)
+                self.done.add("cont")
+                print(f"launch: world resumed at {t:.1f} s", file=sys.stderr, flush=True)
+
+
 def _supervise(kids: Children, world, args: argparse.Namespace) -> int:
     """Wait for the world to finish (or, without a world, for the agents / for Ctrl-C)."""
     crashed: set[str] = set()
+    chaos = Chaos(kids, world, args)
     while True:
+        chaos.tick()
         for c in kids.children:
             code = c.proc.poll()
-            if code not in (None, 0) and c.name not in crashed and c is not world:
+            if code not in (None, 0) and c.name not in crashed and c is not world and c.name not in chaos.expected:
                 crashed.add(c.name)
                 print(f"launch: {c.name} exited with code {code}; the others carry on", file=sys.stderr,
                       flush=True)
@@ -208,6 +301,11 @@ def _report(args: argparse.Namespace, code: int | None) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv[:1] == ["sweep"]:
+        from zswarm import sweep
+
+        return run_main(sweep.main, argv[1:], prog="launch.py sweep")
     return run_main(_launch, argv, prog="launch.py")
 
 

@@ -51,6 +51,8 @@ class Counters:
     heard: set[int] = field(default_factory=set)
     seq_received: int = 0
     seq_lost: int = 0
+    departed: dict[int, float] = field(default_factory=dict)
+    returned: dict[int, float] = field(default_factory=dict)
 
     def reject(self, reason: str, agent: int, detail: str) -> None:
         if reason not in self.rejected:  # log once per reason
@@ -105,7 +107,9 @@ class Agent:
         if tag == "alive":
             who = self.keys.agent_of(key)
             if deleted and who is not None:
-                self.neighbours.pop(who, None)  # departed: forget it at once
+                if self.neighbours.pop(who, None) is not None:  # departed: forget it at once
+                    self.counters.departed.setdefault(who, time.time())
+                self.last_seq.pop(who, None)
             return
         self.counters.received += 1
         try:
@@ -171,6 +175,8 @@ class Agent:
         nb = self.neighbours.get(pose.id)
         if nb is None:
             nb = self.neighbours[pose.id] = Neighbour(pose, now)
+            if pose.id in self.counters.departed:
+                self.counters.returned.setdefault(pose.id, now)
         elif pose.seq >= nb.latest.seq:
             nb.latest, nb.received = pose, now
         if pose.step >= 0:
@@ -281,7 +287,7 @@ class Agent:
                                      "seq_received": float(c.seq_received), "seq_lost": float(c.seq_lost),
                                      "injected_drops": float(self.injector.faults.dropped if self.injector else 0),
                                      "injected_passed": float(self.injector.faults.passed if self.injector else 0)},
-                                    tuple(sorted(c.heard))[:msg.MAX_HEARD]))
+                                    tuple(sorted(c.heard))[:msg.MAX_HEARD], dict(c.departed), dict(c.returned)))
 
     async def publish_stats(self) -> None:
         while not self.stop.is_set():

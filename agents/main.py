@@ -13,7 +13,7 @@ from agents.agent import Agent
 from zswarm.faults import FaultInjector
 from zswarm.cli_util import Parser, UsageError, run_main
 from zswarm.runspec import RunSpec, add_run_args, spec_from_args
-from zswarm.transport import Bridge, add_zenoh_args, config_from_args, open_session
+from zswarm.transport import Bridge, add_zenoh_args, config_from_args, open_session, pump, teardown
 
 
 def build_parser() -> Parser:
@@ -68,11 +68,7 @@ async def run_agent(spec: RunSpec, args) -> int:
         declared.append(bridge.subscribe(keys.prey, "prey"))
         declared.append(bridge.subscribe(keys.tick, "tick"))
 
-        async def pump() -> None:
-            while True:
-                agent.handle(await queue.get())
-
-        pump_task = asyncio.ensure_future(pump())
+        pump_task = asyncio.ensure_future(pump(queue, agent.handle))
         deadline = loop.time() + args.start_timeout
         while not await agent.refresh_obstacles(timeout=1.0):
             if loop.time() > deadline or agent.stop.is_set():
@@ -97,13 +93,7 @@ async def run_agent(spec: RunSpec, args) -> int:
         session.put(keys.stats(args.id), agent.stats(final=True))
         return 0
     finally:
-        bridge.close()
-        for d in reversed(declared):
-            try:
-                d.undeclare()
-            except Exception:
-                pass
-        session.close()
+        teardown(bridge, declared, session)
 
 
 def _main(argv: Sequence[str] | None) -> int:

@@ -190,3 +190,30 @@ def test_process_usage_errors_are_one_line(argv, needle):
     assert res.returncode == 2, res.stderr
     assert needle in res.stderr and "Traceback" not in res.stderr
     assert len(res.stderr.strip().splitlines()) == 1
+
+
+def test_killed_agent_leaves_neighbour_sets_within_a_second_and_a_restarted_one_returns(tmp_path):
+    args = ("--set", "n_agents=4", "--set", "sensing_radius=12")
+    with processes() as kids:
+        endpoint = start_router(kids)
+        world, summary_path, record, _ = start_world(kids, endpoint, "crash", "moving-prey", tmp_path, *args,
+                                                     "--duration", "10")
+        agents = {i: start_agent(kids, endpoint, "crash", "moving-prey", i, *args) for i in range(4)}
+        deadline = time.monotonic() + 60
+        while not record.exists() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        time.sleep(2.5)
+        t_kill = time.time()
+        agents[2].proc.send_signal(signal.SIGKILL)
+        agents[2].proc.wait()
+        time.sleep(2.0)
+        t_restart = time.time()
+        start_agent(kids, endpoint, "crash", "moving-prey", 2, *args)
+        assert wait_exit(world, 60) == 0
+    s = load_summary(summary_path)
+    for survivor in ("0", "1", "3"):
+        dropped = s["neighbour_departures"][survivor]["2"]
+        assert 0.0 < dropped - t_kill < 1.0
+        assert s["neighbour_returns"][survivor]["2"] > t_restart
+    assert [d["id"] for d in s["departures"] if d["wall"] < 9.0] == [2]
+    assert sum(1 for a in s["departures"] if a["id"] == 2) >= 1 and sum(1 for a in s.get("heard", {})) >= 3

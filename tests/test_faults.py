@@ -71,3 +71,30 @@ def test_injected_dropout_and_delay_are_observed(tmp_path):
     assert s["requested_faults"]["dropout"] == 0.3
     assert s["observed_dropout"] == pytest.approx(0.3, abs=0.03)  # ~4000 poses: 3 sigma is 0.02
     assert 80.0 <= s["observed_latency_ms"] <= 125.0
+
+
+def test_simulator_faults_are_seeded_observed_and_inactive_faults_change_nothing():
+    from zswarm.scenarios import get_scenario
+    from zswarm.sim import simulate
+
+    scenario = get_scenario("moving-prey")
+    clean = simulate(scenario, 0, duration=10.0).summary
+    assert simulate(scenario, 0, duration=10.0, faults=FaultModel(seed=0)).summary == clean
+    lossy = FaultModel(dropout=0.3, latency=0.1, jitter=0.02, seed=4)
+    a = simulate(scenario, 0, duration=10.0, faults=lossy).summary
+    assert a == simulate(scenario, 0, duration=10.0, faults=lossy).summary
+    assert a["observed_dropout"] == pytest.approx(0.3, abs=0.02)
+    assert a != simulate(scenario, 0, duration=10.0, faults=FaultModel(dropout=0.3, latency=0.1, jitter=0.02,
+                                                                       seed=5)).summary
+    assert a["final_centroid_goal_distance"] != clean["final_centroid_goal_distance"]
+
+
+def test_simulator_delay_uses_old_positions():
+    """With a 0.2 s delay and no loss, agent i's neighbour data at step k is the position at k - 4."""
+    from zswarm.sim_faults import FaultyChannel
+
+    ch = FaultyChannel(3, FaultModel(latency=0.2, seed=0), dt=0.05, sensing_radius=100.0)
+    pos = lambda k: np.array([[k, 0.0], [k, 1.0], [k, 2.0]], dtype=float)  # noqa: E731
+    for k in range(10):
+        i, j, believed, goal = ch.step(k, pos(k), np.array([100.0 + k, 0.0]))
+    assert np.allclose(believed[:, 0], 9 - 4) and np.allclose(goal[:, 0], 100.0 + 9 - 4)

@@ -17,7 +17,9 @@ stats = st.builds(msg.Stats, st.integers(0, 1000), st.integers(0, 10**9), st.int
                   st.dictionaries(st.sampled_from(msg.REASONS), st.integers(0, 100), max_size=3),
                   st.integers(0, 10**6), st.integers(0, 10**6), hist, hist, st.booleans(),
                   st.dictionaries(st.text(max_size=8), finite, max_size=3),
-                  st.lists(st.integers(0, 1000), max_size=10).map(tuple))
+                  st.lists(st.integers(0, 1000), max_size=10).map(tuple),
+                  st.dictionaries(st.integers(0, 1000), st.floats(0, 2e9), max_size=3),
+                  st.dictionaries(st.integers(0, 1000), st.floats(0, 2e9), max_size=3))
 messages = st.one_of(
     poses,
     st.builds(msg.Prey, st.integers(0, 2**40), st.floats(0, 2e9), st.integers(-1, 10**6), finite, finite),

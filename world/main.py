@@ -15,7 +15,7 @@ from zswarm import messages as msg
 from zswarm.cli_util import Parser, UsageError, run_main
 from zswarm.recording import check_writable
 from zswarm.runspec import add_run_args, spec_from_args
-from zswarm.transport import Bridge, add_zenoh_args, config_from_args, open_session
+from zswarm.transport import Bridge, add_zenoh_args, config_from_args, open_session, pump, teardown
 
 
 def build_parser() -> Parser:
@@ -53,14 +53,11 @@ async def run_world(args, spec) -> dict:
         declared.append(bridge.subscribe(keys.all_stats, "stats"))
         declared.append(bridge.subscribe_liveliness(keys.all_alive, "alive"))
 
-        async def pump() -> None:
-            while True:
-                world.handle(await queue.get())
-
-        pump_task = asyncio.ensure_future(pump())
+        pump_task = asyncio.ensure_future(pump(queue, world.handle))
         print(f"world: run {spec.run!r}, scenario {spec.scenario.name}, {spec.scenario.n_agents} agents, "
               f"{spec.clock} clock; waiting for the agents", flush=True)
         await world.wait_for_agents(args.start_timeout)
+        print(f"world: started with {len(world.state.alive)} agents alive", flush=True)
         if spec.clock == "lockstep":
             await world.run_lockstep(steps, args.progress, args.step_timeout)
         else:
@@ -75,13 +72,7 @@ async def run_world(args, spec) -> dict:
         pump_task.cancel()
         return world.finish(steps)
     finally:
-        bridge.close()
-        for d in reversed(declared):
-            try:
-                d.undeclare()
-            except Exception:
-                pass
-        session.close()
+        teardown(bridge, declared, session)
 
 
 def _main(argv: Sequence[str] | None) -> int:

@@ -315,6 +315,8 @@ class World:
                                            for s in stats)),
             "observed_latency_ms": msg.percentile(lat, 0.5),
             "heard": {str(s.id): list(s.heard) for s in stats},
+            "neighbour_departures": {str(s.id): {str(k): v for k, v in (s.departed or {}).items()} for s in stats},
+            "neighbour_returns": {str(s.id): {str(k): v for k, v in (s.returned or {}).items()} for s in stats},
             "missed_lockstep_poses": getattr(self, "missed_poses", 0),
             "world_late_ticks": getattr(self, "late_ticks", 0), "world_ticks": self.step_index + 1,
         }

@@ -87,6 +87,8 @@ class Stats:
     final: bool = False
     extra: dict[str, float] | None = None
     heard: tuple[int, ...] = ()  # ids whose poses it has received (at most MAX_HEARD)
+    departed: dict[int, float] | None = None  # id -> wall time it first dropped that neighbour
+    returned: dict[int, float] | None = None  # id -> wall time a dropped neighbour was first heard again
 
 
 Message = Union[Pose, Prey, Tick, Obstacles, Stats]
@@ -111,7 +113,8 @@ def encode(msg: Message) -> bytes:
                       "rej": dict(msg.rejected), "late": msg.late_ticks, "ticks": msg.ticks,
                       "ages": {int(k): int(v) for k, v in msg.age_hist.items()},
                       "lat": {int(k): int(v) for k, v in msg.latency_hist.items()}, "f": msg.final,
-                      "x": dict(msg.extra or {}), "h": list(msg.heard[:MAX_HEARD])})
+                      "x": dict(msg.extra or {}), "h": list(msg.heard[:MAX_HEARD]),
+                      "dep": dict(msg.departed or {}), "ret": dict(msg.returned or {})})
     raise TypeError(f"cannot encode {type(msg).__name__}")
 
 
@@ -151,6 +154,17 @@ def _counts(v: Any, key: str, max_items: int) -> dict:
         if not isinstance(name, (str, int)) or isinstance(count, bool) or not isinstance(count, int) or count < 0:
             raise DecodeError("schema", f"{key} holds a bad entry")
     return dict(v)
+
+
+def _times(v: Any, key: str) -> dict[int, float]:
+    if not isinstance(v, dict) or len(v) > MAX_HEARD:
+        raise DecodeError("schema", f"{key} must be a map of agent ids to times")
+    out = {}
+    for k, t in v.items():
+        if not isinstance(k, int) or isinstance(k, bool) or not 0 <= k <= MAX_ID:
+            raise DecodeError("schema", f"{key} keys must be agent ids")
+        out[k] = _float(t, key, 1e12)
+    return out
 
 
 def _bins(counts: dict) -> dict[int, int]:
@@ -241,5 +255,6 @@ def decode(data: bytes) -> Message:
                      {str(k): v for k, v in _counts(obj.get("rej"), "rej", 64).items()},
                      _int(obj, "late"), _int(obj, "ticks"),
                      _bins(ages), _bins(lat), bool(obj.get("f", False)),
-                     {str(k): _float(v, str(k), 1e15) for k, v in extra.items()}, tuple(heard))
+                     {str(k): _float(v, str(k), 1e15) for k, v in extra.items()}, tuple(heard),
+                     _times(obj.get("dep", {}), "dep"), _times(obj.get("ret", {}), "ret"))
     raise DecodeError("kind", f"unknown kind {kind!r}")

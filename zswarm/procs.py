@@ -74,6 +74,7 @@ class Children:
             if c.alive():
                 try:
                     c.proc.send_signal(sig)
+                    c.proc.send_signal(signal.SIGCONT)  # a frozen (SIGSTOPped) child must see it too
                 except ProcessLookupError:
                     pass
         deadline = time.monotonic() + grace

@@ -25,11 +25,13 @@ import numpy as np
 from zswarm import __version__
 from zswarm import prey as prey_motion
 from zswarm.design import epsilon
+from zswarm.faults import FaultModel
 from zswarm.formation import equilibria
 from zswarm.metrics import MetricContext, Summary, step_metrics
 from zswarm.neighbours import ObstacleIndex, pairs_within
 from zswarm.potentials import Combination, field as apf_field, make_controller, obstacle_offsets, saturate
 from zswarm.scenarios import Scenario
+from zswarm.sim_faults import FaultyChannel
 
 _NO_PAIRS = np.zeros(0, dtype=np.intp)
 
@@ -37,7 +39,8 @@ _NO_PAIRS = np.zeros(0, dtype=np.intp)
 class Simulator:
     """State of a simulated swarm and its step function."""
 
-    def __init__(self, scenario: Scenario, seed: int, combination: Combination | None = None) -> None:
+    def __init__(self, scenario: Scenario, seed: int, combination: Combination | None = None,
+                 faults: FaultModel | None = None) -> None:
         self.scenario = scenario
         self.seed = seed
         self.combination: Combination = combination or scenario.combination
@@ -50,6 +53,9 @@ class Simulator:
         centers, radii = scenario.obstacle_arrays()
         self.obstacles = ObstacleIndex(centers, radii, p.swarm.sensing_radius)
         self.step_index = 0
+        self.channel = (FaultyChannel(len(self.positions), faults, scenario.dt, p.swarm.sensing_radius,
+                                      seed=faults.seed)
+                        if faults is not None and faults.active else None)
 
     @property
     def t(self) -> float:
@@ -59,14 +65,28 @@ class Simulator:
         """Every agent's U_i and commanded velocity from what it senses at ``positions``."""
         p = self.scenario.params
         c = self.controller
-        if c.formation:
+        blind = None
+        if self.channel is not None:  # what each agent believes, through the faulty channel
+            i, j, believed, goal = self.channel.step(self.step_index, positions, goal)
+            blind = np.isnan(goal[:, 0])  # no prey heard yet: it does not move
+            goal = np.where(blind[:, None], positions, goal)
+            psi_f = positions[i] - believed
+            if not c.formation:
+                i = j = _NO_PAIRS
+                psi_f = np.zeros((0, 2))
+        elif c.formation:
             i, j = pairs_within(positions, p.swarm.sensing_radius)
+            psi_f = positions[i] - positions[j]
         else:
             i = j = _NO_PAIRS
+            psi_f = np.zeros((0, 2))
         a, m = self.obstacles.sensed(positions)
         psi_o = obstacle_offsets(positions[a], self.obstacles.centers[m], self.obstacles.radii[m])
-        u, f = apf_field(positions - goal, a, psi_o, i, positions[i] - positions[j], c.p, c.combination, c.c_f)
-        return u, saturate(f, p.swarm.v_max)
+        u, f = apf_field(positions - goal, a, psi_o, i, psi_f, c.p, c.combination, c.c_f)
+        v = saturate(f, p.swarm.v_max)
+        if blind is not None:
+            v[blind] = 0.0
+        return u, v
 
     def advance(self, velocities: np.ndarray) -> None:
         """Move the prey (from the agents' current positions), then the agents."""
@@ -105,9 +125,12 @@ class RunResult:
 def simulate(scenario: Scenario, seed: int, *, combination: Combination | None = None,
              duration: float | None = None, record: Path | None = None, record_every: int = 1,
              metrics_every: int = 1, keep_trajectory: bool = False, sensing_discs: bool = False,
-             argv: list[str] | None = None) -> RunResult:
-    """Run a scenario to its end; optionally record it to Rerun and keep the trajectories."""
-    sim = Simulator(scenario, seed, combination)
+             argv: list[str] | None = None, faults: FaultModel | None = None) -> RunResult:
+    """Run a scenario to its end; optionally record it to Rerun and keep the trajectories.
+
+    ``faults``: pass neighbour and prey data through a seeded faulty channel (:mod:`zswarm.sim_faults`).
+    """
+    sim = Simulator(scenario, seed, combination, faults)
     p = scenario.params
     steps = int(round((duration if duration is not None else scenario.duration) / scenario.dt))
     ctx = metric_context(scenario, sim.obstacles)
@@ -141,6 +164,10 @@ def simulate(scenario: Scenario, seed: int, *, combination: Combination | None =
         if k < steps:
             sim.advance(v)
     result = {**header, **summary.result()}
+    if sim.channel is not None:
+        result["requested_faults"] = faults.requested()
+        result["observed_dropout"] = sim.channel.observed_dropout
+        result["observed_latency_ms"] = sim.channel.observed_latency_ms
     if rec is not None:
         from zswarm import swarm_log
         from zswarm.recording import close_recording

@@ -50,15 +50,20 @@ def add_sim_arguments(parser: argparse.ArgumentParser) -> None:
                         help="log every K-th step to the recording (default 1)")
     parser.add_argument("--sensing-discs", action="store_true", help="draw each agent's sensing disc")
     parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    from zswarm.runspec import add_fault_args
+
+    add_fault_args(parser)
 
 
 def run_sim(args: argparse.Namespace) -> int:
     from zswarm.sim import simulate
 
+    from zswarm.runspec import faults_from_args
+
     scenario = get_scenario(args.scenario, parse_assignments(args.assignments))
     result = simulate(scenario, args.seed, combination=args.potential, duration=args.duration,
                       record=args.record, record_every=args.record_every,
-                      sensing_discs=args.sensing_discs)
+                      sensing_discs=args.sensing_discs, faults=faults_from_args(args))
     if args.json:
         print(json.dumps(result.summary, sort_keys=True))
     else:

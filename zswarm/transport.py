@@ -253,3 +253,20 @@ class Bridge:
 
     def close(self) -> None:
         self.closed = True
+
+
+async def pump(queue: asyncio.Queue, handle: Callable[[Inbound], None]) -> None:
+    """Hand every inbound message to ``handle`` on the event loop, forever (cancel to stop)."""
+    while True:
+        handle(await queue.get())
+
+
+def teardown(bridge: Bridge, declared: list[Any], session: zenoh.Session) -> None:
+    """Stop callbacks, undeclare in reverse order, close the session: a process then exits cleanly."""
+    bridge.close()
+    for d in reversed(declared):
+        try:
+            d.undeclare()
+        except Exception:  # already gone with a lost router: nothing left to release
+            pass
+    session.close()

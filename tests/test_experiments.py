@@ -1,0 +1,79 @@
+"""Experiments: crashes and outages from launch.py, and sweeps that resume."""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import time
+
+from zswarm.procs import ROOT
+
+
+def launch(*args: str, cwd, timeout: float = 180) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, str(ROOT / "launch.py"), *args], cwd=cwd, capture_output=True,
+                          text=True, timeout=timeout)
+
+
+def test_kill_restart_and_world_outage(tmp_path):
+    res = launch("--agents", "5", "--duration", "10", "--kill", "1@2", "--restart-after", "2",
+                 "--world-outage", "6:1.5", "--record", str(tmp_path / "k.rrd"), "--quiet", cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    assert "killed agents" in res.stderr and "restarted agents" in res.stderr and "world frozen" in res.stderr
+    s = json.loads((tmp_path / "k.json").read_text())
+    early = [d for d in s["departures"] if d["t"] < 9.9]
+    assert len(early) == 1 and 1.5 < early[0]["t"] < 3.5
+    victim = str(early[0]["id"])
+    assert any(victim in r for r in s["neighbour_returns"].values())  # seen again through liveliness
+    assert s["agents_reporting"] == 5
+    # the world was frozen for 1.5 s: the recording has a gap there, and no tick in it
+    from zswarm.replay import load_run
+
+    times = [f.t for f in load_run(tmp_path / "k.rrd").frames]
+    gaps = [b - a for a, b in zip(times, times[1:])]
+    assert max(gaps) > 1.0
+
+
+def test_sweep_simulated_resumes_without_touching_finished_cells(tmp_path):
+    out = tmp_path / "sw"
+    args = ("sweep", "--scenario", "moving-prey", "--latency", "0,100ms", "--dropout", "0.2", "--repeats", "1",
+            "--duration", "5", "--out", str(out), "--sim-only")
+    assert launch(*args, cwd=tmp_path).returncode == 0
+    cells = sorted((out / "cells").iterdir())
+    assert len(cells) == 2
+    kept = cells[0] / "sim.json"
+    mtime = kept.stat().st_mtime_ns
+    (cells[1] / "sim.json").unlink()
+    res = launch(*args, cwd=tmp_path)
+    assert res.returncode == 0 and "1 already finished" in res.stdout
+    assert kept.stat().st_mtime_ns == mtime and (cells[1] / "sim.json").exists()
+    table = (out / "results.md").read_text().splitlines()
+    assert len([line for line in table if line.startswith("| simulated")]) == 2
+    assert (out / "results.csv").exists() and (out / "sweep.rrd").stat().st_size > 0
+
+
+def test_interrupted_distributed_sweep_resumes(tmp_path):
+    out = tmp_path / "sw"
+    args = [sys.executable, str(ROOT / "launch.py"), "sweep", "--scenario", "moving-prey", "--latency", "0",
+            "--dropout", "0,0.3", "--repeats", "1", "--agents", "3", "--duration", "3", "--out", str(out)]
+    proc = subprocess.Popen(args, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    first = out / "cells" / "lat0ms_drop0_rep0" / "run.json"
+    try:
+        deadline = time.monotonic() + 120
+        while not first.exists() and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert first.exists()
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    mtime = first.stat().st_mtime_ns
+    res = subprocess.run(args, cwd=tmp_path, capture_output=True, text=True, timeout=180)
+    assert res.returncode == 0, res.stderr
+    assert first.stat().st_mtime_ns == mtime  # the finished cell was not run again
+    assert (out / "cells" / "lat0ms_drop0.3_rep0" / "run.json").exists()
+    rows = [line for line in (out / "results.md").read_text().splitlines() if line.startswith("| distributed")]
+    assert len(rows) == 2
