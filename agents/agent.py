@@ -81,6 +81,7 @@ class Agent:
         self.staleness, self.lockstep_wait = staleness, lockstep_wait
         # cells within R + 2 v_max dt: whoever can enter the sensing disc next step is already heard
         self.subscription_radius = self.radius + 2.0 * self.v_max * self.dt
+        self.max_step = 3.0 * self.v_max * self.dt  # farther per tick is an impossible jump (3x slack)
         self.neighbours: dict[int, Neighbour] = {}
         self.prey: np.ndarray | None = None
         self.prey_by_step: dict[int, np.ndarray] = {}
@@ -99,6 +100,7 @@ class Agent:
         self.stop = asyncio.Event()
         self.injector = None  # a FaultInjector when faults are injected
         self.last_seq: dict[int, int] = {}
+        self.alive: set[int] = set()  # ids with a liveliness token: only those are used as neighbours
 
     # --- inbound ---------------------------------------------------------------------------------------
 
@@ -106,7 +108,10 @@ class Agent:
         tag, key, payload, deleted = item
         if tag == "alive":
             who = self.keys.agent_of(key)
+            if who is not None and not deleted:
+                self.alive.add(who)
             if deleted and who is not None:
+                self.alive.discard(who)
                 if self.neighbours.pop(who, None) is not None:  # departed: forget it at once
                     self.counters.departed.setdefault(who, time.time())
                 self.last_seq.pop(who, None)
@@ -146,20 +151,23 @@ class Agent:
         return None
 
     def _count_sequence(self, pose: msg.Pose) -> None:
-        """Observed loss from sequence numbers: a gap of g (at most 50: longer means out of range)
-        counts g - 1 lost; a late arrival that filled a gap is taken back."""
+        """Observed loss from sequence numbers: a gap of g counts g - 1 lost when the sender was within
+        the sensing radius both before and after it (then every pose it sent reached the agent's cells;
+        otherwise it may simply have been out of range); a late arrival that filled a gap is taken back."""
         last = self.last_seq.get(pose.id)
         c = self.counters
-        if last is None:
-            c.seq_received += 1
-        elif pose.seq > last:
-            gap = pose.seq - last - 1
-            if gap <= 50:
-                c.seq_lost += gap
-            c.seq_received += 1
-        elif pose.seq < last and c.seq_lost > 0:
-            c.seq_lost -= 1
-            c.seq_received += 1
+        nb = self.neighbours.get(pose.id)
+        within = nb is not None and all(
+            math.hypot(p.x - self.position[0], p.y - self.position[1]) <= self.radius for p in (nb.latest, pose))
+        if last is not None and within:
+            if pose.seq > last:
+                gap = pose.seq - last - 1
+                if gap <= 50:
+                    c.seq_lost += gap
+                c.seq_received += 1
+            elif pose.seq < last and c.seq_lost > 0:
+                c.seq_lost -= 1
+                c.seq_received += 1
         self.last_seq[pose.id] = max(pose.seq, last or 0)
 
     def _on_pose(self, key: str, pose: msg.Pose) -> None:
@@ -173,11 +181,16 @@ class Agent:
         self.counters.heard.add(pose.id)
         self.counters.add(self.counters.latency, (now - pose.stamp) * 1000.0)
         nb = self.neighbours.get(pose.id)
+        elapsed = (now - nb.received) / self.spec.period + 2.0 if nb is not None and pose.step < 0 else None
+        if nb is not None and pose.seq > nb.latest.seq and msg.implausible_jump(nb.latest, pose, self.max_step,
+                                                                                 elapsed):
+            self.counters.reject("jump", self.id, f"agent {pose.id} jumped implausibly far")
+            return
         if nb is None:
             nb = self.neighbours[pose.id] = Neighbour(pose, now)
             if pose.id in self.counters.departed:
                 self.counters.returned.setdefault(pose.id, now)
-        elif pose.seq >= nb.latest.seq:
+        elif msg.supersedes(nb.latest, pose):
             nb.latest, nb.received = pose, now
         if pose.step >= 0:
             nb.by_step[pose.step] = pose
@@ -226,10 +239,13 @@ class Agent:
                 self.handle(("pose", key, payload, False))
 
     def sensed_neighbours(self, step: int | None) -> np.ndarray:
-        """Positions of the neighbours it may use: step-k poses (lockstep) or fresh ones (free)."""
+        """Positions of the neighbours it may use: step-k poses (lockstep) or fresh ones (free), of
+        agents that hold a liveliness token (a pose under an id nobody announced is not a neighbour)."""
         now = time.time()
         out = []
-        for nb in self.neighbours.values():
+        for who, nb in self.neighbours.items():
+            if who not in self.alive:
+                continue
             pose = nb.by_step.get(step) if step is not None else nb.latest
             if pose is None or (step is None and now - nb.received > self.staleness):
                 continue

@@ -57,6 +57,8 @@ class World:
         self.scenario = spec.scenario
         self.reference = Simulator(self.scenario, spec.seed, spec.combination)  # its field, not its state
         self.centers, self.radii = self.scenario.obstacle_arrays()
+        p = self.scenario.params.swarm
+        self.max_step = 3.0 * p.v_max * self.scenario.dt  # as the agents judge it
         self.prey = np.array(self.scenario.prey_start, dtype=float)
         self.state = WorldState()
         self.summary = Summary(capture_radius=self.scenario.capture_radius,
@@ -124,7 +126,11 @@ class World:
             return
         if tag == "pose" and isinstance(m, msg.Pose) and self.keys.agent_of(key) == m.id:
             old = st.poses.get(m.id)
-            if old is None or m.seq >= old.pose.seq:
+            elapsed = (time.time() - old.received) / self.spec.period + 2.0 if old is not None and m.step < 0 else None
+            if old is not None and m.seq > old.pose.seq and msg.implausible_jump(old.pose, m, self.max_step, elapsed):
+                st.rejected["jump"] = st.rejected.get("jump", 0) + 1
+                return
+            if old is None or msg.supersedes(old.pose, m):
                 st.poses[m.id] = Observed(m, time.time())
             if m.step >= 0:
                 st.by_step.setdefault(m.step, {})[m.id] = m

@@ -258,3 +258,29 @@ def decode(data: bytes) -> Message:
                      {str(k): _float(v, str(k), 1e15) for k, v in extra.items()}, tuple(heard),
                      _times(obj.get("dep", {}), "dep"), _times(obj.get("ret", {}), "ret"))
     raise DecodeError("kind", f"unknown kind {kind!r}")
+
+
+def implausible_jump(old: Pose, new: Pose, max_step: float, elapsed_steps: float | None = None) -> bool:
+    """``new`` lies farther from ``old`` than ``max_step`` per elapsed step could carry an agent.
+
+    Steps are counted by lockstep step numbers when both have them, else by sequence numbers (one
+    pose per control tick), at least one; ``elapsed_steps`` (the receiver's own clock) caps the
+    count, so a forged sequence number cannot buy a forged pose an arbitrarily long way.
+    """
+    if new.step >= 0 and old.step >= 0:
+        steps = max(new.step - old.step, 1)
+    else:
+        steps = max(new.seq - old.seq, 1)
+    if elapsed_steps is not None:
+        steps = min(steps, max(elapsed_steps, 1.0))
+    return math.hypot(new.x - old.x, new.y - old.y) > max_step * steps + 1e-9
+
+
+SEQ_RESTART = 1000
+
+
+def supersedes(old: Pose, new: Pose) -> bool:
+    """``new`` replaces ``old``: a newer sequence number, or one so far behind that the sender must
+    have restarted (a restarted agent counts from 1 again, and may be anywhere: no jump check then;
+    so a forged huge number cannot lock the real sender out)."""
+    return new.seq > old.seq or old.seq - new.seq > SEQ_RESTART

@@ -1,0 +1,66 @@
+"""A hostile peer floods a running swarm's keys: nobody crashes, nobody acts on it, the outcome holds."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import msgpack
+import numpy as np
+import zenoh
+
+from swarm_procs import load_summary, processes, start_agent, start_router, start_world, wait_exit
+from zswarm import messages as msg
+from zswarm.transport import Keys, zenoh_config
+
+
+def garbage(rng: np.random.Generator, keys: Keys, cell: tuple[int, int], i: int) -> list[tuple[str, bytes]]:
+    pose_key = keys.pose(cell, 1)
+    good = msg.encode(msg.Pose(1, 10**9 + i, time.time(), -1, 0.0, 0.0, 0.0, 0.0))
+    nan_pose = msgpack.packb({"v": 1, "k": "pose", "id": 1, "seq": 10**9 + i, "t": 0.0, "s": -1,
+                              "p": [math.nan, 0.0], "u": [0.0, math.inf]})
+    return [
+        (pose_key, rng.bytes(int(rng.integers(1, 64)))),                       # random bytes
+        (pose_key, good[: len(good) // 2]),                                     # truncated msgpack
+        (pose_key, msgpack.packb({"v": 7, "k": "pose"})),                       # wrong version
+        (pose_key, nan_pose),                                                   # NaN / infinite
+        (pose_key, b"\x92" * (msg.MAX_PAYLOAD + 10)),                           # huge payload
+        (pose_key, msg.encode(msg.Pose(1, 10**9 + i, time.time(), -1, 500.0, 500.0, 0.0, 0.0))),  # jump
+        (keys.pose(cell, 999), msg.encode(msg.Pose(999, i, time.time(), -1, cell[0] + 0.5, cell[1] + 0.5,
+                                                   0.0, 0.0))),                  # an agent nobody announced
+        (keys.prey, rng.bytes(16)),
+        (keys.stats(4), rng.bytes(32)),
+        (keys.tick, msgpack.packb({"v": 1, "k": "tick", "s": "soon"})),
+    ]
+
+
+def test_flood_of_hostile_messages_changes_nothing(tmp_path):
+    rng = np.random.default_rng(666)
+    run = "hostile"
+    with processes() as kids:
+        endpoint = start_router(kids)
+        world, summary_path, _, _ = start_world(kids, endpoint, run, "moving-prey", tmp_path, "--duration", "30")
+        agents = [start_agent(kids, endpoint, run, "moving-prey", i) for i in range(10)]
+        keys = Keys(run, 1.0)
+        cells = [(cx, cy) for cx in range(-5, -1) for cy in range(-2, 2)]
+        with zenoh.open(zenoh_config("client", [endpoint])) as peer:
+            time.sleep(3.0)
+            sent = 0
+            end = time.monotonic() + 10.0
+            i = 0
+            while time.monotonic() < end:
+                for key, payload in garbage(rng, keys, cells[i % len(cells)], i):
+                    peer.put(key, payload)
+                    sent += 1
+                i += 1
+                time.sleep(0.02)
+        assert wait_exit(world, 120) == 0
+        assert all(wait_exit(a, 20) == 0 for a in agents)
+    s = load_summary(summary_path)
+    assert sent > 1000
+    rejected = s["rejected_by_reason"]
+    for reason in ("malformed", "version", "nonfinite", "size", "jump"):
+        assert rejected.get(reason, 0) > 0, (reason, rejected)
+    assert s["capture_time"] is not None and s["collisions"] == 0 and s["final_components"] == 1
+    assert s["reference"]["collisions"] == 0
+    assert s["agents_reporting"] == 10
