@@ -60,3 +60,23 @@ def load_summary(path: Path) -> dict:
     while not path.exists() and time.monotonic() < deadline:
         time.sleep(0.05)
     return json.loads(path.read_text())
+
+
+def interrupt_when_exists(proc: subprocess.Popen, path: Path, settle: float = 0.0, timeout: float = 120.0) -> bool:
+    """Wait for ``path`` to appear, wait ``settle`` more seconds, send SIGINT and reap the process
+    (killed if it does not end). Returns whether the file appeared."""
+    import signal
+
+    try:
+        deadline = time.monotonic() + timeout
+        while not path.exists() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        appeared = path.exists()
+        time.sleep(settle)
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=60)
+        return appeared
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()

@@ -14,7 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from swarm_procs import (load_summary, processes, start_agent, start_router, start_world, wait_exit)
+from swarm_procs import (interrupt_when_exists, load_summary, processes, start_agent, start_router, start_world,
+                         wait_exit)
 from zswarm.procs import ROOT
 from zswarm.replay import load_run
 from zswarm.scenarios import get_scenario
@@ -158,17 +159,7 @@ def test_launch_ctrl_c_flushes_the_recording_and_reaps_everyone(tmp_path):
     proc = subprocess.Popen([sys.executable, str(ROOT / "launch.py"), "--agents", "3", "--duration", "60",
                              "--run", "ctrlctest", "--record", str(tmp_path / "c.rrd"), "--quiet"],
                             cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    try:
-        deadline = time.monotonic() + 60
-        while not (tmp_path / "c.rrd").exists() and time.monotonic() < deadline:
-            time.sleep(0.1)
-        time.sleep(3.0)
-        proc.send_signal(signal.SIGINT)
-        proc.wait(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+    assert interrupt_when_exists(proc, tmp_path / "c.rrd", settle=3.0)
     rerun_verify(tmp_path / "c.rrd")
     assert (tmp_path / "c.json").exists()
     assert _our_processes("ctrlctest") == []

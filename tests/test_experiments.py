@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 import json
-import signal
 import subprocess
 import sys
-import time
 
+from swarm_procs import interrupt_when_exists
 from zswarm.procs import ROOT
 
 
@@ -59,17 +58,7 @@ def test_interrupted_distributed_sweep_resumes(tmp_path):
             "--dropout", "0,0.3", "--repeats", "1", "--agents", "3", "--duration", "3", "--out", str(out)]
     proc = subprocess.Popen(args, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     first = out / "cells" / "lat0ms_drop0_rep0" / "run.json"
-    try:
-        deadline = time.monotonic() + 120
-        while not first.exists() and time.monotonic() < deadline:
-            time.sleep(0.2)
-        assert first.exists()
-        proc.send_signal(signal.SIGINT)
-        proc.wait(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+    assert interrupt_when_exists(proc, first)
     mtime = first.stat().st_mtime_ns
     res = subprocess.run(args, cwd=tmp_path, capture_output=True, text=True, timeout=180)
     assert res.returncode == 0, res.stderr

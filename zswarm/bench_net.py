@@ -17,7 +17,6 @@ import time
 from pathlib import Path
 from typing import Any
 
-from zswarm import messages as msg  # noqa: F401 (documents the histogram format)
 from zswarm.procs import Children, free_port, rss_mb, wait_for_port
 
 
