@@ -51,7 +51,7 @@ def start_position(spec: RunSpec, agent_id: int, text: str | None) -> np.ndarray
 async def run_agent(spec: RunSpec, args) -> int:
     loop = asyncio.get_running_loop()
     start = start_position(spec, args.id, args.start)
-    session = open_session(config_from_args(args), what=f"agent {args.id}")
+    session = open_session(config_from_args(args), what=f"agent {args.id}", retry_for=args.connect_timeout)
     queue: asyncio.Queue = asyncio.Queue()
     bridge = Bridge(session, loop, queue)
     agent = Agent(spec, args.id, bridge, start, args.staleness, args.lockstep_wait)

@@ -166,7 +166,8 @@ def test_launch_ctrl_c_flushes_the_recording_and_reaps_everyone(tmp_path):
 
 
 @pytest.mark.parametrize("argv,needle", [
-    (["-m", "agents", "--id", "0", "--connect", "tcp/127.0.0.1:1"], "cannot open a zenoh session"),
+    (["-m", "agents", "--id", "0", "--connect", "tcp/127.0.0.1:1", "--connect-timeout", "1"],
+     "cannot open a zenoh session after 1 s"),
     (["-m", "agents", "--id", "0", "--start", "1;2"], "--start expects X,Y"),
     (["-m", "agents", "--id", "99", "--scenario", "moving-prey"], "has no spawn position"),
     (["-m", "world", "--scenario", "nope"], "unknown scenario"),

@@ -37,7 +37,7 @@ def build_parser() -> Parser:
 
 async def run_world(args, spec) -> dict:
     loop = asyncio.get_running_loop()
-    session = open_session(config_from_args(args), what="world")
+    session = open_session(config_from_args(args), what="world", retry_for=args.connect_timeout)
     queue: asyncio.Queue = asyncio.Queue()
     bridge = Bridge(session, loop, queue)
     world = World(spec, bridge, args.record, args.summary, args.trajectory, list(sys.argv))

@@ -49,6 +49,8 @@ def add_zenoh_args(parser: argparse.ArgumentParser, default_mode: str = "client"
                        help="a full zenoh configuration file (json5); the flags above override it")
     group.add_argument("--scout", action="store_true",
                        help="enable multicast scouting (off by default so runs never meet by accident)")
+    group.add_argument("--connect-timeout", type=float, default=15.0, metavar="S",
+                       help="keep trying to reach the router this long at start (default 15 s)")
 
 
 def zenoh_config(mode: str = "client", connect: Iterable[str] = (), listen: Iterable[str] = (),
@@ -84,14 +86,22 @@ def config_from_args(args: argparse.Namespace) -> zenoh.Config:
     return zenoh_config(args.mode, connect, args.listen, args.config, args.scout)
 
 
-def open_session(conf: zenoh.Config, what: str = "zenoh") -> zenoh.Session:
-    """Open a session; an unreachable router or a taken port is a one-line :class:`UsageError`."""
-    try:
-        return zenoh.open(conf)
-    except Exception as exc:
-        first = str(exc).split(" at ")[0].splitlines()[0]
-        raise UsageError(f"{what}: cannot open a zenoh session: {first} (is the router running and "
-                         f"reachable? check --connect/--listen)") from None
+def open_session(conf: zenoh.Config, what: str = "zenoh", retry_for: float = 0.0) -> zenoh.Session:
+    """Open a session, retrying for ``retry_for`` seconds (a router that is still starting); then an
+    unreachable router or a taken port is a one-line :class:`UsageError`."""
+    import time
+
+    deadline = time.monotonic() + retry_for
+    while True:
+        try:
+            return zenoh.open(conf)
+        except Exception as exc:
+            if time.monotonic() >= deadline:
+                first = str(exc).split(" at ")[0].splitlines()[0]
+                waited = f" after {retry_for:g} s" if retry_for > 0 else ""
+                raise UsageError(f"{what}: cannot open a zenoh session{waited}: {first} (is the router running "
+                                 f"and reachable? check --connect/--listen)") from None
+            time.sleep(0.25)
 
 
 def check_run_id(run: str) -> str:
