@@ -239,8 +239,11 @@ class Agent:
                 self.handle(("pose", key, payload, False))
 
     def sensed_neighbours(self, step: int | None) -> np.ndarray:
-        """Positions of the neighbours it may use: step-k poses (lockstep) or fresh ones (free), of
-        agents that hold a liveliness token (a pose under an id nobody announced is not a neighbour)."""
+        """Positions of the neighbours it may use now: step-k poses (lockstep) or fresh ones (free), of
+        agents that hold a liveliness token (a pose under an id nobody announced is not a neighbour).
+
+        The age of each pose within the sensing radius is recorded here, at the moment it is used.
+        """
         now = time.time()
         out = []
         for who, nb in self.neighbours.items():
@@ -249,20 +252,14 @@ class Agent:
             pose = nb.by_step.get(step) if step is not None else nb.latest
             if pose is None or (step is None and now - nb.received > self.staleness):
                 continue
+            if math.hypot(pose.x - self.position[0], pose.y - self.position[1]) <= self.radius:
+                self.counters.add(self.counters.ages, (now - pose.stamp) * 1000.0)
             out.append((pose.x, pose.y))
         return np.array(out, dtype=float).reshape(-1, 2)
 
     def control(self, goal: np.ndarray, neighbours: np.ndarray) -> np.ndarray:
         sensed = sense_one(self.position, self.obstacle_centers, self.obstacle_radii, neighbours, self.radius)
         return self.controller.velocity(self.position, goal, sensed, self.v_max)
-
-    def record_ages(self, step: int | None) -> None:
-        now = time.time()
-        for nb in self.neighbours.values():
-            pose = nb.by_step.get(step) if step is not None else nb.latest
-            if pose is not None and np.hypot(pose.x - self.position[0], pose.y - self.position[1]) <= self.radius:
-                if step is not None or now - nb.received <= self.staleness:
-                    self.counters.add(self.counters.ages, (now - pose.stamp) * 1000.0)
 
     # --- outbound --------------------------------------------------------------------------------------
 
@@ -326,9 +323,7 @@ class Agent:
             self.counters.ticks += 1
             await self.refresh_obstacles()
             if self.prey is not None:
-                neighbours = self.sensed_neighbours(None)
-                self.record_ages(None)
-                self.velocity = self.control(self.prey, neighbours)
+                self.velocity = self.control(self.prey, self.sensed_neighbours(None))
                 self.position = self.position + self.dt * self.velocity
             self.step += 1
             await self.update_cells()
@@ -387,7 +382,6 @@ class Agent:
                 k = self.step
                 await self._await_step_poses(k)
                 await self.refresh_obstacles()
-                self.record_ages(k)
                 goal = self.prey_by_step.get(k, np.array([tick.x, tick.y]))
                 self.velocity = self.control(goal, self.sensed_neighbours(k))
                 self.position = self.position + self.dt * self.velocity
