@@ -92,6 +92,9 @@ def build_parser() -> Parser:
     p.add_argument("--listen", default=None, metavar="ENDPOINT",
                    help="router endpoint (default tcp/127.0.0.1:FREE_PORT)")
     p.add_argument("--ids", type=parse_ids, default=None, help="agent ids this machine runs, e.g. 10-19")
+    p.add_argument("--secure", type=Path, default=None, metavar="DIR",
+                   help="TLS with access control: use the certificates and configs in DIR ('zswarm certs DIR'; "
+                        "made there if DIR has none); endpoints become tls/...")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.add_argument("--kill", type=parse_kill, default=None, metavar="K@T",
                    help="SIGKILL K agents, chosen with the seed, T seconds after the start")
@@ -146,6 +149,14 @@ def _validate(args: argparse.Namespace) -> tuple[str, int]:
                 check_writable(path)
     if "router" not in args.role and args.connect is None:
         raise UsageError("without the router role, give --connect tcp/HOST:PORT of the router")
+    if args.secure is not None:
+        from zswarm.security import is_secure_dir
+
+        if args.secure.exists() and not args.secure.is_dir():
+            raise UsageError(f"--secure {args.secure} is not a directory")
+        if args.secure.is_dir() and any(args.secure.iterdir()) and not is_secure_dir(args.secure):
+            raise UsageError(f"--secure {args.secure} has no router/world/agent .json5 configs; "
+                             f"make them with: zswarm certs {args.secure}")
     return scenario.name, scenario.n_agents
 
 
@@ -156,8 +167,9 @@ def _launch(argv: Sequence[str] | None) -> int:
     if args.summary is None:
         args.summary = args.record.with_suffix(".json")
     endpoint = args.connect
+    configs = _secure_configs(args)
     if "router" in args.role:
-        endpoint = args.listen or f"tcp/127.0.0.1:{free_port()}"
+        endpoint = args.listen or f"{'tls' if configs else 'tcp'}/127.0.0.1:{free_port()}"
         host, port = _endpoint_host_port(endpoint)
         if port_in_use(host if host not in ("0.0.0.0", "::") else "127.0.0.1", port):
             raise UsageError(f"port {port} on {host} is already in use; pick another with --listen")
@@ -172,17 +184,17 @@ def _launch(argv: Sequence[str] | None) -> int:
     signal.signal(signal.SIGTERM, on_signal)
     try:
         if "router" in args.role:
-            router = kids.spawn("router", ["-m", "zswarm.router", "--listen", endpoint],
-                                stdout=subprocess.DEVNULL)
+            router = kids.spawn("router", ["-m", "zswarm.router", "--listen", endpoint,
+                                           *configs.get("router", [])], stdout=subprocess.DEVNULL)
             host, port = _endpoint_host_port(endpoint)
             if not wait_for_port("127.0.0.1" if host in ("0.0.0.0", "::") else host, port, 10.0, router):
                 raise UsageError(f"the router did not start on {endpoint} (port taken? address not local?)")
         common = run_args(args, run) + ["--connect", endpoint]
-        args.agent_args = common
+        args.agent_args = common + configs.get("agent", [])
         world = None
         if "world" in args.role:
-            wargs = ["-m", "world", *common, "--record", str(args.record), "--summary", str(args.summary),
-                     "--duration", str(args.duration), "--progress", "0" if args.quiet else "2"]
+            wargs = ["-m", "world", *common, *configs.get("world", []), "--record", str(args.record),
+                     "--summary", str(args.summary), "--duration", str(args.duration), "--progress", "0" if args.quiet else "2"]
             if args.trajectory is not None:
                 wargs += ["--trajectory", str(args.trajectory)]
             world = kids.spawn("world", wargs, stdout=subprocess.PIPE)
@@ -190,7 +202,8 @@ def _launch(argv: Sequence[str] | None) -> int:
             threading.Thread(target=_forward, args=(world, args.quiet), daemon=True).start()
         if "agents" in args.role:
             for i in args.ids if args.ids is not None else range(n):
-                kids.spawn(f"agent-{i}", ["-m", "agents", "--id", str(i), *common], stdout=subprocess.DEVNULL)
+                kids.spawn(f"agent-{i}", ["-m", "agents", "--id", str(i), *args.agent_args],
+                           stdout=subprocess.DEVNULL)
         if not args.quiet:
             print(f"launch: run {run!r}, {len(kids.named('agent'))} agent processes, router {endpoint}",
                   flush=True)
@@ -202,6 +215,19 @@ def _launch(argv: Sequence[str] | None) -> int:
         return 130 if not interrupted else 143
     finally:
         kids.stop_all()
+
+
+def _secure_configs(args: argparse.Namespace) -> dict[str, list[str]]:
+    """``--config`` arguments per role for --secure DIR (making the certificates if DIR has none)."""
+    if args.secure is None:
+        return {}
+    from zswarm.security import is_secure_dir, write_secure_dir
+
+    if not is_secure_dir(args.secure):
+        write_secure_dir(args.secure)
+        if not args.quiet:
+            print(f"launch: made a CA, certificates and configs in {args.secure}", flush=True)
+    return {role: ["--config", str(args.secure / f"{role}.json5")] for role in ("router", "world", "agent")}
 
 
 def _forward(world, quiet: bool) -> None:

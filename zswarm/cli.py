@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 from typing import Sequence
 
 from zswarm.cli_util import Parser, run_main
@@ -44,7 +45,44 @@ def build_parser() -> Parser:
     from zswarm import replay_cli
 
     replay_cli.add_arguments(sub)
+
+    certs = sub.add_parser("certs", help="make a CA, certificates and Zenoh configs for TLS + access control",
+                           description="Write ca.pem, NAME.pem/.key and NAME.json5 (a full Zenoh config with "
+                                       "mutual TLS; the router's with access control) for router, world and "
+                                       "agent into DIR. Use them with 'launch.py --secure DIR', or pass "
+                                       "--config DIR/ROLE.json5 to each process on its own machine.")
+    certs.add_argument("directory", type=Path, metavar="DIR")
+    certs.add_argument("--router", default="tls/localhost:7447", metavar="ENDPOINT",
+                       help="the router's endpoint written into the configs (default tls/localhost:7447)")
+    certs.add_argument("--hosts", default="localhost,127.0.0.1", metavar="H1,H2",
+                       help="names and addresses the router is reached by (certificate SANs)")
+    certs.add_argument("--extra", default="", metavar="NAME,..",
+                       help="more certificates with no rights (e.g. guest) for testing")
+    certs.add_argument("--days", type=sim_cli.positive_int, default=30, help="validity (default 30)")
+    certs.add_argument("--force", action="store_true", help="overwrite an existing CA in DIR")
+    certs.set_defaults(run=_certs)
     return parser
+
+
+def _certs(args) -> int:
+    from zswarm.certs import ROLES
+    from zswarm.cli_util import UsageError
+    from zswarm.security import write_secure_dir
+
+    if (args.directory / "ca.pem").exists() and not args.force:
+        raise UsageError(f"{args.directory} already has a CA; use --force to replace it (every role then "
+                         f"needs the new files)")
+    if not args.router.startswith("tls/"):
+        raise UsageError(f"--router {args.router!r} must be a tls/HOST:PORT endpoint")
+    extra = tuple(n for n in args.extra.split(",") if n)
+    hosts = tuple(h for h in args.hosts.split(",") if h)
+    try:
+        written = write_secure_dir(args.directory, args.router, hosts, ROLES + extra, args.days)
+    except OSError as exc:
+        raise UsageError(f"cannot write to {args.directory}: {exc.strerror}") from None
+    for name, path in written.items():
+        print(f"{name}: {path} (certificate {path.with_suffix('.pem').name})")
+    return 0
 
 
 def _bench_net(args) -> int:

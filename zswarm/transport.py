@@ -39,22 +39,26 @@ RUN_ID = re.compile(r"^[A-Za-z0-9_.-]{1,64}$")
 def add_zenoh_args(parser: argparse.ArgumentParser, default_mode: str = "client") -> None:
     """The standard Zenoh arguments of the zenoh-python examples."""
     group = parser.add_argument_group("zenoh")
-    group.add_argument("--mode", choices=("peer", "client", "router"), default=default_mode,
-                       help=f"zenoh session mode (default {default_mode})")
+    group.add_argument("--mode", choices=("peer", "client", "router"), default=None,
+                       help=f"zenoh session mode (default: the --config file's, else {default_mode})")
     group.add_argument("--connect", "-e", action="append", default=[], metavar="ENDPOINT",
                        help="endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable)")
     group.add_argument("--listen", "-l", action="append", default=[], metavar="ENDPOINT",
                        help="endpoint to listen on, e.g. tcp/0.0.0.0:7447 (repeatable)")
     group.add_argument("--config", "-c", type=Path, metavar="FILE",
-                       help="a full zenoh configuration file (json5); the flags above override it")
+                       help="a full zenoh configuration file (json5), e.g. one written by 'zswarm certs' "
+                            "for TLS and access control; the other flags override it")
+    parser.set_defaults(default_mode=default_mode)
     group.add_argument("--scout", action="store_true",
                        help="enable multicast scouting (off by default so runs never meet by accident)")
     group.add_argument("--connect-timeout", type=float, default=15.0, metavar="S",
                        help="keep trying to reach the router this long at start (default 15 s)")
 
 
-def zenoh_config(mode: str = "client", connect: Iterable[str] = (), listen: Iterable[str] = (),
+def zenoh_config(mode: str | None = "client", connect: Iterable[str] = (), listen: Iterable[str] = (),
                  config: Path | None = None, scout: bool = False) -> zenoh.Config:
+    """A session configuration: the file ``config`` (if any), then the flags over it. ``mode=None``
+    keeps the file's mode."""
     if config is not None:
         if not Path(config).is_file():
             raise UsageError(f"zenoh config file {config} does not exist")
@@ -64,7 +68,8 @@ def zenoh_config(mode: str = "client", connect: Iterable[str] = (), listen: Iter
             raise UsageError(f"cannot read zenoh config {config}: {str(exc).splitlines()[0]}") from None
     else:
         conf = zenoh.Config()
-    conf.insert_json5("mode", json.dumps(mode))
+    if mode is not None or config is None:
+        conf.insert_json5("mode", json.dumps(mode or "client"))
     connect, listen = list(connect), list(listen)
     if connect:
         conf.insert_json5("connect/endpoints", json.dumps(connect))
@@ -81,9 +86,10 @@ DEFAULT_ROUTER = "tcp/127.0.0.1:7447"
 def config_from_args(args: argparse.Namespace) -> zenoh.Config:
     """A client with nothing to connect to joins the default local router."""
     connect = args.connect
-    if args.mode == "client" and not connect and args.config is None and not args.scout:
+    mode = args.mode or (None if args.config is not None else args.default_mode)
+    if mode == "client" and not connect and args.config is None and not args.scout:
         connect = [DEFAULT_ROUTER]
-    return zenoh_config(args.mode, connect, args.listen, args.config, args.scout)
+    return zenoh_config(mode, connect, args.listen, args.config, args.scout)
 
 
 def open_session(conf: zenoh.Config, what: str = "zenoh", retry_for: float = 0.0) -> zenoh.Session:
