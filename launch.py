@@ -71,6 +71,19 @@ def parse_outage(text: str) -> tuple[float, float]:
     return t, d
 
 
+def parse_crash(text: str) -> tuple[float, float | None]:
+    """``T`` (kill the world at T for good) or ``T:S`` (and start a new one S seconds later)."""
+    if ":" in text:
+        return parse_outage(text)
+    try:
+        t = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected T or T:S, e.g. 10 or 10:3 (got {text!r})") from None
+    if not t >= 0:
+        raise argparse.ArgumentTypeError(f"expected T >= 0 (got {text!r})")
+    return t, None
+
+
 def build_parser() -> Parser:
     p = Parser(prog="launch.py", description="Start a zswarm run: router, world and agents.")
     p.add_argument("--agents", type=int, default=None, help="number of agents N (default: the scenario's)")
@@ -102,6 +115,10 @@ def build_parser() -> Parser:
                    help="restart the killed agents S seconds later (they rejoin at their spawn position)")
     p.add_argument("--world-outage", type=parse_outage, default=None, metavar="T:S",
                    help="freeze the world (SIGSTOP) at T for S seconds: no prey, no obstacle answers")
+    p.add_argument("--world-crash", type=parse_crash, default=None, metavar="T[:S]",
+                   help="kill the world (SIGKILL) at T; with :S start a new one S seconds later with --resume "
+                        "(it recovers the run from the recording and writes the next segment), without, "
+                        "end the run there (the recording is repaired and the summary recomputed)")
     add_fault_args(p)
     return p
 
@@ -163,6 +180,7 @@ def _validate(args: argparse.Namespace) -> tuple[str, int]:
 def _launch(argv: Sequence[str] | None) -> int:
     args = build_parser().parse_args(argv)
     _, n = _validate(args)
+    args.started_at = time.time()
     run = args.run or f"run-{args.seed}-{int(time.time())}"
     if args.summary is None:
         args.summary = args.record.with_suffix(".json")
@@ -193,13 +211,12 @@ def _launch(argv: Sequence[str] | None) -> int:
         args.agent_args = common + configs.get("agent", [])
         world = None
         if "world" in args.role:
-            wargs = ["-m", "world", *common, *configs.get("world", []), "--record", str(args.record),
-                     "--summary", str(args.summary), "--duration", str(args.duration), "--progress", "0" if args.quiet else "2"]
+            args.world_args = ["-m", "world", *common, *configs.get("world", []), "--record", str(args.record),
+                               "--summary", str(args.summary), "--duration", str(args.duration),
+                               "--progress", "0" if args.quiet else "2"]
             if args.trajectory is not None:
-                wargs += ["--trajectory", str(args.trajectory)]
-            world = kids.spawn("world", wargs, stdout=subprocess.PIPE)
-            world.started = threading.Event()
-            threading.Thread(target=_forward, args=(world, args.quiet), daemon=True).start()
+                args.world_args += ["--trajectory", str(args.trajectory)]
+            world = spawn_world(kids, args)
         if "agents" in args.role:
             for i in args.ids if args.ids is not None else range(n):
                 kids.spawn(f"agent-{i}", ["-m", "agents", "--id", str(i), *args.agent_args],
@@ -211,10 +228,20 @@ def _launch(argv: Sequence[str] | None) -> int:
     except KeyboardInterrupt:
         print("launch: stopping (agents, then the world, then the router)", file=sys.stderr, flush=True)
         kids.stop_all()
+        worlds = kids.named("world")
+        _salvage(args, worlds[-1] if worlds else None)
         _report(args, None)
         return 130 if not interrupted else 143
     finally:
         kids.stop_all()
+
+
+def spawn_world(kids: Children, args: argparse.Namespace, resume: bool = False):
+    """Start the world (``resume``: a replacement that records into the next segment)."""
+    world = kids.spawn("world", args.world_args + (["--resume"] if resume else []), stdout=subprocess.PIPE)
+    world.started = threading.Event()
+    threading.Thread(target=_forward, args=(world, args.quiet), daemon=True).start()
+    return world
 
 
 def _secure_configs(args: argparse.Namespace) -> dict[str, list[str]]:
@@ -242,7 +269,8 @@ def _forward(world, quiet: bool) -> None:
 
 
 class Chaos:
-    """The scheduled crashes and outages of a run (--kill, --restart-after, --world-outage)."""
+    """The scheduled crashes and outages of a run (--kill, --restart-after, --world-outage,
+    --world-crash). ``world`` is the current world process (a replacement after --world-crash)."""
 
     def __init__(self, kids: Children, world, args: argparse.Namespace) -> None:
         import numpy as np
@@ -254,13 +282,33 @@ class Chaos:
         self.killed_at: float | None = None
         self.done: set[str] = set()
         self.expected: set[str] = set()
+        self.clock_started = False
+
+    @property
+    def world_pending(self) -> bool:
+        """A killed world is to be replaced."""
+        crash = self.args.world_crash
+        return bool(crash) and crash[1] is not None and "crash" in self.done and "resume" not in self.done
 
     def tick(self) -> None:
         """Times count from the start of the world's clock (or of the launch, without a world here)."""
-        if self.world is not None and not self.world.started.is_set():
-            self.t0 = time.monotonic()
-            return
+        if self.world is not None and not self.clock_started:
+            if not self.world.started.is_set():
+                self.t0 = time.monotonic()
+                return
+            self.clock_started = True
         a, t = self.args, time.monotonic() - self.t0
+        if a.world_crash and self.world is not None:
+            at, after = a.world_crash
+            if "crash" not in self.done and t >= at:
+                self.world.proc.kill()
+                self.world.proc.wait()
+                self.done.add("crash")
+                print(f"launch: killed the world at {t:.1f} s", file=sys.stderr, flush=True)
+            if self.world_pending and t >= at + after:
+                self.world = spawn_world(self.kids, a, resume=True)
+                self.done.add("resume")
+                print(f"launch: started a new world at {t:.1f} s (--resume)", file=sys.stderr, flush=True)
         if a.kill and "kill" not in self.done and t >= a.kill[1]:
             alive = [c for c in self.kids.named("agent") if c.alive()]
             chosen = self.rng.choice(len(alive), size=min(a.kill[0], len(alive)), replace=False)
@@ -295,27 +343,54 @@ def _supervise(kids: Children, world, args: argparse.Namespace) -> int:
     chaos = Chaos(kids, world, args)
     while True:
         chaos.tick()
+        world = chaos.world
         for c in kids.children:
             code = c.proc.poll()
-            if code not in (None, 0) and c.name not in crashed and c is not world and c.name not in chaos.expected:
+            if code not in (None, 0) and c.name not in crashed and c.name != "world" and c.name not in chaos.expected:
                 crashed.add(c.name)
                 print(f"launch: {c.name} exited with code {code}; the others carry on", file=sys.stderr,
                       flush=True)
-        if world is not None and not world.alive():
+        if world is not None and not world.alive() and not chaos.world_pending:
             break
         if world is None and "agents" in args.role and not any(c.alive() for c in kids.named("agent")):
             break
         router = kids.named("router")
         if router and not router[0].alive():
-            print("launch: the router died", file=sys.stderr, flush=True)
+            print("launch: the router died; stopping the run", file=sys.stderr, flush=True)
+            kids.stop_all()
+            _salvage(args, world)
+            _report(args, None)
             return 1
         time.sleep(0.1)
     if world is None:
         return 0
     Children.stop(kids.named("agent"), 5.0)  # they end on the world's final tick; this reaps them
     code = world.proc.returncode
+    _salvage(args, world)
     _report(args, code)
+    if "crash" in chaos.done and args.world_crash[1] is None:
+        return 0  # the run ended where it was asked to (--world-crash T)
     return 0 if code == 0 else (2 if code == 2 else 1)
+
+
+def _salvage(args: argparse.Namespace, world) -> None:
+    """A world that died without writing its summary (killed, crashed) leaves a recording without a
+    footer: repair it and recompute the summary from it, so every run ends with both."""
+    if world is None or world.alive() or world.proc.returncode == 2 or not args.record.exists():
+        return
+    fresh = args.summary.exists() and args.summary.stat().st_mtime >= args.started_at
+    if fresh and world.proc.returncode == 0:
+        return
+    from zswarm.cli_util import UsageError
+    from zswarm.salvage import salvage_summary
+
+    try:
+        salvage_summary(args.record, args.summary)
+        print(f"launch: the world ended with code {world.proc.returncode}; its recording was made whole and "
+              f"the summary recomputed from it (\"salvaged\": true)", file=sys.stderr, flush=True)
+    except UsageError as exc:
+        print(f"launch: the world ended with code {world.proc.returncode} and its recording cannot be "
+              f"salvaged: {exc}", file=sys.stderr, flush=True)
 
 
 def _report(args: argparse.Namespace, code: int | None) -> None:

@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import contextlib
 import json
+import shutil
+import signal
 import subprocess
+import sys
 import time
 from pathlib import Path
 from typing import Iterator
@@ -62,21 +65,40 @@ def load_summary(path: Path) -> dict:
     return json.loads(path.read_text())
 
 
-def interrupt_when_exists(proc: subprocess.Popen, path: Path, settle: float = 0.0, timeout: float = 120.0) -> bool:
-    """Wait for ``path`` to appear, wait ``settle`` more seconds, send SIGINT and reap the process
-    (killed if it does not end). Returns whether the file appeared."""
-    import signal
-
+def interrupt_when_exists(proc: subprocess.Popen, path: Path, settle: float = 0.0, timeout: float = 120.0,
+                          sig: int = signal.SIGINT) -> bool:
+    """Wait for ``path`` to appear, wait ``settle`` more seconds, send ``sig`` (SIGINT) and reap the
+    process (killed if it does not end). Returns whether the file appeared."""
     try:
         deadline = time.monotonic() + timeout
         while not path.exists() and time.monotonic() < deadline:
             time.sleep(0.1)
         appeared = path.exists()
         time.sleep(settle)
-        proc.send_signal(signal.SIGINT)
+        proc.send_signal(sig)
         proc.wait(timeout=60)
         return appeared
     finally:
         if proc.poll() is None:
             proc.kill()
             proc.wait()
+
+
+def rerun_verify(path: Path) -> None:
+    """``rerun rrd verify`` accepts the file."""
+    rerun = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")
+    res = subprocess.run([rerun, "rrd", "verify", str(path)], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+
+
+def our_processes(marker: str) -> list[int]:
+    """Pids of every process whose command line holds ``marker`` (a run id): should be none."""
+    out = []
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                if marker in (d / "cmdline").read_bytes().decode(errors="replace"):
+                    out.append(int(d.name))
+            except OSError:
+                pass
+    return out

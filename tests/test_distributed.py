@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 import signal
 import subprocess
 import sys
@@ -14,18 +13,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from swarm_procs import (interrupt_when_exists, load_summary, processes, start_agent, start_router, start_world,
-                         wait_exit)
+from swarm_procs import (interrupt_when_exists, load_summary, our_processes, processes, rerun_verify, start_agent,
+                         start_router, start_world, wait_exit)
 from zswarm.procs import ROOT
 from zswarm.replay import load_run
 from zswarm.scenarios import get_scenario
 from zswarm.sim import simulate
-
-
-def rerun_verify(path: Path) -> None:
-    rerun = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")
-    res = subprocess.run([rerun, "rrd", "verify", str(path)], capture_output=True, text=True, timeout=120)
-    assert res.returncode == 0, res.stderr
 
 
 @pytest.mark.parametrize("scenario,duration", [("moving-prey", 30.0), ("static-goal", 32.0)])
@@ -133,18 +126,6 @@ def test_killing_one_agent_leaves_the_others_running_and_is_recorded(tmp_path):
     assert 2 in run.frames[1].ids and 2 not in run.frames[-1].ids and len(run.frames[-1].ids) == 4
 
 
-def _our_processes(marker: str) -> list[int]:
-    out = []
-    for d in Path("/proc").iterdir():
-        if d.name.isdigit():
-            try:
-                if marker in (d / "cmdline").read_bytes().decode(errors="replace"):
-                    out.append(int(d.name))
-            except OSError:
-                pass
-    return out
-
-
 def test_launch_runs_a_swarm_and_leaves_nothing_behind(tmp_path):
     res = subprocess.run([sys.executable, str(ROOT / "launch.py"), "--agents", "4", "--duration", "4",
                           "--run", "launchtest", "--record", str(tmp_path / "l.rrd")], cwd=tmp_path,
@@ -152,17 +133,21 @@ def test_launch_runs_a_swarm_and_leaves_nothing_behind(tmp_path):
     assert res.returncode == 0, res.stderr
     assert "rerun " in res.stdout and (tmp_path / "l.json").exists()
     rerun_verify(tmp_path / "l.rrd")
-    assert _our_processes("launchtest") == []
+    assert our_processes("launchtest") == []
 
 
-def test_launch_ctrl_c_flushes_the_recording_and_reaps_everyone(tmp_path):
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_launch_stopped_by_a_signal_leaves_a_valid_recording_and_reaps_everyone(tmp_path, sig):
+    marker = f"stoptest{int(sig)}"
     proc = subprocess.Popen([sys.executable, str(ROOT / "launch.py"), "--agents", "3", "--duration", "60",
-                             "--run", "ctrlctest", "--record", str(tmp_path / "c.rrd"), "--quiet"],
+                             "--run", marker, "--record", str(tmp_path / "c.rrd"), "--quiet"],
                             cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    assert interrupt_when_exists(proc, tmp_path / "c.rrd", settle=3.0)
+    assert interrupt_when_exists(proc, tmp_path / "c.rrd", settle=3.0, sig=sig)
+    assert proc.returncode == 128 + int(sig)
     rerun_verify(tmp_path / "c.rrd")
-    assert (tmp_path / "c.json").exists()
-    assert _our_processes("ctrlctest") == []
+    s = load_summary(tmp_path / "c.json")
+    assert s["agents_reporting"] == 3 and s["steps"] > 20 and "salvaged" not in s
+    assert our_processes(marker) == []
 
 
 @pytest.mark.parametrize("argv,needle", [

@@ -1,15 +1,19 @@
-"""Lost infrastructure: the router restarts mid-run; agents and world reconnect and carry on."""
+"""Lost infrastructure: the router restarts mid-run (agents and world reconnect and carry on); the world
+is killed and restarted (a new recording segment) or killed for good (its recording repaired)."""
 
 from __future__ import annotations
 
+import json
 import subprocess
+import sys
 import time
 
 import numpy as np
 
-from swarm_procs import load_summary, processes, start_agent, start_world, wait_exit
-from zswarm.procs import free_port, wait_for_port
-from zswarm.replay import load_run
+from swarm_procs import (load_summary, our_processes, processes, rerun_verify, start_agent, start_world,
+                         wait_exit)
+from zswarm.procs import ROOT, free_port, wait_for_port
+from zswarm.replay import load_run, load_segment, segments
 
 
 def test_router_restart_mid_run(tmp_path):
@@ -49,3 +53,42 @@ def test_router_restart_mid_run(tmp_path):
     assert np.all(np.linalg.norm(last.positions - first.positions, axis=1) > 0.2)  # still moving
     to_prey = lambda f: np.linalg.norm(f.positions - f.prey, axis=1).mean()  # noqa: E731
     assert to_prey(last) < to_prey(first)  # and still closing in on the prey
+
+
+def test_world_killed_and_restarted_continues_the_run_in_a_new_segment(tmp_path):
+    record = tmp_path / "wc.rrd"
+    res = subprocess.run([sys.executable, str(ROOT / "launch.py"), "--agents", "5", "--duration", "14",
+                          "--run", "worldcrash", "--record", str(record), "--world-crash", "5:2", "--quiet"],
+                         cwd=tmp_path, capture_output=True, text=True, timeout=180)
+    assert res.returncode == 0, res.stderr
+    assert "killed the world" in res.stderr and "started a new world" in res.stderr
+    first, second = segments(record)  # run.rrd is kept; the new world wrote run.seg1.rrd
+    assert second.name == "wc.seg1.rrd"
+    for part in (first, second):
+        rerun_verify(part)  # the killed world's file was given its footer by its successor
+    before, after = load_segment(first).frames, load_segment(second).frames
+    assert 4.0 < before[-1].t < 5.5 and len(before) > 60  # the first world's frames are all still there
+    assert after[0].step == before[-1].step + 1 and abs(after[0].t - before[-1].t) < 0.2  # it goes on
+    s = load_summary(record.with_suffix(".json"))
+    assert s["world_segments"] == 2 and s["resumed_from"]["step"] == before[-1].step
+    assert s["agents_reporting"] == 5 and s["collisions"] == 0 and abs(s["duration"] - 14.0) < 1e-6
+    # the summary covers both segments: replay over them reproduces it exactly
+    replay = subprocess.run([sys.executable, "-m", "zswarm", "replay", str(record), "--json"],
+                            capture_output=True, text=True, timeout=120)
+    out = json.loads(replay.stdout)
+    assert out["replay"]["matches_stored_summary"] and out["replay"]["frames"] == len(before) + len(after)
+    assert our_processes("worldcrash") == []
+
+
+def test_world_killed_for_good_leaves_a_repaired_recording_and_a_salvaged_summary(tmp_path):
+    record = tmp_path / "wk.rrd"
+    res = subprocess.run([sys.executable, str(ROOT / "launch.py"), "--agents", "3", "--duration", "30",
+                          "--run", "worldkill", "--record", str(record), "--world-crash", "4", "--quiet"],
+                         cwd=tmp_path, capture_output=True, text=True, timeout=180)
+    assert res.returncode == 0, res.stderr
+    assert "salvaged" in res.stderr
+    rerun_verify(record)
+    s = load_summary(record.with_suffix(".json"))
+    assert s["salvaged"] is True and 3.0 < s["duration"] < 4.5 and s["collisions"] == 0
+    assert s["run"] == "worldkill" and s["steps"] == load_run(record).frames[-1].step
+    assert our_processes("worldkill") == []

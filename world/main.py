@@ -30,6 +30,10 @@ def build_parser() -> Parser:
                         help="wait this long for all agents to be alive before starting (default 30 s)")
     parser.add_argument("--step-timeout", type=float, default=5.0,
                         help="lockstep: longest wait for the poses of a step (default 5 s)")
+    parser.add_argument("--resume", action="store_true",
+                        help="this world replaces one that died: keep --record (and its segments) as it is, "
+                             "recover the run so far from it and record the rest into the next segment "
+                             "(RECORD.segN.rrd); free clock only")
     parser.add_argument("--progress", type=float, default=2.0, help="seconds between progress lines (0: none)")
     add_zenoh_args(parser)
     return parser
@@ -40,7 +44,7 @@ async def run_world(args, spec) -> dict:
     session = open_session(config_from_args(args), what="world", retry_for=args.connect_timeout)
     queue: asyncio.Queue = asyncio.Queue()
     bridge = Bridge(session, loop, queue)
-    world = World(spec, bridge, args.record, args.summary, args.trajectory, list(sys.argv))
+    world = World(spec, bridge, args.record, args.summary, args.trajectory, list(sys.argv), resume=args.resume)
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, world.stop.set)
     keys = spec.keys
@@ -56,7 +60,7 @@ async def run_world(args, spec) -> dict:
         pump_task = asyncio.ensure_future(pump(queue, world.handle))
         print(f"world: run {spec.run!r}, scenario {spec.scenario.name}, {spec.scenario.n_agents} agents, "
               f"{spec.clock} clock; waiting for the agents", flush=True)
-        await world.wait_for_agents(args.start_timeout)
+        await world.wait_for_agents(min(args.start_timeout, 3.0) if world.resumed_from else args.start_timeout)
         print(f"world: started with {len(world.state.alive)} agents alive", flush=True)
         if spec.clock == "lockstep":
             await world.run_lockstep(steps, args.progress, args.step_timeout)
@@ -81,6 +85,8 @@ def _main(argv: Sequence[str] | None) -> int:
     for path in (args.record, args.summary, args.trajectory):
         if path is not None:
             check_writable(path)
+    if args.resume and spec.clock == "lockstep":
+        raise UsageError("--resume works with the free clock only (a lockstep run cannot re-issue its ticks)")
     if args.duration is not None and not args.duration > 0:
         raise UsageError(f"--duration must be > 0 (got {args.duration})")
     result = asyncio.run(run_world(args, spec))

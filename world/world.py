@@ -52,7 +52,7 @@ def _ratio(a: float, b: float) -> float | None:
 
 class World:
     def __init__(self, spec: RunSpec, bridge: Bridge, record: Path | None, summary_path: Path | None,
-                 trajectory: Path | None = None, argv: list[str] | None = None) -> None:
+                 trajectory: Path | None = None, argv: list[str] | None = None, resume: bool = False) -> None:
         self.spec, self.bridge, self.keys = spec, bridge, spec.keys
         self.scenario = spec.scenario
         self.reference = Simulator(self.scenario, spec.seed, spec.combination)  # its field, not its state
@@ -75,6 +75,9 @@ class World:
         self.started_wall = time.time()
         self.all_alive_after: float | None = None
         self.sent = 0
+        self.resume = resume
+        self.segment = 0  # which recording segment this world writes (> 0: it was restarted)
+        self.resumed_from: dict[str, Any] | None = None
 
     # --- what the world answers and hears -------------------------------------------------------------
 
@@ -207,7 +210,8 @@ class World:
         stretches the prey's step instead of slowing its time down."""
         loop = asyncio.get_running_loop()
         period, duration = self.spec.period, steps * self.scenario.dt
-        start = next_tick = loop.time()
+        next_tick = loop.time()
+        start = next_tick - self.t / self.spec.time_scale  # a restarted world goes on from its t
         last_print = -math.inf
         self.late_ticks = 0
         while not self.stop.is_set():
@@ -280,18 +284,60 @@ class World:
             return
         from zswarm import swarm_log
         from zswarm.recording import open_recording
+        from zswarm.replay import segment_path
 
+        path = self.record_path
+        if self.resume and path.exists():
+            self.recover()
+            path = segment_path(path, self.segment)
         extra = (("agents alive", ("agents_alive",)),)
-        self.rec = open_recording(self.record_path, "zswarm-world", swarm_log.blueprint(extra),
-                                  recording_id=self.spec.run)
+        self.rec = open_recording(path, "zswarm-world", swarm_log.blueprint(extra), recording_id=self.spec.run)
         swarm_log.log_config(self.rec, self.config())
         swarm_log.log_obstacles(self.rec, self.centers, self.radii)
+        if self.resumed_from is not None:
+            self._log_event(f"world restarted: segment {self.segment} continues after step "
+                            f"{self.resumed_from['step']} (t = {self.resumed_from['t']:.2f} s)")
+
+    def recover(self) -> None:
+        """A restarted world: read what the previous worlds recorded (every segment; a killed
+        writer's file is read up to its last complete chunk), fold it into the summary, and go on
+        from the last recorded step, time and prey position. Their files are never touched."""
+        from zswarm.cli_util import UsageError
+        from zswarm.replay import fold_frames, load_run, segments
+        from zswarm.salvage import seal
+
+        for part in segments(self.record_path):
+            if seal(part):
+                print(f"world: {part} had no footer (its world was killed); rewritten whole", flush=True)
+        prior = load_run(self.record_path)
+        if prior.config.get("run") != self.spec.run:
+            raise UsageError(f"--resume: {self.record_path} records run {prior.config.get('run')!r}, not "
+                             f"{self.spec.run!r}; give the same --run or another --record")
+        fold_frames(self.summary, prior.frames, self.reference, self.ctx)
+        last = prior.frames[-1]
+        self.segment = len(prior.segments)
+        self.step_index, self.t = last.step + 1, last.t
+        if last.prey is not None:
+            self.prey = last.prey.copy()
+        self.trail = [f.prey for f in prior.frames[-400:] if f.prey is not None]
+        if self.trajectory_path is not None:
+            for f in prior.frames:
+                full = np.full((self.scenario.n_agents, 2), np.nan)
+                inside = f.ids < self.scenario.n_agents
+                full[f.ids[inside]] = f.positions[inside]
+                self.traj.append(full)
+                self.traj_prey.append(f.prey if f.prey is not None else np.full(2, np.nan))
+        self.resumed_from = {"segment": self.segment, "step": last.step, "t": last.t,
+                             "frames_recovered": len(prior.frames)}
+        print(f"world: resuming run {self.spec.run!r} after step {last.step} (t = {last.t:.2f} s) from "
+              f"{len(prior.segments)} segment(s); writing segment {self.segment}", flush=True)
 
     def config(self) -> dict[str, Any]:
         s = self.spec
         return {"run": s.run, "scenario": s.scenario.name, "seed": s.seed, "potential": s.combination,
                 "clock": s.clock, "time_scale": s.time_scale, "n_agents": s.scenario.n_agents,
-                "scenario_definition": s.scenario.to_dict(), "versions": versions(), "argv": self.argv}
+                "scenario_definition": s.scenario.to_dict(), "versions": versions(), "argv": self.argv,
+                "segment": self.segment, "resumed_from": self.resumed_from}
 
     def transport_summary(self) -> dict[str, Any]:
         stats = list(self.state.stats.values())
@@ -325,6 +371,7 @@ class World:
             "neighbour_returns": {str(s.id): {str(k): v for k, v in (s.returned or {}).items()} for s in stats},
             "missed_lockstep_poses": getattr(self, "missed_poses", 0),
             "world_late_ticks": getattr(self, "late_ticks", 0), "world_ticks": self.step_index + 1,
+            "world_segments": self.segment + 1, "resumed_from": self.resumed_from,
         }
 
     def finish(self, steps: int) -> dict[str, Any]:

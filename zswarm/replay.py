@@ -3,6 +3,10 @@
 The simulator and the world log exact float64 agent states (``state/agents``: id, x, y, vx, vy per
 step), the prey (``state/prey``), what the run was asked to do (``run/config``) and its summary
 (``run/summary``). :func:`load_run` returns them in step order.
+
+A world that was restarted mid-run (``--resume``) leaves its first recording untouched and writes
+the rest into segments beside it: ``run.rrd``, ``run.seg1.rrd``, ``run.seg2.rrd``...
+:func:`load_run` reads them all as one run (open them together in the viewer: ``rerun run*.rrd``).
 """
 
 from __future__ import annotations
@@ -33,6 +37,22 @@ class RunRecord:
     config: dict[str, Any]
     summary: dict[str, Any] | None
     frames: list[Frame]
+    segments: tuple[Path, ...] = ()
+
+
+def segment_path(path: Path, k: int) -> Path:
+    """Segment ``k`` of the recording ``path`` (0 is ``path`` itself)."""
+    path = Path(path)
+    return path if k == 0 else path.with_name(f"{path.stem}.seg{k}{path.suffix}")
+
+
+def segments(path: Path) -> list[Path]:
+    """``path`` and the segments a restarted world wrote after it, in order."""
+    out, k = [], 0
+    while segment_path(path, k).is_file():
+        out.append(segment_path(path, k))
+        k += 1
+    return out
 
 
 def _seconds(column: Any) -> np.ndarray:
@@ -41,13 +61,44 @@ def _seconds(column: Any) -> np.ndarray:
 
 
 def load_run(path: Path) -> RunRecord:
-    from rerun.chunk import RrdReader
-
+    """A run from ``path`` and its segments: the first segment's configuration, the last summary
+    stored, and every step (a later segment wins where two hold the same step)."""
     path = Path(path)
     if not path.is_file():
         raise UsageError(f"recording {path} does not exist")
+    parts = [load_segment(p) for p in segments(path)]
+    config = parts[0].config
+    for p, part in zip(segments(path)[1:], parts[1:]):
+        if part.config.get("run") != config.get("run"):
+            raise UsageError(f"{p} belongs to run {part.config.get('run')!r}, not {config.get('run')!r}; "
+                             f"move it away from {path}")
+    by_step = {f.step: f for part in parts for f in part.frames}
+    summary = next((part.summary for part in reversed(parts) if part.summary is not None), None)
+    return RunRecord(config, summary, [by_step[k] for k in sorted(by_step)], tuple(segments(path)))
+
+
+def fold_frames(summary, frames: list[Frame], reference, ctx) -> None:
+    """Add every recorded frame's metrics to ``summary`` with the simulator's code (replay, and a
+    restarted world recovering what its predecessor observed)."""
+    from zswarm.metrics import step_metrics
+
+    for f in frames:
+        if f.prey is None or len(f.ids) == 0:
+            continue
+        u, _ = reference.potential_and_velocity(f.positions, f.prey)
+        metrics, colliding, contacts = step_metrics(f.positions, f.velocities, f.prey, ctx, float(u.sum()))
+        summary.add(f.t, metrics, f.ids[colliding] if len(colliding) else colliding, contacts)
+
+
+def load_segment(path: Path) -> RunRecord:
+    import warnings
+
+    from rerun.chunk import RrdReader
+
     try:
-        chunks = RrdReader(str(path)).stream().to_chunks()
+        with warnings.catch_warnings():  # a file whose writer was killed has no footer: scanned whole
+            warnings.simplefilter("ignore")
+            chunks = RrdReader(str(path)).stream().to_chunks()
     except Exception as exc:
         raise UsageError(f"cannot read {path} as a Rerun recording: {str(exc).splitlines()[0]}") from None
     config: dict[str, Any] = {}

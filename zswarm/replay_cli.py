@@ -15,9 +15,9 @@ from typing import Any
 
 from zswarm.cli_util import UsageError
 from zswarm.design import epsilon
-from zswarm.metrics import Summary, step_metrics
+from zswarm.metrics import Summary
 from zswarm.params import Params
-from zswarm.replay import RunRecord, load_run
+from zswarm.replay import RunRecord, fold_frames, load_run
 from zswarm.scenarios import Obstacle, Scenario
 from zswarm.prey import PreyMotion
 from zswarm.sim import Simulator, metric_context
@@ -47,12 +47,7 @@ def recompute(run: RunRecord) -> dict[str, Any]:
     ctx = metric_context(scenario, ref.obstacles)
     summary = Summary(capture_radius=scenario.capture_radius,
                       epsilon=epsilon(scenario.params.potential, scenario.n_agents))
-    for f in run.frames:
-        if f.prey is None or len(f.ids) == 0:
-            continue
-        u, _ = ref.potential_and_velocity(f.positions, f.prey)
-        metrics, colliding, contacts = step_metrics(f.positions, f.velocities, f.prey, ctx, float(u.sum()))
-        summary.add(f.t, metrics, f.ids[colliding] if len(colliding) else colliding, contacts)
+    fold_frames(summary, run.frames, ref, ctx)
     return summary.result()
 
 
