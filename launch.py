@@ -143,7 +143,7 @@ def _endpoint_host_port(endpoint: str) -> tuple[str, int]:
         host, port = rest.rsplit(":", 1)
         return host.strip("[]"), int(port)
     except ValueError:
-        raise UsageError(f"endpoint {endpoint!r} must look like tcp/HOST:PORT") from None
+        raise UsageError(f"endpoint {endpoint!r} must look like tcp/HOST:PORT (or tls/HOST:PORT)") from None
 
 
 def _validate(args: argparse.Namespace) -> tuple[str, int]:
@@ -166,6 +166,11 @@ def _validate(args: argparse.Namespace) -> tuple[str, int]:
                 check_writable(path)
     if "router" not in args.role and args.connect is None:
         raise UsageError("without the router role, give --connect tcp/HOST:PORT of the router")
+    for flag, endpoint in (("--listen", args.listen), ("--connect", args.connect)):
+        if endpoint is not None:
+            _endpoint_host_port(endpoint)
+            if args.secure is not None and not endpoint.startswith("tls/"):
+                raise UsageError(f"with --secure, {flag} must be a tls/HOST:PORT endpoint (got {endpoint!r})")
     if args.secure is not None:
         from zswarm.security import is_secure_dir
 

@@ -206,7 +206,14 @@ def main(argv: Sequence[str] | None) -> int:
     from zswarm.scenarios import get_scenario
 
     get_scenario(args.scenario, {"n_agents": args.agents} if args.agents is not None else {})
-    args.out.mkdir(parents=True, exist_ok=True)
+    if args.duration is not None and not args.duration > 0:
+        raise UsageError(f"--duration must be > 0 (got {args.duration})")
+    if args.out.exists() and not args.out.is_dir():
+        raise UsageError(f"--out {args.out} is a file; give a directory (a new one, or a sweep's to resume it)")
+    try:
+        args.out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UsageError(f"cannot create --out {args.out}: {exc.strerror}") from None
     cells = [Cell(la, d, r) for la in lat for d in drop for r in range(args.repeats)]
     todo = [c for c in cells if not (args.out / "cells" / c.name / "sim.json").exists()
             or (not args.sim_only and not (args.out / "cells" / c.name / "run.json").exists())]

@@ -60,12 +60,14 @@ def zenoh_config(mode: str | None = "client", connect: Iterable[str] = (), liste
     """A session configuration: the file ``config`` (if any), then the flags over it. ``mode=None``
     keeps the file's mode."""
     if config is not None:
+        if Path(config).is_dir():
+            raise UsageError(f"cannot read zenoh config {config}: it is a directory; give a .json5 file")
         if not Path(config).is_file():
             raise UsageError(f"zenoh config file {config} does not exist")
         try:
             conf = zenoh.Config.from_file(str(config))
         except Exception as exc:  # zenoh reports parse errors as ZError
-            raise UsageError(f"cannot read zenoh config {config}: {str(exc).splitlines()[0]}") from None
+            raise UsageError(f"cannot read zenoh config {config}: {_first_line(exc)}") from None
     else:
         conf = zenoh.Config()
     if mode is not None or config is None:
@@ -81,6 +83,11 @@ def zenoh_config(mode: str | None = "client", connect: Iterable[str] = (), liste
 
 
 DEFAULT_ROUTER = "tcp/127.0.0.1:7447"
+
+
+def _first_line(exc: Exception) -> str:
+    """A zenoh error without the Rust source location it carries."""
+    return (str(exc).splitlines() or [""])[0].split(" at /")[0].split(" at ")[0].strip()
 
 
 def config_from_args(args: argparse.Namespace) -> zenoh.Config:
@@ -102,8 +109,11 @@ def open_session(conf: zenoh.Config, what: str = "zenoh", retry_for: float = 0.0
         try:
             return zenoh.open(conf)
         except Exception as exc:
+            first = _first_line(exc)
+            if "listener" in first or "in use" in first:
+                raise UsageError(f"{what}: cannot listen: {first} (the port is taken or the address is not "
+                                 f"local: pick another --listen)") from None
             if time.monotonic() >= deadline:
-                first = str(exc).split(" at ")[0].splitlines()[0]
                 waited = f" after {retry_for:g} s" if retry_for > 0 else ""
                 raise UsageError(f"{what}: cannot open a zenoh session{waited}: {first} (is the router running "
                                  f"and reachable? check --connect/--listen)") from None

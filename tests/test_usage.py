@@ -1,0 +1,99 @@
+"""Every command answers a user's mistake with one line on stderr and exit code 2, never a traceback:
+unknown options, bad values, unknown scenarios, unreadable files and occupied ports."""
+
+from __future__ import annotations
+
+import socket
+
+import pytest
+
+from conftest import ROOT, run_cli
+
+LAUNCH = str(ROOT / "launch.py")
+
+# {busy}: a port something listens on; {junk}: a file of garbage; {dir}: a directory; {missing}: nothing
+CASES = [
+    # design
+    (["-m", "zswarm", "design", "--nope"], "unrecognized arguments"),
+    (["-m", "zswarm", "design", "--set", "l_o=-1"], "l_o must be"),
+    (["-m", "zswarm", "design", "--set", "n_agents=abc"], "n_agents must be an integer"),
+    (["-m", "zswarm", "design", "--set", "zz=1"], "unknown parameter"),
+    (["-m", "zswarm", "design", "--save", "{missing}/x.rrd"], "does not exist"),
+    # sim
+    (["-m", "zswarm", "sim", "--scenario", "nope"], "unknown scenario"),
+    (["-m", "zswarm", "sim", "--seed", "x"], "invalid int value"),
+    (["-m", "zswarm", "sim", "--duration", "-1"], "--duration"),
+    (["-m", "zswarm", "sim", "--potential", "both"], "--potential"),
+    (["-m", "zswarm", "sim", "--set", "v_max=0"], "v_max must be"),
+    (["-m", "zswarm", "sim", "--scenario", "{missing}.toml"], "does not exist"),
+    (["-m", "zswarm", "sim", "--scenario", "{junk}.toml"], "scenario"),
+    (["-m", "zswarm", "sim", "--record", "{dir}"], "is a directory"),
+    # replay / compare
+    (["-m", "zswarm", "replay", "{missing}.rrd"], "does not exist"),
+    (["-m", "zswarm", "replay", "{junk}"], "cannot read"),
+    (["-m", "zswarm", "compare", "{junk}", "{missing}.rrd"], "cannot read"),
+    # certs
+    (["-m", "zswarm", "certs", "{junk}"], "cannot write"),
+    (["-m", "zswarm", "certs", "{dir}/pki", "--router", "tcp/localhost:1"], "must be a tls/HOST:PORT"),
+    (["-m", "zswarm", "bench", "net", "--agents", "0"], "expected an integer >= 1"),
+    # launch
+    ([LAUNCH, "--nope"], "unrecognized arguments"),
+    ([LAUNCH, "--agents", "0"], "--agents must be"),
+    ([LAUNCH, "--role", "agents"], "--connect"),
+    ([LAUNCH, "--ids", "x-y"], "--ids"),
+    ([LAUNCH, "--scenario", "nope"], "unknown scenario"),
+    ([LAUNCH, "--scenario", "{junk}.toml"], "scenario"),
+    ([LAUNCH, "--dropout", "2"], "dropout must be in [0, 1)"),
+    ([LAUNCH, "--latency", "5parsecs"], "expected a duration"),
+    ([LAUNCH, "--world-crash", "x"], "expected T or T:S"),
+    ([LAUNCH, "--listen", "tcp/127.0.0.1:{busy}"], "already in use"),
+    ([LAUNCH, "--listen", "nonsense"], "must look like tcp/HOST:PORT"),
+    ([LAUNCH, "--secure", "{junk}"], "is not a directory"),
+    ([LAUNCH, "--secure", "{dir}/pki", "--listen", "tcp/127.0.0.1:1"], "must be a tls/HOST:PORT"),
+    ([LAUNCH, "--record", "{missing}/run.rrd"], "does not exist"),
+    # sweep
+    ([LAUNCH, "sweep", "--bogus"], "--out"),
+    ([LAUNCH, "sweep", "--out", "{dir}/s", "--scenario", "nope"], "unknown scenario"),
+    ([LAUNCH, "sweep", "--out", "{dir}/s", "--latency", "1,x"], "expected a duration"),
+    ([LAUNCH, "sweep", "--out", "{dir}/s", "--dropout", "1.5"], "dropout must be in [0, 1)"),
+    ([LAUNCH, "sweep", "--out", "{dir}/s", "--duration", "-1"], "--duration must be > 0"),
+    ([LAUNCH, "sweep", "--out", "{junk}"], "is a file"),
+    # the processes
+    (["-m", "zswarm.router", "--listen", "tcp/127.0.0.1:{busy}"], "cannot listen"),
+    (["-m", "zswarm.router", "--config", "{junk}"], "cannot read zenoh config"),
+    (["-m", "zswarm.router", "--config", "{missing}.json5"], "does not exist"),
+    (["-m", "agents", "--id", "0", "--mode", "peer", "--listen", "tcp/127.0.0.1:{busy}"], "cannot listen"),
+    (["-m", "agents", "--id", "0", "--scenario", "nope"], "unknown scenario"),
+    (["-m", "agents", "--id", "0", "--connect", "tcp/127.0.0.1:1", "--connect-timeout", "1"],
+     "cannot open a zenoh session after 1 s"),
+    (["-m", "agents", "--id", "0", "--start", "1;2"], "--start expects X,Y"),
+    (["-m", "agents", "--id", "99", "--scenario", "moving-prey"], "has no spawn position"),
+    (["-m", "world", "--scenario", "nope"], "unknown scenario"),
+    (["-m", "world", "--config", "{dir}"], "cannot read zenoh config"),
+    (["-m", "world", "--record", "{missing}/w.rrd"], "does not exist"),
+    (["-m", "world", "--resume", "--clock", "lockstep"], "free clock only"),
+]
+
+
+@pytest.fixture(scope="module")
+def busy_port():
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen()
+        yield s.getsockname()[1]
+
+
+@pytest.mark.parametrize("argv,needle", CASES, ids=[" ".join(a[:4]).replace(LAUNCH, "launch.py") for a, _ in CASES])
+def test_user_mistakes_get_one_line_and_exit_2(argv, needle, busy_port, tmp_path):
+    junk = tmp_path / "junk"
+    junk.write_bytes(b"\x00\xff not what you think [[[ = \n")
+    (tmp_path / "junk.toml").write_bytes(b"[[[ = \n")
+    folder = tmp_path / "d"
+    folder.mkdir()
+    fill = {"busy": str(busy_port), "junk": str(junk), "dir": str(folder), "missing": str(tmp_path / "missing")}
+    args = [a.format(**fill) for a in argv]
+    res = run_cli(*args, timeout=60, cwd=tmp_path)
+    assert res.returncode == 2, (res.returncode, res.stderr[-2000:])
+    assert needle in res.stderr, res.stderr
+    assert "Traceback" not in res.stderr and len(res.stderr.strip().splitlines()) == 1, res.stderr
+    assert not any(p.name not in ("junk", "junk.toml", "d") for p in tmp_path.iterdir()), "left files behind"
