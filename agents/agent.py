@@ -53,6 +53,9 @@ class Counters:
     seq_lost: int = 0
     departed: dict[int, float] = field(default_factory=dict)
     returned: dict[int, float] = field(default_factory=dict)
+    # since the last stats message: the longest inbound queue seen at a tick, and the latest tick start
+    window_queue_max: int = 0
+    window_lag_ms: float = 0.0
 
     def reject(self, reason: str, agent: int, detail: str) -> None:
         if reason not in self.rejected:  # log once per reason
@@ -299,7 +302,8 @@ class Agent:
                                     {"obstacle_queries_failed": float(c.obstacle_queries_failed),
                                      "seq_received": float(c.seq_received), "seq_lost": float(c.seq_lost),
                                      "injected_drops": float(self.injector.faults.dropped if self.injector else 0),
-                                     "injected_passed": float(self.injector.faults.passed if self.injector else 0)},
+                                     "injected_passed": float(self.injector.faults.passed if self.injector else 0),
+                                     "queue_max": float(c.window_queue_max), "tick_lag_max_ms": c.window_lag_ms},
                                     tuple(sorted(c.heard))[:msg.MAX_HEARD], dict(c.departed), dict(c.returned)))
 
     async def publish_stats(self) -> None:
@@ -308,6 +312,7 @@ class Agent:
                 await asyncio.wait_for(self.stop.wait(), STATS_PERIOD)
             except asyncio.TimeoutError:
                 self.bridge.session.put(self.keys.stats(self.id), self.stats())
+                self.counters.window_queue_max, self.counters.window_lag_ms = 0, 0.0
 
     # --- the two clocks --------------------------------------------------------------------------------
 
@@ -317,6 +322,9 @@ class Agent:
         next_tick = loop.time()
         while not self.stop.is_set():
             now = loop.time()
+            c = self.counters
+            c.window_queue_max = max(c.window_queue_max, self.bridge.queue.qsize())
+            c.window_lag_ms = max(c.window_lag_ms, 1000.0 * (now - next_tick))
             if now - next_tick > 0.5 * period:
                 self.counters.late_ticks += 1
                 next_tick = max(next_tick, now)  # skip, never queue up a backlog

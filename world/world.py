@@ -13,6 +13,7 @@ import math
 import os
 import sys
 import time
+from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -67,7 +68,7 @@ class World:
         self.record_path, self.summary_path, self.trajectory_path = record, summary_path, trajectory
         self.argv = argv or sys.argv
         self.rec = None
-        self.trail: list[np.ndarray] = []
+        self.trail: deque[np.ndarray] = deque(maxlen=400)  # the prey's recent path, as drawn
         self.traj: list[np.ndarray] = []
         self.traj_prey: list[np.ndarray] = []
         self.pose_arrived = asyncio.Event()
@@ -173,7 +174,7 @@ class World:
             swarm_log.set_time(self.rec, self.step_index, self.sim_time())
             self.trail.append(self.prey.copy())
             swarm_log.log_swarm(self.rec, self.sim_time(), ids, pos, vel)
-            swarm_log.log_prey(self.rec, self.prey, np.array(self.trail[-400:]))
+            swarm_log.log_prey(self.rec, self.prey, np.array(self.trail))
             swarm_log.log_metrics(self.rec, {**metrics, "agents_alive": float(len(self.state.alive))})
         return metrics
 
@@ -319,7 +320,7 @@ class World:
         self.step_index, self.t = last.step + 1, last.t
         if last.prey is not None:
             self.prey = last.prey.copy()
-        self.trail = [f.prey for f in prior.frames[-400:] if f.prey is not None]
+        self.trail.extend(f.prey for f in prior.frames[-400:] if f.prey is not None)
         if self.trajectory_path is not None:
             for f in prior.frames:
                 full = np.full((self.scenario.n_agents, 2), np.nan)

@@ -41,6 +41,17 @@ def build_parser() -> Parser:
                            help="simulated = wall seconds per run (default 15)")
     bench_net.add_argument("--json", action="store_true")
     bench_net.set_defaults(run=_bench_net)
+    soak = bench_sub.add_parser("soak", help="a long run under loss: memory flat? backlog growing?",
+                                description="N agents on bench-field with seeded loss for several minutes; "
+                                            "samples every process's memory and the agents' inbound queues "
+                                            "and tick lag. Exit 1 when memory or backlog grows.")
+    soak.add_argument("--agents", type=sim_cli.positive_int, default=30, help="N (default 30)")
+    soak.add_argument("--dropout", type=float, default=0.2, help="loss probability per message (default 0.2)")
+    soak.add_argument("--duration", type=sim_cli.positive_float, default=300.0,
+                      help="seconds (default 300)")
+    soak.add_argument("--seed", type=int, default=0)
+    soak.add_argument("--json", action="store_true")
+    soak.set_defaults(run=_bench_soak)
 
     from zswarm import replay_cli
 
@@ -83,6 +94,15 @@ def _certs(args) -> int:
     for name, path in written.items():
         print(f"{name}: {path} (certificate {path.with_suffix('.pem').name})")
     return 0
+
+
+def _bench_soak(args) -> int:
+    from zswarm.cli_util import UsageError
+    from zswarm.soak import main_soak
+
+    if not 0.0 <= args.dropout < 1.0:
+        raise UsageError(f"--dropout must be in [0, 1) (got {args.dropout})")
+    return main_soak(args)
 
 
 def _bench_net(args) -> int:

@@ -19,6 +19,7 @@ Per step (:func:`step_metrics`), from positions, velocities and the prey:
 from __future__ import annotations
 
 import math
+from array import array
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -127,8 +128,9 @@ class Summary:
 
     capture_radius: float
     epsilon: float
-    times: list[float] = field(default_factory=list)
-    series: dict[str, list[float]] = field(default_factory=lambda: {k: [] for k in METRIC_NAMES})
+    # float64 arrays, not lists of Python floats: 8 bytes a value, so hours of steps stay small
+    times: array = field(default_factory=lambda: array("d"))
+    series: dict[str, array] = field(default_factory=lambda: {k: array("d") for k in METRIC_NAMES})
     collisions: int = 0
     obstacle_collisions: int = 0
     _pairs: set[tuple[int, int]] = field(default_factory=set)
