@@ -108,6 +108,11 @@ def build_parser() -> Parser:
     p.add_argument("--secure", type=Path, default=None, metavar="DIR",
                    help="TLS with access control: use the certificates and configs in DIR ('zswarm certs DIR'; "
                         "made there if DIR has none); endpoints become tls/...")
+    p.add_argument("--config", type=Path, default=None, metavar="FILE",
+                   help="a full Zenoh configuration (json5) for the world and the agents; --connect overrides "
+                        "its endpoints")
+    p.add_argument("--router-config", type=Path, default=None, metavar="FILE",
+                   help="a full Zenoh configuration (json5) for the router; --listen overrides its endpoints")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.add_argument("--kill", type=parse_kill, default=None, metavar="K@T",
                    help="SIGKILL K agents, chosen with the seed, T seconds after the start")
@@ -171,6 +176,13 @@ def _validate(args: argparse.Namespace) -> tuple[str, int]:
             _endpoint_host_port(endpoint)
             if args.secure is not None and not endpoint.startswith("tls/"):
                 raise UsageError(f"with --secure, {flag} must be a tls/HOST:PORT endpoint (got {endpoint!r})")
+    for flag, path in (("--config", args.config), ("--router-config", args.router_config)):
+        if path is not None:
+            if args.secure is not None:
+                raise UsageError(f"{flag} and --secure both set the Zenoh configuration; give one")
+            from zswarm.transport import zenoh_config
+
+            zenoh_config(None, config=path)  # a missing or unreadable file fails here, not in a child
     if args.secure is not None:
         from zswarm.security import is_secure_dir
 
@@ -250,9 +262,15 @@ def spawn_world(kids: Children, args: argparse.Namespace, resume: bool = False):
 
 
 def _secure_configs(args: argparse.Namespace) -> dict[str, list[str]]:
-    """``--config`` arguments per role for --secure DIR (making the certificates if DIR has none)."""
+    """``--config`` arguments per role: --config/--router-config as given, or for --secure DIR its
+    files (making the certificates if DIR has none)."""
     if args.secure is None:
-        return {}
+        out = {}
+        if args.config is not None:
+            out["world"] = out["agent"] = ["--config", str(args.config)]
+        if args.router_config is not None:
+            out["router"] = ["--config", str(args.router_config)]
+        return out
     from zswarm.security import is_secure_dir, write_secure_dir
 
     if not is_secure_dir(args.secure):

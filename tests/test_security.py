@@ -158,3 +158,21 @@ def test_certs_command_writes_usable_configs_and_refuses_to_overwrite(tmp_path, 
     assert again.returncode == 2 and "already has a CA" in again.stderr and "Traceback" not in again.stderr
     bad = cli("-m", "zswarm", "certs", str(tmp_path / "x"), "--router", "tcp/localhost:9")
     assert bad.returncode == 2 and "must be a tls/HOST:PORT" in bad.stderr
+
+
+def test_launch_passes_full_zenoh_configs_through(certs, tmp_path):
+    """--router-config / --config hand each process a whole Zenoh configuration: here TLS without
+    access control (so one client certificate serves world and agents). Over a tls/ endpoint the run
+    only works if every process got its file."""
+    conf = json.loads((certs / "router.json5").read_text())
+    conf["access_control"]["enabled"] = False
+    router_conf = tmp_path / "router-tls.json5"
+    router_conf.write_text(json.dumps(conf))
+    record = tmp_path / "pass.rrd"
+    res = subprocess.run([sys.executable, str(ROOT / "launch.py"), "--router-config", str(router_conf),
+                          "--config", str(certs / "agent.json5"), "--listen", f"tls/127.0.0.1:{free_port()}",
+                          "--agents", "3", "--duration", "4", "--run", "passthrough", "--record", str(record),
+                          "--quiet"], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    s = load_summary(record.with_suffix(".json"))
+    assert s["agents_reporting"] == 3 and s["steps"] > 50

@@ -51,6 +51,9 @@ CASES = [
     ([LAUNCH, "--secure", "{junk}"], "is not a directory"),
     ([LAUNCH, "--secure", "{dir}/pki", "--listen", "tcp/127.0.0.1:1"], "must be a tls/HOST:PORT"),
     ([LAUNCH, "--record", "{missing}/run.rrd"], "does not exist"),
+    ([LAUNCH, "--config", "{junk}"], "cannot read zenoh config"),
+    ([LAUNCH, "--router-config", "{missing}.json5"], "does not exist"),
+    ([LAUNCH, "--config", "{junk}", "--secure", "{dir}/pki"], "give one"),
     # sweep
     ([LAUNCH, "sweep", "--bogus"], "--out"),
     ([LAUNCH, "sweep", "--out", "{dir}/s", "--scenario", "nope"], "unknown scenario"),
