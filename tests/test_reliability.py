@@ -4,6 +4,8 @@ is killed and restarted (a new recording segment) or killed for good (its record
 from __future__ import annotations
 
 import json
+import os
+import signal
 import subprocess
 import sys
 import time
@@ -92,3 +94,31 @@ def test_world_killed_for_good_leaves_a_repaired_recording_and_a_salvaged_summar
     assert s["salvaged"] is True and 3.0 < s["duration"] < 4.5 and s["collisions"] == 0
     assert s["run"] == "worldkill" and s["steps"] == load_run(record).frames[-1].step
     assert our_processes("worldkill") == []
+
+
+def test_router_crash_ends_the_run_with_a_valid_recording_and_summary(tmp_path):
+    port = free_port()
+    record = tmp_path / "rd.rrd"
+    proc = subprocess.Popen([sys.executable, str(ROOT / "launch.py"), "--agents", "3", "--duration", "60",
+                             "--run", "routerdie", "--listen", f"tcp/127.0.0.1:{port}", "--record", str(record),
+                             "--quiet"], cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 90
+        while not record.exists() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        time.sleep(3.0)
+        routers = our_processes(f"127.0.0.1:{port}")
+        assert routers, "no router process found"
+        for pid in routers:
+            if b"zswarm.router" in open(f"/proc/{pid}/cmdline", "rb").read():
+                os.kill(pid, signal.SIGKILL)
+        _, err = proc.communicate(timeout=90)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 1 and "the router died" in err, err
+    rerun_verify(record)
+    s = load_summary(record.with_suffix(".json"))
+    assert s["steps"] > 20 and s["collisions"] == 0
+    assert our_processes("routerdie") == [] and our_processes(f"127.0.0.1:{port}") == []
