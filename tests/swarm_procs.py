@@ -102,3 +102,11 @@ def our_processes(marker: str) -> list[int]:
             except OSError:
                 pass
     return out
+
+
+def run_launch(cwd: Path, *args: str, timeout: float = 180.0) -> subprocess.CompletedProcess:
+    """``python launch.py ARGS`` to completion (killed on timeout), output captured as text."""
+    from zswarm.procs import ROOT
+
+    return subprocess.run([sys.executable, str(ROOT / "launch.py"), *args], cwd=cwd, capture_output=True,
+                          text=True, timeout=timeout)

@@ -12,8 +12,8 @@ import time
 
 import numpy as np
 
-from swarm_procs import (load_summary, our_processes, processes, rerun_verify, start_agent, start_world,
-                         wait_exit)
+from swarm_procs import (load_summary, our_processes, processes, rerun_verify, run_launch, start_agent,
+                         start_world, wait_exit)
 from zswarm.procs import ROOT, free_port, wait_for_port
 from zswarm.replay import load_run, load_segment, segments
 
@@ -59,9 +59,8 @@ def test_router_restart_mid_run(tmp_path):
 
 def test_world_killed_and_restarted_continues_the_run_in_a_new_segment(tmp_path):
     record = tmp_path / "wc.rrd"
-    res = subprocess.run([sys.executable, str(ROOT / "launch.py"), "--agents", "5", "--duration", "14",
-                          "--run", "worldcrash", "--record", str(record), "--world-crash", "5:2", "--quiet"],
-                         cwd=tmp_path, capture_output=True, text=True, timeout=180)
+    res = run_launch(tmp_path, "--agents", "5", "--duration", "14", "--run", "worldcrash", "--record", str(record),
+                     "--world-crash", "5:2", "--quiet")
     assert res.returncode == 0, res.stderr
     assert "killed the world" in res.stderr and "started a new world" in res.stderr
     first, second = segments(record)  # run.rrd is kept; the new world wrote run.seg1.rrd
@@ -84,9 +83,8 @@ def test_world_killed_and_restarted_continues_the_run_in_a_new_segment(tmp_path)
 
 def test_world_killed_for_good_leaves_a_repaired_recording_and_a_salvaged_summary(tmp_path):
     record = tmp_path / "wk.rrd"
-    res = subprocess.run([sys.executable, str(ROOT / "launch.py"), "--agents", "3", "--duration", "30",
-                          "--run", "worldkill", "--record", str(record), "--world-crash", "4", "--quiet"],
-                         cwd=tmp_path, capture_output=True, text=True, timeout=180)
+    res = run_launch(tmp_path, "--agents", "3", "--duration", "30", "--run", "worldkill", "--record", str(record),
+                     "--world-crash", "4", "--quiet")
     assert res.returncode == 0, res.stderr
     assert "salvaged" in res.stderr
     rerun_verify(record)
