@@ -191,6 +191,16 @@ def _validate(args: argparse.Namespace) -> tuple[str, int]:
         if args.secure.is_dir() and any(args.secure.iterdir()) and not is_secure_dir(args.secure):
             raise UsageError(f"--secure {args.secure} has no router/world/agent .json5 configs; "
                              f"make them with: zswarm certs {args.secure}")
+        if "agents" in args.role and is_secure_dir(args.secure):
+            from zswarm.security import agent_config, agent_name
+
+            ids = args.ids if args.ids is not None else range(scenario.n_agents)
+            own = [i for i in ids if agent_config(args.secure, i).name == f"{agent_name(i)}.json5"]
+            if own and len(own) < len(ids):
+                lacking = sorted(set(ids) - set(own))
+                raise UsageError(f"--secure {args.secure} gives agents their own identities, but none to agent "
+                                 f"{lacking[0]}{' and others' if len(lacking) > 1 else ''}; remake it with: "
+                                 f"zswarm certs {args.secure} --force --agents {max(ids) + 1}")
     return scenario.name, scenario.n_agents
 
 
@@ -202,7 +212,7 @@ def _launch(argv: Sequence[str] | None) -> int:
     if args.summary is None:
         args.summary = args.record.with_suffix(".json")
     endpoint = args.connect
-    configs = _secure_configs(args)
+    configs = _secure_configs(args, n)
     if "router" in args.role:
         endpoint = args.listen or f"{'tls' if configs else 'tcp'}/127.0.0.1:{free_port()}"
         host, port = _endpoint_host_port(endpoint)
@@ -236,7 +246,7 @@ def _launch(argv: Sequence[str] | None) -> int:
             world = spawn_world(kids, args)
         if "agents" in args.role:
             for i in args.ids if args.ids is not None else range(n):
-                kids.spawn(f"agent-{i}", ["-m", "agents", "--id", str(i), *args.agent_args],
+                kids.spawn(f"agent-{i}", ["-m", "agents", "--id", str(i), *agent_args(args, i)],
                            stdout=subprocess.DEVNULL)
         if not args.quiet:
             print(f"launch: run {run!r}, {len(kids.named('agent'))} agent processes, router {endpoint}",
@@ -253,6 +263,15 @@ def _launch(argv: Sequence[str] | None) -> int:
         kids.stop_all()
 
 
+def agent_args(args: argparse.Namespace, agent: int) -> list[str]:
+    """Agent ``agent``'s arguments; under --secure, its own identity's config if DIR has one."""
+    if args.secure is None:
+        return args.agent_args
+    from zswarm.security import agent_config
+
+    return [*args.agent_args, "--config", str(agent_config(args.secure, agent))]
+
+
 def spawn_world(kids: Children, args: argparse.Namespace, resume: bool = False):
     """Start the world (``resume``: a replacement that records into the next segment)."""
     world = kids.spawn("world", args.world_args + (["--resume"] if resume else []), stdout=subprocess.PIPE)
@@ -261,9 +280,10 @@ def spawn_world(kids: Children, args: argparse.Namespace, resume: bool = False):
     return world
 
 
-def _secure_configs(args: argparse.Namespace) -> dict[str, list[str]]:
-    """``--config`` arguments per role: --config/--router-config as given, or for --secure DIR its
-    files (making the certificates if DIR has none)."""
+def _secure_configs(args: argparse.Namespace, n_agents: int) -> dict[str, list[str]]:
+    """``--config`` arguments of the router and the world: --config/--router-config as given, or for
+    --secure DIR its files (made there if DIR has none: one identity per agent, see
+    :func:`agent_args`)."""
     if args.secure is None:
         out = {}
         if args.config is not None:
@@ -274,10 +294,10 @@ def _secure_configs(args: argparse.Namespace) -> dict[str, list[str]]:
     from zswarm.security import is_secure_dir, write_secure_dir
 
     if not is_secure_dir(args.secure):
-        write_secure_dir(args.secure)
+        write_secure_dir(args.secure, agents=n_agents)
         if not args.quiet:
-            print(f"launch: made a CA, certificates and configs in {args.secure}", flush=True)
-    return {role: ["--config", str(args.secure / f"{role}.json5")] for role in ("router", "world", "agent")}
+            print(f"launch: made a CA, certificates (one per agent) and configs in {args.secure}", flush=True)
+    return {role: ["--config", str(args.secure / f"{role}.json5")] for role in ("router", "world")}
 
 
 def _forward(world, quiet: bool) -> None:
@@ -344,7 +364,7 @@ class Chaos:
         if (a.restart_after is not None and self.killed_at is not None and "restart" not in self.done
                 and t >= self.killed_at + a.restart_after):
             for i in self.killed:
-                self.kids.spawn(f"agent-{i}", ["-m", "agents", "--id", str(i), *a.agent_args],
+                self.kids.spawn(f"agent-{i}", ["-m", "agents", "--id", str(i), *agent_args(a, i)],
                                 stdout=subprocess.DEVNULL)
             self.done.add("restart")
             print(f"launch: restarted agents {sorted(self.killed)} at {t:.1f} s", file=sys.stderr, flush=True)

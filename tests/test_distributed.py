@@ -174,3 +174,4 @@ def test_killed_agent_leaves_neighbour_sets_within_a_second_and_a_restarted_one_
         assert s["neighbour_returns"][survivor]["2"] > t_restart
     assert [d["id"] for d in s["departures"] if d["wall"] < 9.0] == [2]
     assert sum(1 for a in s["departures"] if a["id"] == 2) >= 1 and sum(1 for a in s.get("heard", {})) >= 3
+    rerun_verify(record)  # a crashing child leaves the run's recording whole

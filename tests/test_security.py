@@ -25,8 +25,17 @@ RUN = "sec"
 
 @pytest.fixture(scope="module")
 def certs(tmp_path_factory) -> Path:
+    """One shared ``agent`` identity (role-level rights), the world, and a guest with no rights."""
     d = tmp_path_factory.mktemp("certs")
     write_secure_dir(d, names=("router", "world", "agent", "guest"))
+    return d
+
+
+@pytest.fixture(scope="module")
+def per_agent(tmp_path_factory) -> Path:
+    """An identity per agent (agent-0 .. agent-5), each allowed only its own keys."""
+    d = tmp_path_factory.mktemp("per-agent")
+    write_secure_dir(d, names=("router", "world", "agent", "guest"), agents=6)
     return d
 
 
@@ -104,20 +113,44 @@ def test_no_certificate_or_a_foreign_ca_cannot_connect(certs, tmp_path):
                 open_session(conf, what="intruder")
 
 
-def test_secure_swarm_never_sees_an_intruder(certs, tmp_path):
-    """A full run over TLS + access control while a guest (valid certificate, no rights) announces
-    agent 7 and publishes plausible poses for it, and a fake prey, into every cell of the swarm."""
+def test_an_agent_can_only_speak_for_itself(per_agent):
+    keys = Keys(RUN, 1.0)
+    heard, alive = [], []
+    with processes() as kids:
+        endpoint = start_router(kids, per_agent)
+        with (session(per_agent, "world", endpoint) as world, session(per_agent, "agent-1", endpoint) as one,
+              session(per_agent, "agent", endpoint) as shared):
+            sub = world.declare_subscriber(f"{keys.root}/**", lambda s: heard.append(str(s.key_expr)))
+            watch = world.liveliness().declare_subscriber(keys.all_alive, lambda s: alive.append(str(s.key_expr)) if s.kind == zenoh.SampleKind.PUT else None)
+            time.sleep(0.5)
+            tokens = [one.liveliness().declare_token(keys.alive(1)), one.liveliness().declare_token(keys.alive(2))]
+            for who, s in (("one", one), ("shared", shared)):
+                for agent in (1, 2):
+                    s.put(keys.pose((-3, 4), agent), who.encode())
+                    s.put(keys.stats(agent), who.encode())
+            time.sleep(0.7)
+            del sub, watch, tokens
+    # agent-1's own pose, stats and token got through; nothing it said for agent 2, and nothing from
+    # the shared identity (which has no rights once agents have their own)
+    assert sorted(heard) == [keys.pose((-3, 4), 1), keys.stats(1)]
+    assert alive == [keys.alive(1)]
+
+
+def test_secure_swarm_never_sees_an_intruder(per_agent, tmp_path):
+    """A full run over TLS + access control (an identity per agent) while a guest (valid
+    certificate, no rights) announces agent 7 and publishes plausible poses for it, and a fake prey,
+    into every cell of the swarm."""
     port = free_port()
     endpoint = f"tls/127.0.0.1:{port}"
     record = tmp_path / "secure.rrd"
-    launch = subprocess.Popen([sys.executable, str(ROOT / "launch.py"), "--secure", str(certs), "--listen", endpoint,
+    launch = subprocess.Popen([sys.executable, str(ROOT / "launch.py"), "--secure", str(per_agent), "--listen", endpoint,
                                "--run", RUN, "--agents", "6", "--duration", "12", "--record", str(record), "--quiet"],
                               cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         keys = Keys(RUN, 1.0)
         cells = [(cx, cy) for cx in range(-6, 0) for cy in range(-3, 3)]
         sent = 0
-        with session(certs, "guest", endpoint) as guest:
+        with session(per_agent, "guest", endpoint) as guest:
             token = guest.liveliness().declare_token(keys.alive(7))
             for i in range(300):
                 for cx, cy in cells:

@@ -69,6 +69,9 @@ def build_parser() -> Parser:
                        help="names and addresses the router is reached by (certificate SANs)")
     certs.add_argument("--extra", default="", metavar="NAME,..",
                        help="more certificates with no rights (e.g. guest) for testing")
+    certs.add_argument("--agents", type=int, default=0, metavar="N",
+                       help="also give agents 0..N-1 an identity each (agent-I), allowed only their own keys; "
+                            "the router's access control then holds N rules (default 0: one shared identity)")
     certs.add_argument("--days", type=sim_cli.positive_int, default=30, help="validity (default 30)")
     certs.add_argument("--force", action="store_true", help="overwrite an existing CA in DIR")
     certs.set_defaults(run=_certs)
@@ -85,10 +88,12 @@ def _certs(args) -> int:
                          f"needs the new files)")
     if not args.router.startswith("tls/"):
         raise UsageError(f"--router {args.router!r} must be a tls/HOST:PORT endpoint")
+    if args.agents < 0:
+        raise UsageError(f"--agents must be >= 0 (got {args.agents})")
     extra = tuple(n for n in args.extra.split(",") if n)
     hosts = tuple(h for h in args.hosts.split(",") if h)
     try:
-        written = write_secure_dir(args.directory, args.router, hosts, ROLES + extra, args.days)
+        written = write_secure_dir(args.directory, args.router, hosts, ROLES + extra, args.days, args.agents)
     except OSError as exc:
         raise UsageError(f"cannot write to {args.directory}: {exc.strerror}") from None
     for name, path in written.items():

@@ -9,6 +9,8 @@ role      may send (router ingress)
 ========  ==========================================================================================
 agent     poses ``zswarm/*/pose/**`` (put, queryable, reply), ``zswarm/*/stats/*``,
           liveliness ``zswarm/*/alive/*``
+agent-I   (made with ``agents=N``, instead of the shared ``agent``) the same, but only for keys
+          that end in its own id I: an agent cannot speak for another
 world     ``zswarm/*/prey``, ``zswarm/*/tick``, ``zswarm/*/control`` (put), and answers
           ``zswarm/*/obstacles`` (queryable, reply)
 both      subscribe, query and watch liveliness anywhere under ``zswarm/**``, and receive from it
@@ -28,28 +30,50 @@ OBSERVE = ["declare_subscriber", "query", "declare_liveliness_subscriber", "live
 RECEIVE = ["put", "delete", "query", "reply", "declare_subscriber", "declare_queryable", "liveliness_token"]
 
 
-def access_control() -> dict:
-    """The router's ``access_control`` block (default deny; rights by certificate common name)."""
-    return {
-        "enabled": True,
-        "default_permission": "deny",
-        "rules": [
-            {"id": "observe", "permission": "allow", "messages": OBSERVE, "key_exprs": ["zswarm/**"]},
-            {"id": "receive", "permission": "allow", "flows": ["egress"], "messages": RECEIVE,
-             "key_exprs": ["zswarm/**"]},
-            {"id": "agent-send", "permission": "allow", "flows": ["ingress"],
-             "messages": ["put", "declare_queryable", "reply", "liveliness_token"],
-             "key_exprs": ["zswarm/*/pose/**", "zswarm/*/stats/*", "zswarm/*/alive/*"]},
-            {"id": "world-send", "permission": "allow", "flows": ["ingress"],
-             "messages": ["put", "declare_queryable", "reply"],
-             "key_exprs": ["zswarm/*/prey", "zswarm/*/tick", "zswarm/*/control", "zswarm/*/obstacles"]},
-        ],
-        "subjects": [{"id": "agents", "cert_common_names": ["agent"]},
-                     {"id": "world", "cert_common_names": ["world"]}],
-        "policies": [{"rules": ["observe", "receive"], "subjects": ["agents", "world"]},
-                     {"rules": ["agent-send"], "subjects": ["agents"]},
-                     {"rules": ["world-send"], "subjects": ["world"]}],
-    }
+AGENT_SEND = ["put", "declare_queryable", "reply", "liveliness_token"]
+
+
+def agent_name(i: int) -> str:
+    """The certificate common name of agent ``i`` when every agent has its own identity."""
+    return f"agent-{i}"
+
+
+def access_control(agents: int = 0) -> dict:
+    """The router's ``access_control`` block (default deny; rights by certificate common name).
+
+    ``agents == 0``: one ``agent`` identity for all agents, which may publish any agent's pose.
+    ``agents == N``: identities ``agent-0`` .. ``agent-{N-1}``, each allowed only the keys that end in
+    its own id (its pose in any cell, its stats, its liveliness token), so an agent cannot speak for
+    another; the shared ``agent`` certificate then has no rights to send.
+    """
+    rules = [
+        {"id": "observe", "permission": "allow", "messages": OBSERVE, "key_exprs": ["zswarm/**"]},
+        {"id": "receive", "permission": "allow", "flows": ["egress"], "messages": RECEIVE,
+         "key_exprs": ["zswarm/**"]},
+        {"id": "world-send", "permission": "allow", "flows": ["ingress"],
+         "messages": ["put", "declare_queryable", "reply"], "key_exprs":
+         ["zswarm/*/prey", "zswarm/*/tick", "zswarm/*/control", "zswarm/*/obstacles"]},
+    ]
+    subjects = [{"id": "world", "cert_common_names": ["world"]}]
+    policies = [{"rules": ["world-send"], "subjects": ["world"]}]
+    if agents == 0:
+        rules.append({"id": "agent-send", "permission": "allow", "flows": ["ingress"], "messages": AGENT_SEND,
+                      "key_exprs": ["zswarm/*/pose/**", "zswarm/*/stats/*", "zswarm/*/alive/*"]})
+        subjects.append({"id": "agents", "cert_common_names": ["agent"]})
+        policies.append({"rules": ["agent-send"], "subjects": ["agents"]})
+        readers = ["agents", "world"]
+    else:
+        readers = ["world"]
+        for i in range(agents):
+            name = agent_name(i)
+            rules.append({"id": f"{name}-send", "permission": "allow", "flows": ["ingress"], "messages": AGENT_SEND,
+                          "key_exprs": [f"zswarm/*/pose/*/*/{i}", f"zswarm/*/stats/{i}", f"zswarm/*/alive/{i}"]})
+            subjects.append({"id": name, "cert_common_names": [name]})
+            policies.append({"rules": [f"{name}-send"], "subjects": [name]})
+            readers.append(name)
+    policies.insert(0, {"rules": ["observe", "receive"], "subjects": readers})
+    return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects,
+            "policies": policies}
 
 
 def tls(paths: CertPaths, listen: bool) -> dict:
@@ -62,7 +86,7 @@ def tls(paths: CertPaths, listen: bool) -> dict:
     return block
 
 
-def role_config(paths: CertPaths, endpoint: str) -> dict:
+def role_config(paths: CertPaths, endpoint: str, agents: int = 0) -> dict:
     """A complete Zenoh configuration: the router listens on ``endpoint``, every other role connects."""
     router = paths.name == "router"
     conf: dict = {"mode": "router" if router else "client",
@@ -70,7 +94,7 @@ def role_config(paths: CertPaths, endpoint: str) -> dict:
                   "transport": {"link": {"tls": tls(paths, listen=router)}}}
     if router:
         conf["listen"] = {"endpoints": [endpoint]}
-        conf["access_control"] = access_control()
+        conf["access_control"] = access_control(agents)
     else:
         conf["connect"] = {"endpoints": [endpoint]}
     return conf
@@ -78,18 +102,26 @@ def role_config(paths: CertPaths, endpoint: str) -> dict:
 
 def write_secure_dir(directory: Path, endpoint: str = "tls/localhost:7447",
                      hosts: tuple[str, ...] = ("localhost", "127.0.0.1"), names: tuple[str, ...] = ROLES,
-                     days: int = 30) -> dict[str, Path]:
-    """Make the CA and certificates, and write ``NAME.json5`` (a full Zenoh config) for every name.
+                     days: int = 30, agents: int = 0) -> dict[str, Path]:
+    """Make the CA and certificates, and write ``NAME.json5`` (a full Zenoh config) for every name;
+    with ``agents = N`` also ``agent-0`` .. ``agent-{N-1}``, each with rights to its own keys only.
 
     Pass each file with ``--config``; ``--connect``/``--listen`` still override its endpoint.
     """
+    names = tuple(names) + tuple(agent_name(i) for i in range(agents))
     certs = make_certs(directory, names=names, hosts=hosts, days=days)
     out = {}
     for name, paths in certs.items():
         path = Path(directory) / f"{name}.json5"
-        path.write_text(json.dumps(role_config(paths, endpoint), indent=2) + "\n")
+        path.write_text(json.dumps(role_config(paths, endpoint, agents), indent=2) + "\n")
         out[name] = path
     return out
+
+
+def agent_config(directory: Path, agent: int) -> Path:
+    """The config agent ``agent`` uses from a secure directory: its own identity if there is one."""
+    own = Path(directory) / f"{agent_name(agent)}.json5"
+    return own if own.is_file() else Path(directory) / "agent.json5"
 
 
 def is_secure_dir(directory: Path) -> bool:
