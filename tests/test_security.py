@@ -209,3 +209,9 @@ def test_launch_passes_full_zenoh_configs_through(certs, tmp_path):
     assert res.returncode == 0, res.stderr
     s = load_summary(record.with_suffix(".json"))
     assert s["agents_reporting"] == 3 and s["steps"] > 50
+
+
+def test_launch_refuses_agents_without_an_identity(per_agent, cli):
+    res = cli(str(ROOT / "launch.py"), "--secure", str(per_agent), "--agents", "8")
+    assert res.returncode == 2 and "none to agent 6 and others" in res.stderr, res.stderr
+    assert f"zswarm certs {per_agent} --force --agents 8" in res.stderr
