@@ -27,8 +27,9 @@ def build_parser() -> Parser:
     parser.add_argument("--lockstep-wait", type=float, default=0.25,
                         help="lockstep: wait this long for expected poses of a step before asking the "
                              "cells for them (default 0.25 s)")
-    parser.add_argument("--start-timeout", type=float, default=20.0,
-                        help="give up if the world has not answered for this long at start (default 20 s)")
+    parser.add_argument("--start-timeout", type=float, default=60.0,
+                        help="give up if the world has not answered for this long at start (default 60 s: "
+                             "a world on a loaded machine, or started later elsewhere, may take a while)")
     add_run_args(parser)
     add_zenoh_args(parser)
     return parser
