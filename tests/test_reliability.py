@@ -81,6 +81,19 @@ def test_world_killed_and_restarted_continues_the_run_in_a_new_segment(tmp_path)
     assert our_processes("worldcrash") == []
 
 
+def test_world_killed_at_once_is_replaced_and_the_run_still_adds_up(tmp_path):
+    """Killed right as its clock starts (before or just after its first step reached the disk)."""
+    record = tmp_path / "w0.rrd"
+    res = run_launch(tmp_path, "--agents", "3", "--duration", "5", "--run", "worldzero", "--record", str(record),
+                     "--world-crash", "0:1", "--quiet")
+    assert res.returncode == 0, res.stderr
+    assert len(segments(record)) == 2
+    s = load_summary(record.with_suffix(".json"))
+    assert s["world_segments"] == 2 and s["agents_reporting"] == 3 and abs(s["duration"] - 5.0) < 1e-6
+    frames = load_run(record).frames
+    assert [f.step for f in frames] == list(range(len(frames)))  # one run, no step twice, none missing
+
+
 def test_world_killed_for_good_leaves_a_repaired_recording_and_a_salvaged_summary(tmp_path):
     record = tmp_path / "wk.rrd"
     res = run_launch(tmp_path, "--agents", "3", "--duration", "30", "--run", "worldkill", "--record", str(record),

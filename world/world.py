@@ -295,6 +295,7 @@ class World:
         self.rec = open_recording(path, "zswarm-world", swarm_log.blueprint(extra), recording_id=self.spec.run)
         swarm_log.log_config(self.rec, self.config())
         swarm_log.log_obstacles(self.rec, self.centers, self.radii)
+        self.rec.flush()  # on disk before anything can go wrong: a successor reads the run's identity here
         if self.resumed_from is not None:
             self._log_event(f"world restarted: segment {self.segment} continues after step "
                             f"{self.resumed_from['step']} (t = {self.resumed_from['t']:.2f} s)")
@@ -310,13 +311,16 @@ class World:
         for part in segments(self.record_path):
             if seal(part):
                 print(f"world: {part} had no footer (its world was killed); rewritten whole", flush=True)
-        prior = load_run(self.record_path)
+        prior = load_run(self.record_path, require_states=False)
         if prior.config.get("run") != self.spec.run:
             raise UsageError(f"--resume: {self.record_path} records run {prior.config.get('run')!r}, not "
                              f"{self.spec.run!r}; give the same --run or another --record")
+        self.segment = len(prior.segments)
+        if not prior.frames:  # its predecessor died before its first step: start from the beginning
+            self.resumed_from = {"segment": self.segment, "step": -1, "t": 0.0, "frames_recovered": 0}
+            return
         fold_frames(self.summary, prior.frames, self.reference, self.ctx)
         last = prior.frames[-1]
-        self.segment = len(prior.segments)
         self.step_index, self.t = last.step + 1, last.t
         if last.prey is not None:
             self.prey = last.prey.copy()

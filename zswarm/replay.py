@@ -60,9 +60,10 @@ def _seconds(column: Any) -> np.ndarray:
     return np.asarray(column.to_numpy(zero_copy_only=False)).astype("timedelta64[ns]").astype(np.int64) / 1e9
 
 
-def load_run(path: Path) -> RunRecord:
+def load_run(path: Path, require_states: bool = True) -> RunRecord:
     """A run from ``path`` and its segments: the first segment's configuration, the last summary
-    stored, and every step (a later segment wins where two hold the same step)."""
+    stored, and every step (a later segment wins where two hold the same step). A zswarm recording
+    with no step yet (its world died at once) is an error unless ``require_states`` is off."""
     path = Path(path)
     if not path.is_file():
         raise UsageError(f"recording {path} does not exist")
@@ -73,6 +74,8 @@ def load_run(path: Path) -> RunRecord:
             raise UsageError(f"{p} belongs to run {part.config.get('run')!r}, not {config.get('run')!r}; "
                              f"move it away from {path}")
     by_step = {f.step: f for part in parts for f in part.frames}
+    if not by_step and require_states:
+        raise UsageError(f"{path} holds no agent states (its world stopped before the first step?)")
     summary = next((part.summary for part in reversed(parts) if part.summary is not None), None)
     return RunRecord(config, summary, [by_step[k] for k in sorted(by_step)], tuple(segments(path)))
 
@@ -128,7 +131,7 @@ def load_segment(path: Path) -> RunRecord:
             for row in range(rb.num_rows):
                 step = int(rb.column("step")[row].as_py())
                 prey[step] = np.array([rb.column("x")[row].as_py()[0], rb.column("y")[row].as_py()[0]])
-    if not states:
+    if not states and not config:
         raise UsageError(f"{path} holds no agent states (is it a zswarm run recording?)")
     frames = [Frame(step, t, ids, xy, vel, prey.get(step)) for step, (t, ids, xy, vel) in sorted(states.items())]
     return RunRecord(config=config, summary=summary, frames=frames)
