@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 from typing import Iterator
 
-from zswarm.procs import Children, free_port, wait_for_port
+from zswarm.procs import Children
 
 
 @contextlib.contextmanager
@@ -22,14 +22,6 @@ def processes() -> Iterator[Children]:
         yield kids
     finally:
         kids.stop_all(grace=3.0)
-
-
-def start_router(kids: Children, host: str = "127.0.0.1") -> str:
-    port = free_port(host)
-    endpoint = f"tcp/{host}:{port}"
-    router = kids.spawn("router", ["-m", "zswarm.router", "--listen", endpoint], stdout=subprocess.DEVNULL)
-    assert wait_for_port(host, port, 10.0, router), "router did not start"
-    return endpoint
 
 
 def run_args(run: str, scenario: str, *extra: str) -> list[str]:

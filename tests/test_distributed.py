@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from swarm_procs import (interrupt_when_exists, load_summary, our_processes, processes, rerun_verify, start_agent,
-                         start_router, start_world, wait_exit)
-from zswarm.procs import ROOT
+                         start_world, wait_exit)
+from zswarm.procs import ROOT, start_router
 from zswarm.replay import load_run
 from zswarm.scenarios import get_scenario
 from zswarm.sim import simulate

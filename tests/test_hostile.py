@@ -9,8 +9,9 @@ import msgpack
 import numpy as np
 import zenoh
 
-from swarm_procs import load_summary, processes, start_agent, start_router, start_world, wait_exit
+from swarm_procs import load_summary, processes, start_agent, start_world, wait_exit
 from zswarm import messages as msg
+from zswarm.procs import start_router
 from zswarm.transport import Keys, zenoh_config
 
 

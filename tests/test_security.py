@@ -16,7 +16,7 @@ from conftest import ROOT
 from swarm_procs import load_summary, processes
 from zswarm import messages as msg
 from zswarm.cli_util import UsageError
-from zswarm.procs import free_port, wait_for_port
+from zswarm.procs import free_port, start_router
 from zswarm.security import write_secure_dir
 from zswarm.transport import Keys, open_session, zenoh_config
 
@@ -39,19 +39,14 @@ def per_agent(tmp_path_factory) -> Path:
     return d
 
 
-def start_router(kids, certs: Path, acl: bool = True) -> str:
-    port = free_port()
-    endpoint = f"tls/127.0.0.1:{port}"
+def start_secure_router(kids, certs: Path, acl: bool = True) -> str:
     config = certs / "router.json5"
     if not acl:
         conf = json.loads(config.read_text())
         conf["access_control"]["enabled"] = False
         config = certs / "router-open.json5"
         config.write_text(json.dumps(conf))
-    router = kids.spawn("router", ["-m", "zswarm.router", "--config", str(config), "--listen", endpoint],
-                        stdout=subprocess.DEVNULL)
-    assert wait_for_port("127.0.0.1", port, 10.0, router), "router did not start"
-    return endpoint
+    return start_router(kids, proto="tls", extra=["--config", str(config)])
 
 
 def session(certs: Path, role: str, endpoint: str) -> zenoh.Session:
@@ -86,8 +81,8 @@ def exchange(certs: Path, endpoint: str) -> dict:
 
 def test_rights_follow_the_certificate(certs):
     with processes() as kids:
-        secured = exchange(certs, start_router(kids, certs))
-        open_ = exchange(certs, start_router(kids, certs, acl=False))
+        secured = exchange(certs, start_secure_router(kids, certs))
+        open_ = exchange(certs, start_secure_router(kids, certs, acl=False))
     # with access control: each key has exactly its one rightful publisher, and the guest hears nothing
     assert secured["heard"] == [("5", "agent"), ("prey", "world")]
     assert secured["obstacle_answers"] == ["world"]
@@ -103,7 +98,7 @@ def test_no_certificate_or_a_foreign_ca_cannot_connect(certs, tmp_path):
     foreign = tmp_path / "foreign"
     write_secure_dir(foreign, names=("router", "world", "agent"))
     with processes() as kids:
-        endpoint = start_router(kids, certs)
+        endpoint = start_secure_router(kids, certs)
         with session(certs, "agent", endpoint):  # the real thing connects
             pass
         no_cert = zenoh_config("client", [endpoint])
@@ -117,7 +112,7 @@ def test_an_agent_can_only_speak_for_itself(per_agent):
     keys = Keys(RUN, 1.0)
     heard, alive = [], []
     with processes() as kids:
-        endpoint = start_router(kids, per_agent)
+        endpoint = start_secure_router(kids, per_agent)
         with (session(per_agent, "world", endpoint) as world, session(per_agent, "agent-1", endpoint) as one,
               session(per_agent, "agent", endpoint) as shared):
             sub = world.declare_subscriber(f"{keys.root}/**", lambda s: heard.append(str(s.key_expr)))

@@ -162,12 +162,7 @@ class World:
         u, _ = self.reference.potential_and_velocity(pos, self.prey)
         metrics, colliding, contacts = step_metrics(pos, vel, self.prey, self.ctx, float(u.sum()))
         self.summary.add(self.sim_time(), metrics, ids[colliding] if len(colliding) else colliding, contacts)
-        if self.trajectory_path is not None:
-            full = np.full((self.scenario.n_agents, 2), np.nan)
-            inside = ids < self.scenario.n_agents
-            full[ids[inside]] = pos[inside]
-            self.traj.append(full)
-            self.traj_prey.append(self.prey.copy())
+        self._keep_trajectory(ids, pos, self.prey)
         if self.rec is not None:
             from zswarm import swarm_log
 
@@ -177,6 +172,16 @@ class World:
             swarm_log.log_prey(self.rec, self.prey, np.array(self.trail))
             swarm_log.log_metrics(self.rec, {**metrics, "agents_alive": float(len(self.state.alive))})
         return metrics
+
+    def _keep_trajectory(self, ids: np.ndarray, pos: np.ndarray, prey: np.ndarray) -> None:
+        """One row of the --trajectory file: positions by agent id (NaN for the absent)."""
+        if self.trajectory_path is None:
+            return
+        full = np.full((self.scenario.n_agents, 2), np.nan)
+        inside = ids < self.scenario.n_agents
+        full[ids[inside]] = pos[inside]
+        self.traj.append(full)
+        self.traj_prey.append(prey.copy())
 
     def advance_prey(self, poses: dict[int, msg.Pose], dt: float) -> None:
         pos = np.array([[p.x, p.y] for _, p in sorted(poses.items())]).reshape(-1, 2)
@@ -325,13 +330,8 @@ class World:
         if last.prey is not None:
             self.prey = last.prey.copy()
         self.trail.extend(f.prey for f in prior.frames[-400:] if f.prey is not None)
-        if self.trajectory_path is not None:
-            for f in prior.frames:
-                full = np.full((self.scenario.n_agents, 2), np.nan)
-                inside = f.ids < self.scenario.n_agents
-                full[f.ids[inside]] = f.positions[inside]
-                self.traj.append(full)
-                self.traj_prey.append(f.prey if f.prey is not None else np.full(2, np.nan))
+        for f in prior.frames:
+            self._keep_trajectory(f.ids, f.positions, f.prey if f.prey is not None else np.full(2, np.nan))
         self.resumed_from = {"segment": self.segment, "step": last.step, "t": last.t,
                              "frames_recovered": len(prior.frames)}
         print(f"world: resuming run {self.spec.run!r} after step {last.step} (t = {last.t:.2f} s) from "

@@ -15,9 +15,24 @@ import subprocess
 import tempfile
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
-from zswarm.procs import Children, free_port, rss_mb, wait_for_port
+from zswarm.procs import Child, Children, rss_mb, start_router
+
+
+def start_field(kids: Children, n_agents: int, run: str, duration: float, summary_path: Path,
+                extra: Sequence[str] = (), scenario: str = "bench-field",
+                world_stdout: int = subprocess.DEVNULL) -> tuple[str, Child, list[Child]]:
+    """A router, the world (waiting up to 120 s for the agents) and N agent processes of
+    ``scenario``; ``extra`` goes to the world and every agent (e.g. faults). Returns the router's
+    endpoint, the world and the agents."""
+    endpoint = start_router(kids)
+    common = ["--run", run, "--scenario", scenario, "--set", f"n_agents={n_agents}", *extra, "--connect", endpoint]
+    world = kids.spawn("world", ["-m", "world", *common, "--duration", str(duration), "--summary", str(summary_path),
+                                 "--progress", "0", "--start-timeout", "120"], stdout=world_stdout)
+    agents = [kids.spawn(f"agent-{i}", ["-m", "agents", "--id", str(i), *common], stdout=subprocess.DEVNULL)
+              for i in range(n_agents)]
+    return endpoint, world, agents
 
 
 def run(n_agents: int, duration: float, scenario: str = "bench-field") -> dict[str, Any]:
@@ -25,20 +40,9 @@ def run(n_agents: int, duration: float, scenario: str = "bench-field") -> dict[s
     with tempfile.TemporaryDirectory() as tmp:
         summary_path = Path(tmp) / "bench.json"
         try:
-            port = free_port()
-            endpoint = f"tcp/127.0.0.1:{port}"
-            router = kids.spawn("router", ["-m", "zswarm.router", "--listen", endpoint],
-                                stdout=subprocess.DEVNULL)
-            if not wait_for_port("127.0.0.1", port, 10.0, router):
-                raise RuntimeError("the router did not start")
-            common = ["--run", f"bench{n_agents}", "--scenario", scenario, "--set", f"n_agents={n_agents}",
-                      "--connect", endpoint]
+            _, world, agents = start_field(kids, n_agents, f"bench{n_agents}", duration, summary_path,
+                                           scenario=scenario)
             t0 = time.monotonic()
-            world = kids.spawn("world", ["-m", "world", *common, "--duration", str(duration),
-                                         "--summary", str(summary_path), "--progress", "0",
-                                         "--start-timeout", "120"], stdout=subprocess.DEVNULL)
-            agents = [kids.spawn(f"agent-{i}", ["-m", "agents", "--id", str(i), *common],
-                                 stdout=subprocess.DEVNULL) for i in range(n_agents)]
             rss: list[float] = []
             sampled = False
             while world.alive():

@@ -123,3 +123,14 @@ def rss_mb(pid: int) -> float | None:
     except OSError:
         return None
     return None
+
+
+def start_router(kids: Children, host: str = "127.0.0.1", proto: str = "tcp", extra: Sequence[str] = ()) -> str:
+    """A router child listening on a free port of ``host`` (``extra``: more router arguments, e.g.
+    ``--config``); returns its endpoint once the port accepts connections."""
+    port = free_port(host)
+    endpoint = f"{proto}/{host}:{port}"
+    router = kids.spawn("router", ["-m", "zswarm.router", "--listen", endpoint, *extra], stdout=subprocess.DEVNULL)
+    if not wait_for_port(host, port, 10.0, router):
+        raise RuntimeError(f"the router did not start on {endpoint}")
+    return endpoint

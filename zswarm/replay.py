@@ -67,9 +67,10 @@ def load_run(path: Path, require_states: bool = True) -> RunRecord:
     path = Path(path)
     if not path.is_file():
         raise UsageError(f"recording {path} does not exist")
-    parts = [load_segment(p) for p in segments(path)]
+    paths = segments(path)
+    parts = [load_segment(p) for p in paths]
     config = parts[0].config
-    for p, part in zip(segments(path)[1:], parts[1:]):
+    for p, part in zip(paths[1:], parts[1:]):
         if part.config.get("run") != config.get("run"):
             raise UsageError(f"{p} belongs to run {part.config.get('run')!r}, not {config.get('run')!r}; "
                              f"move it away from {path}")
@@ -77,7 +78,7 @@ def load_run(path: Path, require_states: bool = True) -> RunRecord:
     if not by_step and require_states:
         raise UsageError(f"{path} holds no agent states (its world stopped before the first step?)")
     summary = next((part.summary for part in reversed(parts) if part.summary is not None), None)
-    return RunRecord(config, summary, [by_step[k] for k in sorted(by_step)], tuple(segments(path)))
+    return RunRecord(config, summary, [by_step[k] for k in sorted(by_step)], tuple(paths))
 
 
 def fold_frames(summary, frames: list[Frame], reference, ctx) -> None:

@@ -25,6 +25,9 @@ import json
 from pathlib import Path
 
 from zswarm.certs import ROLES, CertPaths, make_certs
+from zswarm.transport import Keys
+
+ANY_RUN = Keys("*", 1.0)  # the key expressions of every run: zswarm/*/...
 
 OBSERVE = ["declare_subscriber", "query", "declare_liveliness_subscriber", "liveliness_query"]
 RECEIVE = ["put", "delete", "query", "reply", "declare_subscriber", "declare_queryable", "liveliness_token"]
@@ -51,14 +54,14 @@ def access_control(agents: int = 0) -> dict:
         {"id": "receive", "permission": "allow", "flows": ["egress"], "messages": RECEIVE,
          "key_exprs": ["zswarm/**"]},
         {"id": "world-send", "permission": "allow", "flows": ["ingress"],
-         "messages": ["put", "declare_queryable", "reply"], "key_exprs":
-         ["zswarm/*/prey", "zswarm/*/tick", "zswarm/*/control", "zswarm/*/obstacles"]},
+         "messages": ["put", "declare_queryable", "reply"],
+         "key_exprs": [ANY_RUN.prey, ANY_RUN.tick, ANY_RUN.control, ANY_RUN.obstacles]},
     ]
     subjects = [{"id": "world", "cert_common_names": ["world"]}]
     policies = [{"rules": ["world-send"], "subjects": ["world"]}]
     if agents == 0:
         rules.append({"id": "agent-send", "permission": "allow", "flows": ["ingress"], "messages": AGENT_SEND,
-                      "key_exprs": ["zswarm/*/pose/**", "zswarm/*/stats/*", "zswarm/*/alive/*"]})
+                      "key_exprs": [ANY_RUN.all_poses, ANY_RUN.all_stats, ANY_RUN.all_alive]})
         subjects.append({"id": "agents", "cert_common_names": ["agent"]})
         policies.append({"rules": ["agent-send"], "subjects": ["agents"]})
         readers = ["agents", "world"]
@@ -67,7 +70,7 @@ def access_control(agents: int = 0) -> dict:
         for i in range(agents):
             name = agent_name(i)
             rules.append({"id": f"{name}-send", "permission": "allow", "flows": ["ingress"], "messages": AGENT_SEND,
-                          "key_exprs": [f"zswarm/*/pose/*/*/{i}", f"zswarm/*/stats/{i}", f"zswarm/*/alive/{i}"]})
+                          "key_exprs": [ANY_RUN.any_cell_pose(i), ANY_RUN.stats(i), ANY_RUN.alive(i)]})
             subjects.append({"id": name, "cert_common_names": [name]})
             policies.append({"rules": [f"{name}-send"], "subjects": [name]})
             readers.append(name)

@@ -29,7 +29,8 @@ from typing import Any
 
 import numpy as np
 
-from zswarm.procs import Children, free_port, rss_mb, wait_for_port
+from zswarm.bench_net import start_field
+from zswarm.procs import Children, rss_mb
 
 FLAT_MB_PER_MIN = 1.0
 
@@ -74,18 +75,10 @@ def run_soak(n_agents: int = 30, dropout: float = 0.2, duration: float = 300.0, 
     with tempfile.TemporaryDirectory() as tmp:
         summary_path = Path(tmp) / "soak.json"
         try:
-            port = free_port()
-            endpoint = f"tcp/127.0.0.1:{port}"
-            router = kids.spawn("router", ["-m", "zswarm.router", "--listen", endpoint], stdout=subprocess.DEVNULL)
-            if not wait_for_port("127.0.0.1", port, 10.0, router):
-                raise RuntimeError("the router did not start")
-            common = ["--run", run, "--scenario", "bench-field", "--set", f"n_agents={n_agents}", "--seed", str(seed),
-                      "--dropout", str(dropout), "--connect", endpoint]
-            world = kids.spawn("world", ["-m", "world", *common, "--duration", str(duration), "--summary",
-                                         str(summary_path), "--progress", "0", "--start-timeout", "120"],
-                               stdout=subprocess.PIPE)
-            agents = [kids.spawn(f"agent-{i}", ["-m", "agents", "--id", str(i), *common], stdout=subprocess.DEVNULL)
-                      for i in range(n_agents)]
+            endpoint, world, agents = start_field(kids, n_agents, run, duration, summary_path,
+                                                  ["--seed", str(seed), "--dropout", str(dropout)],
+                                                  world_stdout=subprocess.PIPE)
+            router = kids.named("router")[0]
             for line in world.proc.stdout:  # wait for the world's clock
                 if line.startswith(b"world: started"):
                     break

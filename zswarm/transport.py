@@ -158,6 +158,10 @@ class Keys:
     def pose(self, cell: tuple[int, int], agent: int) -> str:
         return f"{self.root}/pose/{cell[0]}/{cell[1]}/{agent}"
 
+    def any_cell_pose(self, agent: int) -> str:
+        """Agent ``agent``'s pose in whichever cell it is (a pattern)."""
+        return f"{self.root}/pose/*/*/{agent}"
+
     def cell_poses(self, cell: tuple[int, int]) -> str:
         return f"{self.root}/pose/{cell[0]}/{cell[1]}/*"
 
