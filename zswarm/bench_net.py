@@ -74,9 +74,12 @@ def main_bench(args) -> int:
     if args.json:
         print(json.dumps(results[0] if len(results) == 1 else {"runs": results, "machine": machine()}))
         return 0
+    def f(v: float | None, spec: str) -> str:  # a figure a short run may not have (e.g. memory not sampled)
+        return "n/a" if v is None else format(v, spec)
+
     for r in results:
         print(f"N={r['n_agents']:>4}  latency p50 {r['latency_ms']['p50']} ms  p99 {r['latency_ms']['p99']} ms  "
-              f"on time {r['on_time_ratio']:.3f}  received/agent/s {r['received_per_agent_per_s']:.1f}  "
-              f"startup {r['startup_s']:.2f} s  rss/agent {r['rss_mb_per_agent']:.1f} MB")
+              f"on time {f(r['on_time_ratio'], '.3f')}  received/agent/s {f(r['received_per_agent_per_s'], '.1f')}  "
+              f"startup {f(r['startup_s'], '.2f')} s  rss/agent {f(r['rss_mb_per_agent'], '.1f')} MB")
     print(f"machine: {machine()}")
     return 0
