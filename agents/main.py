@@ -10,10 +10,11 @@ from typing import Sequence
 import numpy as np
 
 from agents.agent import Agent
-from zswarm.faults import FaultInjector
-from zswarm.cli_util import Parser, UsageError, run_main
-from zswarm.runspec import RunSpec, add_run_args, spec_from_args
-from zswarm.transport import Bridge, add_zenoh_args, config_from_args, open_session, pump, teardown
+from zswarm.args import Parser, UsageError, run_main
+from zswarm.net.bridge import Bridge, pump, teardown
+from zswarm.net.config import add_zenoh_args, config_from_args, open_session
+from zswarm.net.injector import FaultInjector
+from zswarm.net.runspec import RunSpec, add_run_args, spec_from_args
 
 
 def build_parser() -> Parser:
@@ -57,7 +58,7 @@ async def run_agent(spec: RunSpec, args) -> int:
     bridge = Bridge(session, loop, queue)
     agent = Agent(spec, args.id, bridge, start, args.staleness, args.lockstep_wait)
     if spec.faults.active:
-        injector = FaultInjector(spec.faults, args.id, loop, queue.put_nowait, agent.fault_source)
+        injector = FaultInjector(spec.faults, args.id, loop, queue.put_nowait, agent.sensing.fault_source)
         bridge.deliver, bridge.reply_filter = injector.deliver, injector.filter_replies
         agent.injector = injector
     for sig in (signal.SIGINT, signal.SIGTERM):
@@ -69,13 +70,13 @@ async def run_agent(spec: RunSpec, args) -> int:
         declared.append(bridge.subscribe(keys.prey, "prey"))
         declared.append(bridge.subscribe(keys.tick, "tick"))
 
-        pump_task = asyncio.ensure_future(pump(queue, agent.handle))
+        pump_task = asyncio.ensure_future(pump(queue, agent.sensing.handle))
         deadline = loop.time() + args.start_timeout
-        while not await agent.refresh_obstacles(timeout=1.0):
+        while not await agent.sensing.refresh_obstacles(timeout=1.0):
             if loop.time() > deadline or agent.stop.is_set():
                 raise UsageError(f"agent {args.id}: the world of run {spec.run!r} did not answer for "
                                  f"{args.start_timeout:g} s (start the world, or check --run/--connect)")
-        await agent.update_cells()
+        await agent.sensing.update_cells()
         declared.append(session.liveliness().declare_token(keys.alive(args.id)))
         stats_task = asyncio.ensure_future(agent.publish_stats())
         if spec.clock == "lockstep":
@@ -83,7 +84,7 @@ async def run_agent(spec: RunSpec, args) -> int:
         else:
             async def end_on_final_tick() -> None:
                 while not agent.stop.is_set():
-                    if (await agent.ticks.get()).final:
+                    if (await agent.sensing.ticks.get()).final:
                         agent.stop.set()
             end_task = asyncio.ensure_future(end_on_final_tick())
             await agent.run_free()

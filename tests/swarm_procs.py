@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import json
 import shutil
@@ -12,7 +13,8 @@ import time
 from pathlib import Path
 from typing import Iterator
 
-from zswarm.procs import Children
+from zswarm.net.procs import Children, agent_argv, world_argv
+from zswarm.net.runspec import RunSpec, add_run_args, spec_from_args
 
 
 @contextlib.contextmanager
@@ -24,23 +26,35 @@ def processes() -> Iterator[Children]:
         kids.stop_all(grace=3.0)
 
 
-def run_args(run: str, scenario: str, *extra: str) -> list[str]:
-    return ["--run", run, "--scenario", scenario, *extra]
+def split_spec(run: str, scenario: str, *args: str) -> tuple[RunSpec, list[str]]:
+    """The run spec that ``--run RUN --scenario SCENARIO ARGS`` describe, and the other arguments."""
+    parser = argparse.ArgumentParser()
+    add_run_args(parser)
+    known, rest = parser.parse_known_args(["--run", run, "--scenario", scenario, *args])
+    return spec_from_args(known), rest
 
 
 def start_world(kids: Children, endpoint: str, run: str, scenario: str, tmp: Path, *extra: str,
                 name: str = "world") -> tuple:
     summary, record, traj = tmp / f"{run}.json", tmp / f"{run}.rrd", tmp / f"{run}.npz"
-    child = kids.spawn(name, ["-m", "world", *run_args(run, scenario, *extra), "--connect", endpoint,
-                              "--summary", str(summary), "--record", str(record), "--trajectory", str(traj),
-                              "--progress", "0"], stdout=subprocess.DEVNULL)
+    spec, rest = split_spec(run, scenario, *extra)
+    child = kids.spawn(name, world_argv(spec, endpoint, *rest, "--summary", str(summary), "--record", str(record),
+                                        "--trajectory", str(traj), "--progress", "0"), stdout=subprocess.DEVNULL)
     return child, summary, record, traj
 
 
 def start_agent(kids: Children, endpoint: str, run: str, scenario: str, agent: int, *extra: str):
-    return kids.spawn(f"agent-{agent}", ["-m", "agents", "--id", str(agent),
-                                         *run_args(run, scenario, *extra), "--connect", endpoint],
+    spec, rest = split_spec(run, scenario, *extra)
+    return kids.spawn(f"agent-{agent}", agent_argv(spec, agent, endpoint, *rest),
                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+
+
+def with_reference(summary_path: Path, run: str, scenario: str, *extra: str) -> dict:
+    """The world's summary with the reference simulation beside it (as ``zswarm run`` adds it)."""
+    from zswarm.cli.reference import add_reference
+
+    load_summary(summary_path)
+    return add_reference(summary_path, split_spec(run, scenario, *extra)[0])
 
 
 def wait_exit(child, timeout: float) -> int:
@@ -57,19 +71,33 @@ def load_summary(path: Path) -> dict:
     return json.loads(path.read_text())
 
 
-def interrupt_when_exists(proc: subprocess.Popen, path: Path, settle: float = 0.0, timeout: float = 120.0,
+def interrupt_when_exists(proc: subprocess.Popen, path: Path, timeout: float = 120.0,
                           sig: int = signal.SIGINT) -> bool:
-    """Wait for ``path`` to appear, wait ``settle`` more seconds, send ``sig`` (SIGINT) and reap the
-    process (killed if it does not end). Returns whether the file appeared."""
+    """Wait for ``path`` to appear, send ``sig`` (SIGINT) and reap the process (killed if it does not
+    end). Returns whether the file appeared."""
     try:
         deadline = time.monotonic() + timeout
         while not path.exists() and time.monotonic() < deadline:
             time.sleep(0.1)
         appeared = path.exists()
-        time.sleep(settle)
         proc.send_signal(sig)
         proc.wait(timeout=60)
         return appeared
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+
+
+def interrupt_at_step(proc: subprocess.Popen, endpoint: str, run: str, step: int, sig: int = signal.SIGINT,
+                      timeout: float = 120.0) -> None:
+    """Wait until the run's world has reached ``step``, send ``sig`` and reap the process (killed if
+    it does not end)."""
+    try:
+        with Watch(endpoint, run) as watch:
+            watch.reach_step(step, timeout)
+        proc.send_signal(sig)
+        proc.wait(timeout=60)
     finally:
         if proc.poll() is None:
             proc.kill()
@@ -98,7 +126,71 @@ def our_processes(marker: str) -> list[int]:
 
 def run_launch(cwd: Path, *args: str, timeout: float = 180.0) -> subprocess.CompletedProcess:
     """``python launch.py ARGS`` to completion (killed on timeout), output captured as text."""
-    from zswarm.procs import ROOT
+    from conftest import ROOT
 
     return subprocess.run([sys.executable, str(ROOT / "launch.py"), *args], cwd=cwd, capture_output=True,
                           text=True, timeout=timeout)
+
+
+class Watch:
+    """A listener on a run's keys (it publishes nothing): the world's step from its prey messages
+    and who holds a liveliness token, so a test can wait for the event it is about."""
+
+    def __init__(self, endpoint: str, run: str) -> None:
+        import threading
+
+        import zenoh
+
+        from zswarm.net import messages as msg
+        from zswarm.net.config import open_session, zenoh_config
+        from zswarm.net.keys import Keys
+
+        keys = Keys(run, 1.0)
+        self.step = -1
+        self.alive: set[int] = set()
+        self.changed = threading.Condition()
+
+        def on_prey(sample) -> None:
+            try:
+                m = msg.decode(sample.payload.to_bytes())
+            except msg.DecodeError:
+                return
+            with self.changed:
+                self.step = max(self.step, m.seq if isinstance(m, msg.Prey) else self.step)
+                self.changed.notify_all()
+
+        def on_alive(sample) -> None:
+            who = keys.agent_of(str(sample.key_expr))
+            with self.changed:
+                if who is not None:
+                    (self.alive.discard if sample.kind == zenoh.SampleKind.DELETE else self.alive.add)(who)
+                self.changed.notify_all()
+
+        self.session = open_session(zenoh_config("client", [endpoint]), "watch", retry_for=60.0)  # router may be starting
+        self.subs = [self.session.declare_subscriber(keys.prey, on_prey),
+                     self.session.liveliness().declare_subscriber(keys.all_alive, on_alive, history=True)]
+
+    def until(self, condition, timeout: float, what: str) -> None:
+        """Wait until ``condition()`` holds (checked on every change), or fail after ``timeout`` s."""
+        deadline = time.monotonic() + timeout
+        with self.changed:
+            while not condition():
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    raise AssertionError(f"timed out after {timeout} s waiting for {what} (step {self.step}, "
+                                         f"alive {sorted(self.alive)})")
+                self.changed.wait(min(left, 0.5))
+
+    def reach_step(self, step: int, timeout: float = 60.0) -> None:
+        self.until(lambda: self.step >= step, timeout, f"world step {step}")
+
+    def close(self) -> None:
+        for s in self.subs:
+            s.undeclare()
+        self.session.close()
+
+    def __enter__(self) -> "Watch":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()

@@ -6,10 +6,10 @@ import math
 import numpy as np
 import pytest
 
-from zswarm.design import check, epsilon, prop1_curve
-from zswarm.formation import closed_form_spacing, equilibria, pair_potential
-from zswarm.params import DEFAULT_PARAMS, PAPER_PARAMS, PotentialParams
-from zswarm.potentials import field, formation_terms, goal_terms, obstacle_terms, saturate
+from zswarm.model.design import check, epsilon, prop1_curve
+from zswarm.model.formation import closed_form_spacing, equilibria, pair_potential
+from zswarm.model.params import DEFAULT_PARAMS, PAPER_PARAMS, PotentialParams
+from zswarm.model.potentials import field, formation_terms, goal_terms, obstacle_terms, saturate
 
 PAPER = PAPER_PARAMS.potential
 

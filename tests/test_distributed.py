@@ -12,12 +12,24 @@ import time
 import numpy as np
 import pytest
 
-from swarm_procs import (interrupt_when_exists, load_summary, our_processes, processes, rerun_verify, start_agent,
-                         start_world, wait_exit)
-from zswarm.procs import ROOT, start_router
-from zswarm.replay import load_run
-from zswarm.scenarios import get_scenario
-from zswarm.sim import simulate
+from zswarm.model.scenarios import get_scenario
+from zswarm.net.procs import free_port, start_router
+from zswarm.record.replay import load_run
+from zswarm.sim.simulator import simulate
+
+from conftest import ROOT
+from swarm_procs import (
+    Watch,
+    interrupt_at_step,
+    load_summary,
+    our_processes,
+    processes,
+    rerun_verify,
+    start_agent,
+    start_world,
+    wait_exit,
+    with_reference,
+)
 
 
 @pytest.mark.parametrize("scenario,duration", [("moving-prey", 30.0), ("static-goal", 32.0)])
@@ -62,7 +74,7 @@ def test_free_running_swarm_agrees_with_the_reference_on_the_outcome(tmp_path):
         for i in range(10):
             start_agent(kids, endpoint, "free", "moving-prey", i)
         assert wait_exit(world, 120) == 0
-    s = load_summary(summary_path)
+    s = with_reference(summary_path, "free", "moving-prey", "--duration", "30")
     ref = s["reference"]
     assert (s["capture_time"] is None) == (ref["capture_time"] is None) and s["capture_time"] is not None
     assert s["collisions"] == ref["collisions"] == 0
@@ -109,13 +121,12 @@ def test_killing_one_agent_leaves_the_others_running_and_is_recorded(tmp_path):
                                                      "--set", "n_agents=5", "--duration", "8")
         agents = [start_agent(kids, endpoint, "kill", "moving-prey", i, "--set", "n_agents=5")
                   for i in range(5)]
-        deadline = time.monotonic() + 60
-        while not record.exists() and time.monotonic() < deadline:
-            time.sleep(0.1)
-        time.sleep(4.0)
-        agents[2].proc.send_signal(signal.SIGKILL)
-        time.sleep(1.0)
-        assert all(a.alive() for k, a in enumerate(agents) if k != 2)
+        with Watch(endpoint, "kill") as watch:
+            watch.reach_step(20)  # 1 s into the run
+            agents[2].proc.send_signal(signal.SIGKILL)
+            watch.until(lambda: 2 not in watch.alive, 10, "agent 2's departure")
+            watch.reach_step(watch.step + 20)  # the run goes on for another second without it
+            assert all(a.alive() for k, a in enumerate(agents) if k != 2)
         assert wait_exit(world, 60) == 0
         assert all(wait_exit(a, 10) == 0 for k, a in enumerate(agents) if k != 2)
     s = load_summary(summary_path)
@@ -138,10 +149,11 @@ def test_launch_runs_a_swarm_and_leaves_nothing_behind(tmp_path):
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_launch_stopped_by_a_signal_leaves_a_valid_recording_and_reaps_everyone(tmp_path, sig):
     marker = f"stoptest{int(sig)}"
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
     proc = subprocess.Popen([sys.executable, str(ROOT / "launch.py"), "--agents", "3", "--duration", "60",
-                             "--run", marker, "--record", str(tmp_path / "c.rrd"), "--quiet"],
+                             "--run", marker, "--record", str(tmp_path / "c.rrd"), "--quiet", "--listen", endpoint],
                             cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    assert interrupt_when_exists(proc, tmp_path / "c.rrd", settle=3.0, sig=sig)
+    interrupt_at_step(proc, endpoint, marker, 30, sig=sig)
     assert proc.returncode == 128 + int(sig)
     rerun_verify(tmp_path / "c.rrd")
     s = load_summary(tmp_path / "c.json")
@@ -156,14 +168,13 @@ def test_killed_agent_leaves_neighbour_sets_within_a_second_and_a_restarted_one_
         world, summary_path, record, _ = start_world(kids, endpoint, "crash", "moving-prey", tmp_path, *args,
                                                      "--duration", "10")
         agents = {i: start_agent(kids, endpoint, "crash", "moving-prey", i, *args) for i in range(4)}
-        deadline = time.monotonic() + 60
-        while not record.exists() and time.monotonic() < deadline:
-            time.sleep(0.1)
-        time.sleep(2.5)
-        t_kill = time.time()
-        agents[2].proc.send_signal(signal.SIGKILL)
-        agents[2].proc.wait()
-        time.sleep(2.0)
+        with Watch(endpoint, "crash") as watch:
+            watch.reach_step(30)
+            t_kill = time.time()
+            agents[2].proc.send_signal(signal.SIGKILL)
+            agents[2].proc.wait()
+            watch.until(lambda: 2 not in watch.alive, 10, "agent 2's token to go")
+            watch.reach_step(watch.step + 20)  # the survivors carry on without it for a second
         t_restart = time.time()
         start_agent(kids, endpoint, "crash", "moving-prey", 2, *args)
         assert wait_exit(world, 60) == 0

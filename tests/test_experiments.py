@@ -6,8 +6,8 @@ import json
 import subprocess
 import sys
 
+from conftest import ROOT
 from swarm_procs import interrupt_when_exists
-from zswarm.procs import ROOT
 
 
 def launch(*args: str, cwd, timeout: float = 180) -> subprocess.CompletedProcess:
@@ -27,7 +27,7 @@ def test_kill_restart_and_world_outage(tmp_path):
     assert any(victim in r for r in s["neighbour_returns"].values())  # seen again through liveliness
     assert s["agents_reporting"] == 5
     # the world was frozen for 1.5 s: the recording has a gap there, and no tick in it
-    from zswarm.replay import load_run
+    from zswarm.record.replay import load_run
 
     times = [f.t for f in load_run(tmp_path / "k.rrd").frames]
     gaps = [b - a for a, b in zip(times, times[1:])]

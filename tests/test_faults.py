@@ -9,8 +9,9 @@ import sys
 import numpy as np
 import pytest
 
-from zswarm.faults import FaultModel, LinkFaults, parse_duration, parse_duration_list
-from zswarm.procs import ROOT
+from zswarm.model.faults import FaultModel, LinkFaults, parse_duration, parse_duration_list
+
+from conftest import ROOT
 
 
 def pattern(model: FaultModel, receiver: int, source: int, n: int = 2000) -> list:
@@ -74,8 +75,8 @@ def test_injected_dropout_and_delay_are_observed(tmp_path):
 
 
 def test_simulator_faults_are_seeded_observed_and_inactive_faults_change_nothing():
-    from zswarm.scenarios import get_scenario
-    from zswarm.sim import simulate
+    from zswarm.model.scenarios import get_scenario
+    from zswarm.sim.simulator import simulate
 
     scenario = get_scenario("moving-prey")
     clean = simulate(scenario, 0, duration=10.0).summary
@@ -91,7 +92,7 @@ def test_simulator_faults_are_seeded_observed_and_inactive_faults_change_nothing
 
 def test_simulator_delay_uses_old_positions():
     """With a 0.2 s delay and no loss, agent i's neighbour data at step k is the position at k - 4."""
-    from zswarm.sim_faults import FaultyChannel
+    from zswarm.sim.channel import FaultyChannel
 
     ch = FaultyChannel(3, FaultModel(latency=0.2, seed=0), dt=0.05, sensing_radius=100.0)
     pos = lambda k: np.array([[k, 0.0], [k, 1.0], [k, 2.0]], dtype=float)  # noqa: E731

@@ -9,10 +9,12 @@ import msgpack
 import numpy as np
 import zenoh
 
-from swarm_procs import load_summary, processes, start_agent, start_world, wait_exit
-from zswarm import messages as msg
-from zswarm.procs import start_router
-from zswarm.transport import Keys, zenoh_config
+from zswarm.net import messages as msg
+from zswarm.net.config import zenoh_config
+from zswarm.net.keys import Keys
+from zswarm.net.procs import start_router
+
+from swarm_procs import Watch, processes, start_agent, start_world, wait_exit, with_reference
 
 
 def garbage(rng: np.random.Generator, keys: Keys, cell: tuple[int, int], i: int) -> list[tuple[str, bytes]]:
@@ -44,8 +46,8 @@ def test_flood_of_hostile_messages_changes_nothing(tmp_path):
         agents = [start_agent(kids, endpoint, run, "moving-prey", i) for i in range(10)]
         keys = Keys(run, 1.0)
         cells = [(cx, cy) for cx in range(-5, -1) for cy in range(-2, 2)]
-        with zenoh.open(zenoh_config("client", [endpoint])) as peer:
-            time.sleep(3.0)
+        with Watch(endpoint, run) as watch, zenoh.open(zenoh_config("client", [endpoint])) as peer:
+            watch.reach_step(10)  # the run is under way
             sent = 0
             end = time.monotonic() + 10.0
             i = 0
@@ -57,7 +59,7 @@ def test_flood_of_hostile_messages_changes_nothing(tmp_path):
                 time.sleep(0.02)
         assert wait_exit(world, 120) == 0
         assert all(wait_exit(a, 20) == 0 for a in agents)
-    s = load_summary(summary_path)
+    s = with_reference(summary_path, run, "moving-prey", "--duration", "30")
     assert sent > 1000
     rejected = s["rejected_by_reason"]
     for reason in ("malformed", "version", "nonfinite", "size", "jump"):

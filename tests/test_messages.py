@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from zswarm import messages as msg
+from zswarm.net import messages as msg
 
 finite = st.floats(-1e5, 1e5, allow_nan=False)
 poses = st.builds(msg.Pose, st.integers(0, 10_000), st.integers(0, 2**40), st.floats(0, 2e9),
@@ -16,7 +16,7 @@ hist = st.dictionaries(st.integers(0, msg.MAX_HIST_BINS - 1), st.integers(0, 10*
 stats = st.builds(msg.Stats, st.integers(0, 1000), st.integers(0, 10**9), st.integers(0, 10**9),
                   st.dictionaries(st.sampled_from(msg.REASONS), st.integers(0, 100), max_size=3),
                   st.integers(0, 10**6), st.integers(0, 10**6), hist, hist, st.booleans(),
-                  st.dictionaries(st.text(max_size=8), finite, max_size=3),
+                  st.builds(msg.Health, *[st.integers(0, 10**9)] * 6, st.floats(0, 1e5)),
                   st.lists(st.integers(0, 1000), max_size=10).map(tuple),
                   st.dictionaries(st.integers(0, 1000), st.floats(0, 2e9), max_size=3),
                   st.dictionaries(st.integers(0, 1000), st.floats(0, 2e9), max_size=3))

@@ -3,8 +3,8 @@ import math
 import numpy as np
 import pytest
 
-from zswarm.metrics import MetricContext, Summary, algebraic_connectivity, components, step_metrics
-from zswarm.neighbours import ObstacleIndex
+from zswarm.model.metrics import MetricContext, Summary, algebraic_connectivity, components, step_metrics
+from zswarm.model.neighbours import ObstacleIndex
 
 
 def ctx(radius=1.0, obstacles=((5.0, 5.0, 0.5),)):

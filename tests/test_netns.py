@@ -10,7 +10,7 @@ import sys
 
 import pytest
 
-from zswarm.procs import ROOT
+from conftest import ROOT
 
 pytestmark = pytest.mark.skipif(os.geteuid() != 0 or shutil.which("ip") is None,
                                 reason="needs root and iproute2 to create network namespaces")

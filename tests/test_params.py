@@ -2,7 +2,17 @@ import math
 
 import pytest
 
-from zswarm.params import DEFAULT_PARAMS, FIELDS, PAPER_PARAMS, ParamError, Params, PotentialParams, SwarmParams
+from zswarm.model.params import (
+    DEFAULT_PARAMS,
+    FIELDS,
+    MAX_AGENTS,
+    PAPER_PARAMS,
+    ParamError,
+    Params,
+    PotentialParams,
+    SwarmParams,
+    parse_assignments,
+)
 
 
 def test_paper_values_are_the_printed_ones():
@@ -59,3 +69,16 @@ def test_malformed_assignments_are_one_line_errors(bad):
 def test_flat_round_trip():
     p = Params().with_overrides(["c_o=4", "sensing_radius=3"])
     assert Params.from_flat(p.flat()) == p
+
+
+def test_an_integer_written_as_a_float_is_an_integer():
+    assert parse_assignments(["n_agents=1e3", "n_agents=20.0"]) == {"n_agents": 20}
+    assert parse_assignments(["n_agents=1e5"]) == {"n_agents": 100000}
+    with pytest.raises(ParamError, match="n_agents must be an integer"):
+        parse_assignments(["n_agents=2.5"])
+
+
+def test_the_swarm_size_has_a_stated_bound():
+    assert parse_assignments([f"n_agents={MAX_AGENTS}"]) == {"n_agents": MAX_AGENTS}
+    with pytest.raises(ParamError, match=f"<= {MAX_AGENTS}"):
+        parse_assignments([f"n_agents={MAX_AGENTS + 1}"])

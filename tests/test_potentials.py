@@ -5,10 +5,18 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from zswarm.formation import formation_offset
-from zswarm.params import DEFAULT_PARAMS, PAPER_PARAMS, PotentialParams
-from zswarm.potentials import (field, formation_terms, goal_terms, make_controller, obstacle_offsets,
-                               obstacle_terms, saturate, sense_one)
+from zswarm.model.formation import formation_offset
+from zswarm.model.params import DEFAULT_PARAMS, PAPER_PARAMS, PotentialParams
+from zswarm.model.potentials import (
+    field,
+    formation_terms,
+    goal_terms,
+    make_controller,
+    obstacle_offsets,
+    obstacle_terms,
+    saturate,
+    sense_one,
+)
 
 H = 1e-6
 coord = st.floats(-3.0, 3.0, allow_nan=False)

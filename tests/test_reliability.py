@@ -12,10 +12,21 @@ import time
 
 import numpy as np
 
-from swarm_procs import (load_summary, our_processes, processes, rerun_verify, run_launch, start_agent,
-                         start_world, wait_exit)
-from zswarm.procs import ROOT, free_port, wait_for_port
-from zswarm.replay import load_run, load_segment, segments
+from zswarm.net.procs import free_port, wait_for_port
+from zswarm.record.replay import load_run, load_segment, segments
+
+from conftest import ROOT
+from swarm_procs import (
+    Watch,
+    load_summary,
+    our_processes,
+    processes,
+    rerun_verify,
+    run_launch,
+    start_agent,
+    start_world,
+    wait_exit,
+)
 
 
 def test_router_restart_mid_run(tmp_path):
@@ -23,20 +34,18 @@ def test_router_restart_mid_run(tmp_path):
     endpoint = f"tcp/127.0.0.1:{port}"
     args = ("--set", "n_agents=3")
     with processes() as kids:
-        router = kids.spawn("router", ["-m", "zswarm.router", "--listen", endpoint], stdout=subprocess.DEVNULL)
+        router = kids.spawn("router", ["-m", "zswarm.net.router", "--listen", endpoint], stdout=subprocess.DEVNULL)
         assert wait_for_port("127.0.0.1", port, 10.0, router)
         world, summary_path, record, _ = start_world(kids, endpoint, "rr", "moving-prey", tmp_path, *args,
                                                      "--duration", "16")
         for i in range(3):
             start_agent(kids, endpoint, "rr", "moving-prey", i, *args)
-        deadline = time.monotonic() + 60
-        while not record.exists() and time.monotonic() < deadline:
-            time.sleep(0.1)
-        time.sleep(5.0)
+        with Watch(endpoint, "rr") as watch:
+            watch.reach_step(40)  # 2 s into the run
         router.proc.terminate()
         router.proc.wait(timeout=10)
-        time.sleep(2.0)
-        router2 = kids.spawn("router2", ["-m", "zswarm.router", "--listen", endpoint], stdout=subprocess.DEVNULL)
+        time.sleep(2.0)  # the outage itself: two seconds without a router
+        router2 = kids.spawn("router2", ["-m", "zswarm.net.router", "--listen", endpoint], stdout=subprocess.DEVNULL)
         assert wait_for_port("127.0.0.1", port, 10.0, router2)
         assert wait_exit(world, 90) == 0
     s = load_summary(summary_path)
@@ -114,14 +123,12 @@ def test_router_crash_ends_the_run_with_a_valid_recording_and_summary(tmp_path):
                              "--run", "routerdie", "--listen", f"tcp/127.0.0.1:{port}", "--record", str(record),
                              "--quiet"], cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:
-        deadline = time.monotonic() + 90
-        while not record.exists() and time.monotonic() < deadline:
-            time.sleep(0.1)
-        time.sleep(3.0)
+        with Watch(f"tcp/127.0.0.1:{port}", "routerdie") as watch:
+            watch.reach_step(30)
         routers = our_processes(f"127.0.0.1:{port}")
         assert routers, "no router process found"
         for pid in routers:
-            if b"zswarm.router" in open(f"/proc/{pid}/cmdline", "rb").read():
+            if b"zswarm.net.router" in open(f"/proc/{pid}/cmdline", "rb").read():
                 os.kill(pid, signal.SIGKILL)
         _, err = proc.communicate(timeout=90)
     finally:

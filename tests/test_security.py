@@ -12,13 +12,15 @@ from pathlib import Path
 import pytest
 import zenoh
 
+from zswarm.args import UsageError
+from zswarm.net import messages as msg
+from zswarm.net.config import open_session, zenoh_config
+from zswarm.net.keys import Keys
+from zswarm.net.procs import free_port, start_router
+from zswarm.net.security import write_secure_dir
+
 from conftest import ROOT
 from swarm_procs import load_summary, processes
-from zswarm import messages as msg
-from zswarm.cli_util import UsageError
-from zswarm.procs import free_port, start_router
-from zswarm.security import write_secure_dir
-from zswarm.transport import Keys, open_session, zenoh_config
 
 RUN = "sec"
 

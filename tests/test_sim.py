@@ -5,10 +5,10 @@ import json
 import numpy as np
 import pytest
 
-from zswarm.cli_util import UsageError
-from zswarm.potentials import sense_one
-from zswarm.scenarios import SCENARIOS, get_scenario, load_scenario_file
-from zswarm.sim import Simulator, simulate
+from zswarm.args import UsageError
+from zswarm.model.potentials import sense_one
+from zswarm.model.scenarios import SCENARIOS, get_scenario, load_scenario_file
+from zswarm.sim.simulator import Simulator, simulate
 
 
 def test_goal_near_obstacle_additive_traps_multiplicative_reaches():
@@ -165,3 +165,18 @@ def test_replay_reproduces_the_simulator_summary_and_compare_prints_both(cli, tm
     (tmp_path / "junk.rrd").write_bytes(b"not a recording")
     junk = cli("-m", "zswarm", "replay", str(tmp_path / "junk.rrd"))
     assert junk.returncode == 2 and "Traceback" not in junk.stderr
+
+
+def test_spawning_a_large_swarm_takes_memory_in_proportion_to_n():
+    """Clearing spawn cells of obstacles used an N x obstacles matrix: 100,000 agents took 24 GB."""
+    import tracemalloc
+
+    scenario = get_scenario("large-swarm", {"n_agents": 20000})  # 1,000 obstacles
+    tracemalloc.start()
+    try:
+        positions = scenario.initial_positions(np.random.default_rng(0))
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert positions.shape == (20000, 2)
+    assert peak < 50e6, f"{peak / 1e6:.0f} MB"  # the N x obstacles way took over 700 MB here

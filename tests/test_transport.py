@@ -4,7 +4,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from zswarm.transport import Keys, cells_in_disc, parse_parameters
+from zswarm.net.keys import Keys, cells_in_disc, parse_parameters
 
 
 @settings(max_examples=200, deadline=None)

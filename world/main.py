@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import asyncio
 import json
 import signal
@@ -10,12 +11,14 @@ import time
 from pathlib import Path
 from typing import Sequence
 
+from world.recorder import WorldRecorder
 from world.world import World
-from zswarm import messages as msg
-from zswarm.cli_util import Parser, UsageError, run_main
-from zswarm.recording import check_writable
-from zswarm.runspec import add_run_args, spec_from_args
-from zswarm.transport import Bridge, add_zenoh_args, config_from_args, open_session, pump, teardown
+from zswarm.args import Parser, UsageError, run_main
+from zswarm.files import check_writable
+from zswarm.net import messages as msg
+from zswarm.net.bridge import Bridge, pump, teardown
+from zswarm.net.config import add_zenoh_args, config_from_args, open_session
+from zswarm.net.runspec import RunSpec, add_run_args, spec_from_args
 
 
 def build_parser() -> Parser:
@@ -25,7 +28,6 @@ def build_parser() -> Parser:
     parser.add_argument("--summary", type=Path, metavar="FILE.json", help="write the run summary here")
     parser.add_argument("--trajectory", type=Path, metavar="FILE.npz",
                         help="also save the observed positions per step (numpy .npz)")
-    parser.add_argument("--duration", type=float, default=None, help="simulated seconds (default: scenario's)")
     parser.add_argument("--start-timeout", type=float, default=30.0,
                         help="wait this long for all agents to be alive before starting (default 30 s)")
     parser.add_argument("--step-timeout", type=float, default=5.0,
@@ -39,20 +41,20 @@ def build_parser() -> Parser:
     return parser
 
 
-async def run_world(args, spec) -> dict:
+async def run_world(args: argparse.Namespace, spec: RunSpec) -> dict:
     loop = asyncio.get_running_loop()
     session = open_session(config_from_args(args), what="world", retry_for=args.connect_timeout)
     queue: asyncio.Queue = asyncio.Queue()
     bridge = Bridge(session, loop, queue)
-    world = World(spec, bridge, args.record, args.summary, args.trajectory, list(sys.argv), resume=args.resume)
+    recorder = WorldRecorder(args.record, args.summary, args.trajectory, spec.scenario.n_agents, spec.scenario.dt)
+    world = World(spec, bridge, recorder, list(sys.argv))
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, world.stop.set)
     keys = spec.keys
     declared = []
-    steps = int(round((args.duration if args.duration is not None else spec.scenario.duration) / spec.scenario.dt))
     try:
-        world.open_recording()
-        declared.append(bridge.queryable(keys.obstacles, world.answer_obstacles))
+        world.open(args.resume)
+        declared.append(bridge.queryable(keys.obstacles, world.obstacles.answer))
         declared.append(bridge.subscribe(keys.all_poses, "pose"))
         declared.append(bridge.subscribe(keys.all_stats, "stats"))
         declared.append(bridge.subscribe_liveliness(keys.all_alive, "alive"))
@@ -60,21 +62,19 @@ async def run_world(args, spec) -> dict:
         pump_task = asyncio.ensure_future(pump(queue, world.handle))
         print(f"world: run {spec.run!r}, scenario {spec.scenario.name}, {spec.scenario.n_agents} agents, "
               f"{spec.clock} clock; waiting for the agents", flush=True)
-        await world.wait_for_agents(min(args.start_timeout, 3.0) if world.resumed_from else args.start_timeout)
-        print(f"world: started with {len(world.state.alive)} agents alive", flush=True)
+        await world.wait_for_agents(min(args.start_timeout, 3.0) if world.resumed else args.start_timeout)
+        print(f"world: started with {len(world.census.alive)} agents alive", flush=True)
         if spec.clock == "lockstep":
-            await world.run_lockstep(steps, args.progress, args.step_timeout)
+            await world.run_lockstep(spec.steps, args.progress, args.step_timeout)
         else:
-            await world.run_free(steps, args.progress)
-        expected = set(world.state.alive)
-        world.publish(keys.tick, msg.encode(msg.Tick(world.step_index + 1, time.time(),
-                                                     float(world.prey[0]), float(world.prey[1]), final=True)))
+            await world.run_free(spec.steps, args.progress)
+        expected = set(world.census.alive)
+        world.publish(keys.tick, msg.Tick(world.clock.step + 1, time.time(), *map(float, world.prey), final=True))
         deadline = loop.time() + 3.0  # let the agents' final stats arrive
-        stats = world.state.stats
-        while loop.time() < deadline and not all(i in stats and stats[i].final for i in expected):
+        while loop.time() < deadline and not all(i in world.stats and world.stats[i].final for i in expected):
             await asyncio.sleep(0.05)
         pump_task.cancel()
-        return world.finish(steps)
+        return world.finish()
     finally:
         teardown(bridge, declared, session)
 
@@ -87,8 +87,6 @@ def _main(argv: Sequence[str] | None) -> int:
             check_writable(path)
     if args.resume and spec.clock == "lockstep":
         raise UsageError("--resume works with the free clock only (a lockstep run cannot re-issue its ticks)")
-    if args.duration is not None and not args.duration > 0:
-        raise UsageError(f"--duration must be > 0 (got {args.duration})")
     result = asyncio.run(run_world(args, spec))
     keys = ("capture_time", "collisions", "min_pair_distance", "final_components", "messages_rejected")
     print("world: done " + json.dumps({k: result.get(k) for k in keys}), flush=True)

@@ -2,6 +2,64 @@
 
 Implements Kim, Wang & Shin (2006), "Decentralized Control of Autonomous Swarm Systems Using
 Artificial Potential Functions: Analytical Design Guidelines".
+
+The few things a notebook needs, imported on first use (``import zswarm`` itself loads nothing):
+
+- ``zswarm.check(params)``: the design report of a parameter set (Propositions 1-5, formation,
+  contact, the swarm squeeze); ``zswarm.DEFAULT_PARAMS``, ``zswarm.PAPER_PARAMS``, ``zswarm.Params``;
+- ``zswarm.load_scenario(name_or_toml, **overrides)``: a scenario, e.g. ``load_scenario("moving-prey",
+  n_agents=12, c_o=2.0)``; ``zswarm.SCENARIOS`` names the registered ones;
+- ``zswarm.simulate(scenario, seed, ...)``: the reference simulation; its result holds the summary,
+  the per-step metrics and (``keep_trajectory=True``) the positions as arrays;
+- ``zswarm.read_recording(path)``: a zswarm ``.rrd`` (and its segments) as its configuration, summary
+  and per-step frames of ids, positions, velocities and the prey.
+
+The command line (``zswarm --help``) and the processes (``python -m agents``, ``python -m world``)
+are described in the README and ``docs/``.
 """
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
 __version__ = "0.1.0"
+
+if TYPE_CHECKING:
+    from zswarm.model.scenarios import Scenario
+
+_LAZY = {
+    "check": ("zswarm.model.design", "check"),
+    "DesignReport": ("zswarm.model.design", "DesignReport"),
+    "Params": ("zswarm.model.params", "Params"),
+    "DEFAULT_PARAMS": ("zswarm.model.params", "DEFAULT_PARAMS"),
+    "PAPER_PARAMS": ("zswarm.model.params", "PAPER_PARAMS"),
+    "Scenario": ("zswarm.model.scenarios", "Scenario"),
+    "SCENARIOS": ("zswarm.model.scenarios", "SCENARIOS"),
+    "FaultModel": ("zswarm.model.faults", "FaultModel"),
+    "SwarmObserver": ("zswarm.model.observer", "SwarmObserver"),
+    "simulate": ("zswarm.sim.simulator", "simulate"),
+    "Simulator": ("zswarm.sim.simulator", "Simulator"),
+    "read_recording": ("zswarm.record.replay", "load_run"),
+}
+
+__all__ = ["__version__", "load_scenario", *_LAZY]
+
+
+def load_scenario(name: str, **overrides: Any) -> Scenario:
+    """A registered scenario (``zswarm.SCENARIOS``) or a ``.toml`` file, with parameter overrides."""
+    from zswarm.model.scenarios import get_scenario
+
+    return get_scenario(name, overrides)
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        from importlib import import_module
+
+        module, attr = _LAZY[name]
+        return getattr(import_module(module), attr)
+    raise AttributeError(f"module 'zswarm' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

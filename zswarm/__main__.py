@@ -1,5 +1,5 @@
 import sys
 
-from zswarm.cli import main
+from zswarm.cli.main import main
 
 sys.exit(main())

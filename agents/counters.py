@@ -1,0 +1,45 @@
+"""An agent's counters, and the stats message that carries them to the world once a second."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from zswarm.net import messages as msg
+from zswarm.net.poses import Rejections
+
+
+@dataclass
+class Counters:
+    rejections: Rejections
+    sent: int = 0
+    received: int = 0
+    ticks: int = 0
+    late_ticks: int = 0
+    ages: dict[int, int] = field(default_factory=dict)  # histogram: age of neighbour data when used
+    latency: dict[int, int] = field(default_factory=dict)  # histogram: publish-to-receipt of poses
+    obstacle_queries_failed: int = 0
+    heard: set[int] = field(default_factory=set)
+    seq_received: int = 0
+    seq_lost: int = 0
+    departed: dict[int, float] = field(default_factory=dict)
+    returned: dict[int, float] = field(default_factory=dict)
+    # since the last stats message: the longest inbound queue seen at a tick, and the latest tick start
+    window_queue_max: int = 0
+    window_lag_ms: float = 0.0
+
+    @staticmethod
+    def add(hist: dict[int, int], ms: float) -> None:
+        b = msg.to_bin(ms)
+        hist[b] = hist.get(b, 0) + 1
+
+    def stats(self, agent: int, injected: tuple[int, int] = (0, 0), final: bool = False) -> msg.Stats:
+        """The stats message (``injected``: messages the fault injector dropped and passed)."""
+        health = msg.Health(obstacle_queries_failed=self.obstacle_queries_failed, seq_received=self.seq_received,
+                            seq_lost=self.seq_lost, injected_drops=injected[0], injected_passed=injected[1],
+                            queue_max=self.window_queue_max, tick_lag_max_ms=float(self.window_lag_ms))
+        return msg.Stats(agent, self.sent, self.received, dict(self.rejections.counts), self.late_ticks, self.ticks,
+                         dict(self.ages), dict(self.latency), final, health, tuple(sorted(self.heard))[:msg.MAX_HEARD],
+                         dict(self.departed), dict(self.returned))
+
+    def new_window(self) -> None:
+        self.window_queue_max, self.window_lag_ms = 0, 0.0

@@ -1,0 +1,233 @@
+"""What one agent senses: the neighbours within its radius, the obstacles near it and the prey.
+
+Neighbours' poses arrive from the spatial cells its sensing disc (grown by 2 v_max dt) overlaps and
+pass the shared acceptance rules of :class:`~zswarm.net.poses.PoseTable`. Obstacles are asked of the
+world's queryable within 2R of where the agent is, again after it moved R. Only agents that hold a
+liveliness token are used as neighbours.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from agents.counters import Counters
+from zswarm.model.faults import OBSTACLE_SOURCE, PREY_SOURCE
+from zswarm.net import messages as msg
+from zswarm.net.bridge import Bridge
+from zswarm.net.keys import cells_in_disc
+from zswarm.net.poses import PoseTable, Rejections
+from zswarm.net.runspec import RunSpec
+
+
+@dataclass
+class Body:
+    """The agent's own state: where it is, how it moves, how many control steps it took."""
+
+    position: np.ndarray
+    velocity: np.ndarray
+    step: int = 0
+
+
+class Sensing:
+    def __init__(self, spec: RunSpec, agent_id: int, bridge: Bridge, body: Body) -> None:
+        self.spec, self.id, self.bridge, self.body = spec, agent_id, bridge, body
+        self.keys = spec.keys
+        p = spec.scenario.params.swarm
+        self.radius, self.v_max, self.dt = p.sensing_radius, p.v_max, spec.scenario.dt
+        # cells within R + 2 v_max dt: whoever can enter the sensing disc next step is already heard
+        self.subscription_radius = self.radius + 2.0 * self.v_max * self.dt
+        self.neighbours = PoseTable(3.0 * self.v_max * self.dt, spec.period)  # 3x slack on a tick's reach
+        self.counters = Counters(Rejections(f"agent {agent_id}"))
+        self.alive: set[int] = set()  # ids with a liveliness token
+        self.last_seq: dict[int, int] = {}
+        self.prey: np.ndarray | None = None
+        self.ticks: asyncio.Queue[msg.Tick] = asyncio.Queue()
+        self.pose_arrived = asyncio.Event()
+        self.obstacle_centers = np.zeros((0, 2))
+        self.obstacle_radii = np.zeros(0)
+        self.obstacle_query_at: np.ndarray | None = None
+        self.cells: dict[tuple[int, int], object] = {}
+        self.cell_since: dict[tuple[int, int], int] = {}  # step at which each cell was subscribed
+
+    # --- inbound ---------------------------------------------------------------------------------------
+
+    def handle(self, item: tuple[str, str, bytes, bool]) -> None:
+        tag, key, payload, deleted = item
+        if tag == "alive":
+            who = self.keys.agent_of(key)
+            if who is None:
+                return
+            if not deleted:
+                self.alive.add(who)
+                return
+            self.alive.discard(who)
+            if self.neighbours.forget(who) is not None:  # departed: forget it at once
+                self.counters.departed.setdefault(who, time.time())
+            self.last_seq.pop(who, None)
+            return
+        self.counters.received += 1
+        try:
+            m = msg.decode(payload)
+        except msg.DecodeError as exc:
+            self.counters.rejections.add(exc.reason, str(exc))
+            return
+        if tag == "pose" and isinstance(m, msg.Pose):
+            self._on_pose(key, m)
+        elif tag == "prey" and isinstance(m, msg.Prey):
+            self.prey = np.array([m.x, m.y])
+        elif tag == "tick" and isinstance(m, msg.Tick):
+            self.ticks.put_nowait(m)
+        else:
+            self.counters.rejections.add("kind", f"{type(m).__name__} on {tag} key")
+
+    def fault_source(self, tag: str, key: str, payload: bytes) -> tuple[int, float | None] | None:
+        """The link a message arrives on, and (poses) its sender's distance over the sensing radius."""
+        if tag == "prey":
+            return (PREY_SOURCE, None)
+        if key.startswith(self.keys.obstacles):
+            return (OBSTACLE_SOURCE, None)
+        if tag in ("pose", "reply"):
+            who = self.keys.agent_of(key)
+            if who is None:
+                return None
+            try:
+                m = msg.decode(payload)
+            except msg.DecodeError:
+                return (who, None)  # let it through to be rejected and counted
+            return (who, self._distance(m.x, m.y) / self.radius if isinstance(m, msg.Pose) else None)
+        return None
+
+    def _distance(self, x: float, y: float) -> float:
+        return math.hypot(x - self.body.position[0], y - self.body.position[1])
+
+    def _count_sequence(self, pose: msg.Pose) -> None:
+        """Observed loss from sequence numbers: a gap of g counts g - 1 lost when the sender was within
+        the sensing radius both before and after it (then every pose it sent reached the agent's cells;
+        otherwise it may simply have been out of range); a late arrival that filled a gap is taken back."""
+        last = self.last_seq.get(pose.id)
+        c = self.counters
+        nb = self.neighbours.get(pose.id)
+        within = nb is not None and all(self._distance(p.x, p.y) <= self.radius for p in (nb.latest, pose))
+        if last is not None and within:
+            if pose.seq > last:
+                gap = pose.seq - last - 1
+                if gap <= 50:
+                    c.seq_lost += gap
+                c.seq_received += 1
+            elif pose.seq < last and c.seq_lost > 0:
+                c.seq_lost -= 1
+                c.seq_received += 1
+        self.last_seq[pose.id] = max(pose.seq, last or 0)
+
+    def _on_pose(self, key: str, pose: msg.Pose) -> None:
+        if self.keys.agent_of(key) != pose.id:
+            self.counters.rejections.add("schema", f"pose of {pose.id} under key {key}")
+            return
+        if pose.id == self.id:
+            return
+        now = time.time()
+        self._count_sequence(pose)
+        self.counters.heard.add(pose.id)
+        self.counters.add(self.counters.latency, (now - pose.stamp) * 1000.0)
+        known = pose.id in self.neighbours.entries
+        reason = self.neighbours.accept(pose.id, pose, now)
+        if reason is not None:
+            self.counters.rejections.add(reason, f"agent {pose.id} jumped implausibly far")
+            return
+        if not known and pose.id in self.counters.departed:
+            self.counters.returned.setdefault(pose.id, now)
+        self.pose_arrived.set()
+
+    # --- what the agent senses -------------------------------------------------------------------------
+
+    async def refresh_obstacles(self, timeout: float = 2.0) -> bool:
+        """Ask the world for the obstacles within 2R; re-ask after moving R from the last question."""
+        position = self.body.position
+        if self.obstacle_query_at is not None and np.linalg.norm(position - self.obstacle_query_at) < self.radius:
+            return True
+        x, y = map(float, position)
+        try:
+            replies = await self.bridge.get(self.keys.obstacle_query(x, y, 2.0 * self.radius), timeout)
+        except Exception:
+            replies = []
+        for _, payload in replies:
+            try:
+                m = msg.decode(payload)
+            except msg.DecodeError as exc:
+                self.counters.rejections.add(exc.reason, str(exc))
+                continue
+            if isinstance(m, msg.Obstacles):
+                self.obstacle_centers = np.array(m.centers, dtype=float).reshape(-1, 2)
+                self.obstacle_radii = np.array(m.radii, dtype=float)
+                self.obstacle_query_at = position.copy()
+                return True
+        self.counters.obstacle_queries_failed += 1
+        return False  # keep what it knew (world away)
+
+    async def update_cells(self) -> None:
+        """Subscribe to the cells the sensing disc overlaps; ask new cells for their agents at once."""
+        x, y = map(float, self.body.position)
+        wanted = cells_in_disc(self.keys, x, y, self.subscription_radius)
+        for cell in [c for c in self.cells if c not in wanted]:
+            self.cells.pop(cell).undeclare()
+            self.cell_since.pop(cell, None)
+        new = [c for c in wanted if c not in self.cells]
+        for cell in new:
+            self.cells[cell] = self.bridge.subscribe(self.keys.cell_poses(cell), "pose")
+            self.cell_since[cell] = self.body.step
+        for cell in new:
+            for key, payload in await self.bridge.get(self.keys.cell_poses(cell), timeout=1.0):
+                self.handle(("pose", key, payload, False))
+
+    def neighbour_positions(self, step: int | None, staleness: float) -> np.ndarray:
+        """Positions of the neighbours it may use now: step-k poses (lockstep) or fresh ones (free:
+        received within ``staleness`` seconds), of agents that hold a liveliness token.
+
+        The age of each pose within the sensing radius is recorded here, at the moment it is used.
+        """
+        now = time.time()
+        out = []
+        for who, nb in self.neighbours.entries.items():
+            if who not in self.alive:
+                continue
+            pose = nb.by_step.get(step) if step is not None else nb.latest
+            if pose is None or (step is None and now - nb.received > staleness):
+                continue
+            if self._distance(pose.x, pose.y) <= self.radius:
+                self.counters.add(self.counters.ages, (now - pose.stamp) * 1000.0)
+            out.append((pose.x, pose.y))
+        return np.array(out, dtype=float).reshape(-1, 2)
+
+    async def await_step_poses(self, step: int, wait: float) -> None:
+        """Make sure it has the step pose of every agent that can be within its radius now.
+
+        It subscribes to the cells within R + 2 v_max dt, so every agent that can be within R at
+        step k was heard at step k-1. It waits (up to ``wait`` seconds) for those; for any still
+        missing, and for cells it subscribed to during this step (a subscription may reach the router
+        after a neighbour published), it asks the cells where they can be for their pose of this step.
+        """
+        reach = self.subscription_radius
+        expected = [nb for nb in self.neighbours.entries.values()
+                    if step not in nb.by_step and (step - 1 in nb.by_step or nb.latest.step >= step - 1)
+                    and self._distance(nb.latest.x, nb.latest.y) <= reach]
+        loop = asyncio.get_running_loop()
+        deadline = loop.time() + wait
+        while expected and loop.time() < deadline:
+            self.pose_arrived.clear()
+            try:
+                await asyncio.wait_for(self.pose_arrived.wait(), deadline - loop.time())
+            except asyncio.TimeoutError:
+                break
+            expected = [nb for nb in expected if step not in nb.by_step]
+        cells = {c for c, since in self.cell_since.items() if since >= step}
+        for nb in expected:
+            cells |= cells_in_disc(self.keys, nb.latest.x, nb.latest.y, 2.0 * self.v_max * self.dt)
+        replies = await asyncio.gather(*(self.bridge.get(f"{self.keys.cell_poses(c)}?step={step}", timeout=1.0)
+                                         for c in cells))
+        for key, payload in (r for batch in replies for r in batch):
+            self.handle(("pose", key, payload, False))

@@ -1,0 +1,131 @@
+"""The tree's layers, kept by a check: every import of every module goes down (or sideways where
+allowed), never up, and the two engines never import each other.
+
+    cli            every command                                  may import anything
+    agents, world  the two process programs                       net, record (world only), model, base
+    sim | net      the engines: reference simulator | runtime     model, record (sim only), base
+    record         Rerun recordings: write, read back, repair     model, base
+    model          the paper's math, scenarios, metrics, faults   base
+    base           zswarm.errors, args, files, provenance         nothing of zswarm
+"""
+
+from __future__ import annotations
+
+import ast
+import sys
+from pathlib import Path
+
+import pytest
+
+from conftest import ROOT
+
+BASE = {"zswarm", "zswarm.errors", "zswarm.args", "zswarm.files", "zswarm.provenance"}
+ALLOWED: dict[str, set[str]] = {
+    "base": {"base"},
+    "model": {"base", "model"},
+    "record": {"base", "model", "record"},
+    "sim": {"base", "model", "record", "sim"},
+    "net": {"base", "model", "net"},
+    "agents": {"base", "model", "net", "agents"},
+    "world": {"base", "model", "net", "record", "world"},
+    "cli": {"base", "model", "record", "sim", "net", "cli"},
+    "api": {"base", "model", "record", "sim"},  # zswarm/__init__: the notebook API
+}
+
+
+def layer(module: str) -> str | None:
+    """The layer of a zswarm module, or None for anything outside the project."""
+    if module in BASE:
+        return "base"
+    top, _, rest = module.partition(".")
+    if top in ("agents", "world"):
+        return top
+    if top != "zswarm":
+        return None
+    return rest.split(".")[0] if rest.split(".")[0] in ALLOWED else None
+
+
+def imports(path: Path, module: str) -> list[tuple[int, str]]:
+    """Every module ``path`` imports (at any depth: lazy imports count), resolved to full names."""
+    tree = ast.parse(path.read_text(), str(path))
+    package = module if path.name == "__init__.py" else module.rpartition(".")[0]
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out += [(node.lineno, a.name) for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                parts = package.split(".")
+                base = ".".join(parts[: len(parts) - node.level + 1] + ([base] if base else []))
+            for a in node.names:  # `from zswarm.sim import simulator` imports zswarm.sim.simulator
+                full = f"{base}.{a.name}"
+                out.append((node.lineno, full if layer(full) is not None and _is_module(full) else base))
+    return out
+
+
+def _is_module(name: str) -> bool:
+    rel = Path(*name.split("."))
+    return (ROOT / rel).is_dir() or (ROOT / rel).with_suffix(".py").is_file()
+
+
+def project_modules() -> list[tuple[str, Path]]:
+    out = []
+    for top in ("zswarm", "agents", "world"):
+        for path in sorted((ROOT / top).rglob("*.py")):
+            rel = path.relative_to(ROOT).with_suffix("")
+            parts = list(rel.parts[:-1]) if rel.name == "__init__" else list(rel.parts)
+            out.append((".".join(parts), path))
+    return out
+
+
+def violations(modules: list[tuple[str, Path]]) -> list[str]:
+    bad = []
+    for module, path in modules:
+        own = "api" if module == "zswarm" else layer(module)
+        if module == "zswarm.__main__":
+            own = "cli"
+        for line, target in imports(path, module):
+            theirs = layer(target)
+            if theirs is None or own is None:
+                continue
+            if theirs == "api":
+                theirs = "base"
+            if theirs not in ALLOWED[own]:
+                bad.append(f"{path}:{line}: {own} imports {target} ({theirs})")
+    return bad
+
+
+def test_every_import_respects_the_layers():
+    modules = project_modules()
+    assert len(modules) > 40  # the check sees the whole tree
+    assert violations(modules) == []
+
+
+@pytest.mark.parametrize("where,line", [
+    ("world/world.py", "from zswarm.sim.simulator import simulate"),
+    ("zswarm/model/metrics.py", "from zswarm.net import messages"),
+    ("zswarm/sim/simulator.py", "from zswarm.net.keys import Keys"),
+    ("zswarm/net/bridge.py", "import zswarm.sim.channel"),
+    ("zswarm/record/replay.py", "from zswarm.cli.replay import run_replay"),
+    ("agents/agent.py", "from zswarm.record import swarm_log"),
+    ("zswarm/model/params.py", "from zswarm.cli import main"),
+])
+def test_the_check_catches_an_import_against_the_layers(tmp_path, where, line):
+    """The same check on a copy of a module with one forbidden import added fails."""
+    module = where[:-3].replace("/", ".")
+    copy = tmp_path / Path(where).name
+    copy.write_text((ROOT / where).read_text() + f"\n\ndef _sneaky():\n    {line}\n")
+    assert violations([(module, copy)]) != []
+    assert violations([(module, ROOT / where)]) == []
+
+
+def test_an_agent_process_does_not_import_rerun():
+    """The agent program's imports stay lean (the scale work depends on it)."""
+    import subprocess
+
+    code = ("import sys, agents.main, agents.agent; "
+            "print(sorted(m for m in sys.modules if m.split('.')[0] in ('rerun', 'pyarrow')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, cwd=ROOT)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "[]", out.stdout

@@ -1,0 +1,41 @@
+"""The transport half of a run's summary: what the agents' stats and the world itself counted."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from zswarm.net import messages as msg
+
+
+def _ratio(a: float, b: float) -> float | None:
+    return a / b if b else None
+
+
+def transport_summary(stats: list[msg.Stats], world_rejected: dict[str, int]) -> dict[str, Any]:
+    """Traffic, rejections, latency and age percentiles, ticks on time, observed loss and who heard
+    whom, merged over every agent's latest stats message (and the world's own rejections)."""
+    ages = msg.merge([s.age_hist for s in stats])
+    lat = msg.merge([s.latency_hist for s in stats])
+    ticks = sum(s.ticks for s in stats)
+    late = sum(s.late_ticks for s in stats)
+    rejected: dict[str, int] = dict(world_rejected)
+    for s in stats:
+        for k, v in s.rejected.items():
+            rejected[k] = rejected.get(k, 0) + v
+    lost = sum(s.health.seq_lost for s in stats)
+    counted = sum(s.health.seq_lost + s.health.seq_received for s in stats)
+    return {
+        "agents_reporting": len(stats),
+        "messages_sent": sum(s.sent for s in stats),
+        "messages_received": sum(s.received for s in stats),
+        "messages_rejected": sum(rejected.values()), "rejected_by_reason": rejected,
+        "pose_age_ms": {"p50": msg.percentile(ages, 0.5), "p99": msg.percentile(ages, 0.99)},
+        "pose_latency_ms": {"p50": msg.percentile(lat, 0.5), "p99": msg.percentile(lat, 0.99)},
+        "poses_received": sum(lat.values()),
+        "ticks": ticks, "late_ticks": late, "on_time_ratio": (1 - late / ticks) if ticks else None,
+        "observed_dropout": _ratio(float(lost), float(counted)),
+        "observed_latency_ms": msg.percentile(lat, 0.5),
+        "heard": {str(s.id): list(s.heard) for s in stats},
+        "neighbour_departures": {str(s.id): {str(k): v for k, v in (s.departed or {}).items()} for s in stats},
+        "neighbour_returns": {str(s.id): {str(k): v for k, v in (s.returned or {}).items()} for s in stats},
+    }

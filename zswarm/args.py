@@ -1,0 +1,75 @@
+"""Command-line conventions shared by every zswarm program.
+
+Usage errors print one line (``prog: error: what is wrong (see --help)``) and exit 2; user mistakes
+found after parsing raise :class:`UsageError`, which :func:`run_main` turns into the same line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Callable, NoReturn, Sequence
+
+from zswarm.errors import EXIT_USAGE, ParamError, UsageError
+
+__all__ = ["EXIT_USAGE", "Parser", "UsageError", "add_param_args", "positive_float", "positive_int", "run_main",
+           "seed_arg"]
+
+class Parser(argparse.ArgumentParser):
+    """ArgumentParser whose errors are one line on stderr and exit code 2."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see --help)\n")
+
+
+def run_main(fn: Callable[[Sequence[str] | None], int], argv: Sequence[str] | None = None,
+             prog: str = "zswarm") -> int:
+    """Call ``fn(argv)``; turn a :class:`UsageError` or a ValueError from validation into exit 2."""
+    try:
+        return fn(argv)
+    except (UsageError, ParamError) as exc:
+        print(f"{prog}: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print(f"{prog}: interrupted", file=sys.stderr)
+        return 130
+
+
+def add_param_args(parser: argparse.ArgumentParser) -> None:
+    """``--set NAME=VALUE`` (repeatable) for any field of :mod:`zswarm.model.params`."""
+    parser.add_argument("--set", dest="assignments", action="append", default=[], metavar="NAME=VALUE",
+                        help="override a parameter (repeatable), e.g. --set c_o=3 --set l_a=1/2")
+
+
+MAX_SEED = 2**63
+
+
+def seed_arg(text: str) -> int:
+    """A ``--seed``: an integer in [0, 2^63), what numpy's generators accept (every program's)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"invalid int value {text!r}: a seed is an integer in [0, 2^63)") from None
+    if not 0 <= value < MAX_SEED:
+        raise argparse.ArgumentTypeError(f"a seed is an integer in [0, 2^63) (got {text!r})")
+    return value
+
+
+def positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not value > 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {text!r}")
+    return value
+
+
+def positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {text!r}")
+    return value

@@ -1,0 +1,84 @@
+"""``zswarm design``: judge a parameter set against the paper's guidelines before anything runs."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+from zswarm.args import add_param_args
+from zswarm.model.design import DesignReport, check, nearest_passing
+from zswarm.model.params import DEFAULT_PARAMS, PAPER_PARAMS
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    add_param_args(parser)
+    parser.add_argument("--paper", action="store_true",
+                        help="start from the paper's printed values instead of zswarm's defaults")
+    parser.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+    parser.add_argument("--save", metavar="FILE.rrd", type=Path,
+                        help="write the Fig 9 curves and the pair force to a Rerun recording")
+    parser.add_argument("--nearest", action="store_true",
+                        help="also search the closest passing set (changing one or two potential values)")
+
+
+def _fmt(v: Any) -> str:
+    if v is None:
+        return "-"
+    if isinstance(v, float):
+        return "inf" if math.isinf(v) else f"{v:.4g}"
+    return str(v)
+
+
+def render(report: DesignReport) -> str:
+    rows = [
+        ("Prop 1", report.prop1, f"c_g/c_o >= {_fmt(report.prop1['lower_bound'])}  "
+                                 f"(d_0^go = {_fmt(report.prop1['d_0_go'])})"),
+        ("Prop 2", report.prop2, f"c_g/c_o <= {_fmt(report.prop2['upper_bound'])}  "
+                                 f"(exact {_fmt(report.prop2['exact_upper_bound'])}, "
+                                 f"d_0^ro = {_fmt(report.prop2['d_0_ro'])})"),
+        ("Prop 3", report.prop3, f"epsilon = {_fmt(report.prop3['epsilon'])}"),
+        ("Prop 4", report.prop4, f"{_fmt(report.prop4['lhs'])} > {_fmt(report.prop4['rhs'])}"),
+        ("Prop 5", report.prop5, f"{_fmt(report.prop5['lhs'])} > {_fmt(report.prop5['rhs'])}"),
+        ("Formation", {"holds": report.formation["stable"], "detail": report.formation["detail"]},
+         f"d^f = {_fmt(report.formation['equilibrium_spacing'])} "
+         f"(eq 27: {_fmt(report.formation['closed_form_spacing'])})"),
+        ("Contact", report.contact, f"{_fmt(report.contact['lhs'])} > {_fmt(report.contact['rhs'])}"),
+        ("Swarm", report.swarm or {"holds": False, "detail": "not simulated: no stable pair spacing"},
+         "closest pair " + _fmt((report.swarm or {}).get("min_pair_distance"))),
+    ]
+    p = report.params.flat()
+    lines = ["parameters: " + "  ".join(f"{k}={_fmt(v)}" for k, v in p.items()), ""]
+    lines.append(f"{'check':<10} {'verdict':<7} {'bound':<48} reason")
+    for name, d, bound in rows:
+        lines.append(f"{name:<10} {'holds' if d['holds'] else 'FAILS':<7} {bound:<48} {d['detail']}")
+    lines += ["", "all guidelines hold" if report.ok else
+              "guidelines fail: " + ", ".join(report.failures())]
+    return "\n".join(lines)
+
+
+def run(args: argparse.Namespace) -> int:
+    base = PAPER_PARAMS if args.paper else DEFAULT_PARAMS
+    params = base.with_overrides(args.assignments)
+    report = check(params)
+    out: dict[str, Any] = report.to_json()
+    nearest = None
+    if args.nearest and not report.ok:
+        nearest = nearest_passing(params)
+        out["nearest"] = None if nearest is None else nearest[1]
+    if args.save is not None:
+        from zswarm.record.design_plots import save_design
+
+        save_design(report, args.save)
+    if args.json:
+        print(json.dumps(out, indent=2))
+    else:
+        print(render(report))
+        if args.nearest and not report.ok:
+            print("nearest passing set: " + ("none found" if nearest is None else
+                  "  ".join(f"--set {k}={v:.4g}" for k, v in nearest[1].items())))
+        if args.save is not None:
+            print(f"saved the curves to {args.save} (open with: rerun {args.save})")
+    return 0 if report.ok else 1

@@ -1,0 +1,182 @@
+"""``zswarm run`` (and ``python launch.py``): a Zenoh router, the world and N agent processes, on one
+machine or several.
+
+    zswarm run                                        # the demo: 10 agents chase a moving prey
+    zswarm run --agents 20 --scenario static-goal --record sg.rrd
+    zswarm run --role router,world --listen tcp/0.0.0.0:7447 --agents 20      # machine A
+    zswarm run --role agents --connect tcp/A:7447 --ids 10-19 --agents 20     # machine B
+
+The run's own arguments are every process's (:mod:`zswarm.net.runspec`); the rest say where the
+processes run, what is recorded and which crashes to stage. At the end, or on Ctrl-C, the agents are
+stopped first, then the world (which flushes the recording and writes the summary), then the router;
+every child is reaped.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Sequence
+
+from zswarm.args import Parser, UsageError, run_main
+from zswarm.cli.chaos import parse_crash, parse_kill, parse_outage
+from zswarm.files import check_writable
+from zswarm.net.runspec import RunSpec, add_run_args, spec_from_args
+
+ROLES = ("router", "world", "agents")
+
+
+def parse_ids(text: str) -> list[int]:
+    ids: list[int] = []
+    try:
+        for part in text.split(","):
+            lo, sep, hi = part.partition("-")
+            ids.extend(range(int(lo), int(hi) + 1) if sep else [int(lo)])
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected ids like 0-9 or 3,5,7 (got {text!r})") from None
+    if not ids or min(ids) < 0:
+        raise argparse.ArgumentTypeError(f"expected non-negative ids (got {text!r})")
+    return ids
+
+
+def parse_roles(text: str) -> list[str]:
+    roles = [r.strip() for r in text.split(",") if r.strip()]
+    bad = [r for r in roles if r not in ROLES]
+    if bad or not roles:
+        raise argparse.ArgumentTypeError(f"roles are {', '.join(ROLES)} (comma-separated); got {text!r}")
+    return roles
+
+
+def build_parser(prog: str = "zswarm run") -> Parser:
+    p = Parser(prog=prog, description="Start a zswarm run: router, world and agents.")
+    add_run_args(p, run_help="run id: namespaces every key (default: run-SEED-TIME)")
+    p.add_argument("--agents", type=int, default=None,
+                   help="number of agents N (default: the scenario's; same as --set n_agents=N)")
+    p.add_argument("--record", type=Path, default=Path("run.rrd"), help="recording (default run.rrd)")
+    p.add_argument("--summary", type=Path, default=None, help="summary JSON (default: beside the recording)")
+    p.add_argument("--trajectory", type=Path, default=None, help="observed positions per step (.npz)")
+    p.add_argument("--role", type=parse_roles, default=list(ROLES),
+                   help="what this machine runs: router,world,agents (default all three)")
+    p.add_argument("--connect", default=None, metavar="ENDPOINT",
+                   help="router to join when this machine runs no router, e.g. tcp/10.0.0.1:7447")
+    p.add_argument("--listen", default=None, metavar="ENDPOINT",
+                   help="router endpoint (default tcp/127.0.0.1:FREE_PORT)")
+    p.add_argument("--ids", type=parse_ids, default=None, help="agent ids this machine runs, e.g. 10-19")
+    p.add_argument("--secure", type=Path, default=None, metavar="DIR",
+                   help="TLS with access control: use the certificates and configs in DIR ('zswarm certs DIR'; "
+                        "made there if DIR has none); endpoints become tls/...")
+    p.add_argument("--config", type=Path, default=None, metavar="FILE",
+                   help="a full Zenoh configuration (json5) for the world and the agents; --connect overrides "
+                        "its endpoints")
+    p.add_argument("--router-config", type=Path, default=None, metavar="FILE",
+                   help="a full Zenoh configuration (json5) for the router; --listen overrides its endpoints")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.add_argument("--kill", type=parse_kill, default=None, metavar="K@T",
+                   help="SIGKILL K agents, chosen with the seed, T seconds after the start")
+    p.add_argument("--restart-after", type=float, default=None, metavar="S",
+                   help="restart the killed agents S seconds later (they rejoin at their spawn position)")
+    p.add_argument("--world-outage", type=parse_outage, default=None, metavar="T:S",
+                   help="freeze the world (SIGSTOP) at T for S seconds: no prey, no obstacle answers")
+    p.add_argument("--world-crash", type=parse_crash, default=None, metavar="T[:S]",
+                   help="kill the world (SIGKILL) at T; with :S start a new one S seconds later with --resume "
+                        "(it recovers the run from the recording and writes the next segment), without, "
+                        "end the run there (the recording is repaired and the summary recomputed)")
+    return p
+
+
+def endpoint_host_port(endpoint: str) -> tuple[str, int]:
+    try:
+        _, rest = endpoint.split("/", 1)
+        host, port = rest.rsplit(":", 1)
+        return host.strip("[]"), int(port)
+    except ValueError:
+        raise UsageError(f"endpoint {endpoint!r} must look like tcp/HOST:PORT (or tls/HOST:PORT)") from None
+
+
+@dataclass(frozen=True)
+class Plan:
+    """Everything ``zswarm run`` was asked to do, checked: the run itself and where its parts run."""
+
+    spec: RunSpec
+    roles: tuple[str, ...]
+    ids: tuple[int, ...]  # the agents this machine runs
+    record: Path
+    summary: Path
+    trajectory: Path | None
+    connect: str | None
+    listen: str | None
+    secure: Path | None
+    config: Path | None
+    router_config: Path | None
+    quiet: bool
+    kill: tuple[int, float] | None
+    restart_after: float | None
+    world_outage: tuple[float, float] | None
+    world_crash: tuple[float, float | None] | None
+
+
+def plan_from_args(args: argparse.Namespace) -> Plan:
+    """Check everything a child would reject, before any child starts."""
+    if args.agents is not None and args.agents < 1:
+        raise UsageError(f"--agents must be >= 1 (got {args.agents})")
+    spec = spec_from_args(args, run=f"run-{args.seed}-{int(time.time())}",
+                          extra={"n_agents": args.agents} if args.agents is not None else None)
+    n = spec.scenario.n_agents
+    if "world" in args.role:
+        for path in (args.record, args.summary, args.trajectory):
+            if path is not None:
+                check_writable(path)
+    if "router" not in args.role and args.connect is None:
+        raise UsageError("without the router role, give --connect tcp/HOST:PORT of the router")
+    for flag, endpoint in (("--listen", args.listen), ("--connect", args.connect)):
+        if endpoint is not None:
+            endpoint_host_port(endpoint)
+            if args.secure is not None and not endpoint.startswith("tls/"):
+                raise UsageError(f"with --secure, {flag} must be a tls/HOST:PORT endpoint (got {endpoint!r})")
+    for flag, path in (("--config", args.config), ("--router-config", args.router_config)):
+        if path is not None:
+            if args.secure is not None:
+                raise UsageError(f"{flag} and --secure both set the Zenoh configuration; give one")
+            from zswarm.net.config import zenoh_config
+
+            zenoh_config(None, config=path)  # a missing or unreadable file fails here, not in a child
+    if args.restart_after is not None and not args.restart_after >= 0:
+        raise UsageError(f"--restart-after must be >= 0 (got {args.restart_after})")
+    ids = tuple(args.ids if args.ids is not None else range(n))
+    if args.secure is not None:
+        _check_secure_dir(args.secure, ids if "agents" in args.role else ())
+    return Plan(spec=spec, roles=tuple(args.role), ids=ids, record=args.record,
+                summary=args.summary or args.record.with_suffix(".json"), trajectory=args.trajectory,
+                connect=args.connect, listen=args.listen, secure=args.secure, config=args.config,
+                router_config=args.router_config, quiet=args.quiet, kill=args.kill, restart_after=args.restart_after,
+                world_outage=args.world_outage, world_crash=args.world_crash)
+
+
+def _check_secure_dir(directory: Path, ids: Sequence[int]) -> None:
+    from zswarm.net.security import agent_config, agent_name, is_secure_dir
+
+    if directory.exists() and not directory.is_dir():
+        raise UsageError(f"--secure {directory} is not a directory")
+    if directory.is_dir() and any(directory.iterdir()) and not is_secure_dir(directory):
+        raise UsageError(f"--secure {directory} has no router/world/agent .json5 configs; "
+                         f"make them with: zswarm certs {directory}")
+    if ids and is_secure_dir(directory):
+        own = [i for i in ids if agent_config(directory, i).name == f"{agent_name(i)}.json5"]
+        if own and len(own) < len(ids):
+            lacking = sorted(set(ids) - set(own))
+            raise UsageError(f"--secure {directory} gives agents their own identities, but none to agent "
+                             f"{lacking[0]}{' and others' if len(lacking) > 1 else ''}; remake it with: "
+                             f"zswarm certs {directory} --force --agents {max(ids) + 1}")
+
+
+def _launch(argv: Sequence[str] | None, prog: str) -> int:
+    from zswarm.cli.supervise import Launch
+
+    plan = plan_from_args(build_parser(prog).parse_args(argv))
+    return Launch(plan).run()
+
+
+def main(argv: Sequence[str] | None = None, prog: str = "zswarm run") -> int:
+    return run_main(lambda a: _launch(a, prog), argv, prog=prog)

@@ -1,0 +1,105 @@
+"""``zswarm`` / ``python -m zswarm``: one entry point, a subcommand per task.
+
+``zswarm run`` and ``zswarm sweep`` have parsers of their own (:mod:`zswarm.cli.launch`,
+:mod:`zswarm.cli.sweep`); every other command's arguments are declared here or by its module.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Sequence
+
+from zswarm.args import Parser, positive_float, positive_int, run_main, seed_arg
+
+DELEGATED = {"run": "start a swarm: router, world and N agent processes (zswarm run --help)",
+             "sweep": "sweep latency x dropout, distributed and simulated (zswarm sweep --help)"}
+
+
+def build_parser() -> Parser:
+    from zswarm.cli import bench_net, certs, design, replay, sim, soak
+
+    parser = Parser(prog="zswarm", description="Decentralized APF swarms (Kim, Wang & Shin 2006).")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
+    d = sub.add_parser("design", help="check a parameter set against Propositions 1-5",
+                       description="Check a parameter set against the paper's design guidelines. "
+                                   "Exit 0 when all hold, 1 when one fails, 2 on a usage error.")
+    design.add_arguments(d)
+    d.set_defaults(run=design.run)
+
+    s = sub.add_parser("sim", help="run the centralized reference simulation of a scenario",
+                       description="Simulate a scenario with the vectorized reference simulator.")
+    sim.add_sim_arguments(s)
+    s.set_defaults(run=sim.run_sim)
+
+    scen = sub.add_parser("scenarios", help="list the registered scenarios")
+    scen.add_argument("--json", action="store_true")
+    scen.set_defaults(run=sim.run_scenarios)
+
+    for name, text in DELEGATED.items():  # listed in --help; parsed by their own modules
+        sub.add_parser(name, help=text, add_help=False)
+
+    bench = sub.add_parser("bench", help="benchmarks")
+    bench_sub = bench.add_subparsers(dest="bench", required=True, parser_class=Parser)
+    bs = bench_sub.add_parser("sim", help="simulator steps per second for growing N")
+    sim.add_bench_sim_arguments(bs)
+    bs.set_defaults(run=sim.run_bench_sim)
+    bn = bench_sub.add_parser("net", help="distributed swarm: latency, ticks on time, load, memory")
+    bn.add_argument("--agents", type=lambda t: [positive_int(x) for x in t.split(",")],
+                    default=[10], help="N, or a comma-separated list (default 10)")
+    bn.add_argument("--duration", type=positive_float, default=15.0,
+                    help="simulated = wall seconds per run (default 15)")
+    bn.add_argument("--json", action="store_true")
+    bn.set_defaults(run=bench_net.main_bench)
+    so = bench_sub.add_parser("soak", help="a long run under loss: memory flat? backlog growing?",
+                              description="N agents on bench-field with seeded loss for several minutes; "
+                                          "samples every process's memory and the agents' inbound queues "
+                                          "and tick lag. Exit 1 when memory or backlog grows.")
+    so.add_argument("--agents", type=positive_int, default=30, help="N (default 30)")
+    so.add_argument("--dropout", type=float, default=0.2, help="loss probability per message (default 0.2)")
+    so.add_argument("--duration", type=positive_float, default=300.0, help="seconds (default 300)")
+    so.add_argument("--seed", type=seed_arg, default=0)
+    so.add_argument("--json", action="store_true")
+    so.set_defaults(run=soak.main_soak)
+
+    replay.add_arguments(sub)
+
+    c = sub.add_parser("certs", help="make a CA, certificates and Zenoh configs for TLS + access control",
+                       description=certs.DESCRIPTION)
+    certs.add_arguments(c)
+    c.set_defaults(run=certs.run)
+    return parser
+
+
+def _main(argv: Sequence[str] | None) -> int:
+    args: argparse.Namespace = build_parser().parse_args(argv)
+    return int(args.run(args))
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv[:1] in (["run"], ["sweep"]):
+        return _delegate(argv[0], argv[1:], f"zswarm {argv[0]}")
+    return run_main(_main, argv)
+
+
+def launch_main(argv: Sequence[str] | None = None) -> int:
+    """``python launch.py [sweep] ...``: the README's front door, the same as ``zswarm run|sweep``."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv[:1] == ["sweep"]:
+        return _delegate("sweep", argv[1:], "launch.py sweep")
+    return _delegate("run", argv, "launch.py")
+
+
+def _delegate(command: str, argv: list[str], prog: str) -> int:
+    if command == "run":
+        from zswarm.cli import launch
+
+        return launch.main(argv, prog=prog)
+    from zswarm.cli import sweep
+
+    return run_main(lambda a: sweep.main(a, prog=prog), argv, prog=prog)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,37 @@
+"""A distributed run beside its centralized reference: the same scenario, seed and duration simulated
+with the same equations (:mod:`zswarm.sim`), stored in the run's summary as ``reference`` and
+``vs_reference`` (distributed minus reference). The world never runs the simulator itself: the
+tools that start it (``zswarm run``, sweeps, tests) add this after it has written its summary."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from zswarm.files import write_json
+from zswarm.net.runspec import RunSpec
+
+COMPARED = ("capture_time", "collisions", "final_components", "min_pair_distance", "final_centroid_goal_distance",
+            "min_obstacle_clearance")
+
+
+def reference_comparison(result: dict[str, Any], spec: RunSpec) -> dict[str, Any]:
+    """``reference`` and ``vs_reference`` for a distributed run's ``result`` (its summary)."""
+    from zswarm.sim.simulator import simulate
+
+    scenario = spec.scenario
+    ref = simulate(scenario, spec.seed, combination=spec.combination,
+                   duration=max(float(result.get("duration") or 0.0), scenario.dt)).summary
+    reference = {k: ref[k] for k in COMPARED}
+    return {"reference": reference,
+            "vs_reference": {k: (None if result.get(k) is None or ref[k] is None else result[k] - ref[k])
+                             for k in COMPARED}}
+
+
+def add_reference(summary_path: Path, spec: RunSpec) -> dict[str, Any]:
+    """Add the reference comparison to the summary file (rewritten whole); returns the summary."""
+    result = json.loads(Path(summary_path).read_text())
+    result.update(reference_comparison(result, spec))
+    write_json(Path(summary_path), result)
+    return result

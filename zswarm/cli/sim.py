@@ -1,0 +1,99 @@
+"""``zswarm sim``, ``zswarm scenarios`` and ``zswarm bench sim``: the reference simulator's commands."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+from zswarm.args import add_param_args, positive_float, positive_int, seed_arg
+from zswarm.model.params import parse_assignments
+from zswarm.model.potentials import COMBINATIONS
+from zswarm.model.scenarios import SCENARIOS, get_scenario
+
+
+def add_sim_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--scenario", default="static-goal",
+                        help=f"a registered scenario ({', '.join(SCENARIOS)}) or a .toml file")
+    parser.add_argument("--seed", type=seed_arg, default=0, help="random seed (spawn positions); default 0")
+    add_param_args(parser)
+    parser.add_argument("--potential", choices=COMBINATIONS, default=None,
+                        help="obstacle-goal combination: additive (eq 12) or multiplicative (eq 14); "
+                             "default: the scenario's")
+    parser.add_argument("--duration", type=positive_float, default=None, help="simulated seconds")
+    parser.add_argument("--record", type=Path, metavar="FILE.rrd", help="write a Rerun recording")
+    parser.add_argument("--record-every", type=positive_int, default=1, metavar="K",
+                        help="log every K-th step to the recording (default 1)")
+    parser.add_argument("--sensing-discs", action="store_true", help="draw each agent's sensing disc")
+    parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    from zswarm.net.runspec import add_fault_args
+
+    add_fault_args(parser)
+
+
+def run_sim(args: argparse.Namespace) -> int:
+    from zswarm.net.runspec import faults_from_args
+    from zswarm.sim.simulator import simulate
+
+    scenario = get_scenario(args.scenario, parse_assignments(args.assignments))
+    result = simulate(scenario, args.seed, combination=args.potential, duration=args.duration,
+                      record=args.record, record_every=args.record_every,
+                      sensing_discs=args.sensing_discs, faults=faults_from_args(args))
+    if args.json:
+        print(json.dumps(result.summary, sort_keys=True))
+    else:
+        for key, value in result.summary.items():
+            print(f"{key:>30}: {value}")
+        if args.record is not None:
+            print(f"recorded to {args.record} (open with: rerun {args.record})")
+    return 0
+
+
+def run_scenarios(args: argparse.Namespace) -> int:
+    rows = [get_scenario(name) for name in SCENARIOS]
+    if args.json:
+        print(json.dumps([{"name": s.name, "n_agents": s.n_agents, "prey": s.prey.kind,
+                           "obstacles": len(s.obstacles), "description": s.description} for s in rows]))
+        return 0
+    for s in rows:
+        print(f"{s.name:<22} N={s.n_agents:<4} prey={s.prey.kind:<9} obstacles={len(s.obstacles):<3} "
+              f"{s.description}")
+    return 0
+
+
+def run_bench_sim(args: argparse.Namespace) -> int:
+    from zswarm.provenance import machine
+    from zswarm.sim.simulator import Simulator
+
+    runs = []
+    for n in args.sizes:
+        scenario = get_scenario("large-swarm", {"n_agents": n})
+        steps = args.steps if n <= 1000 else max(args.steps // 10, 20)
+        sim = Simulator(scenario, seed=0)
+        start = time.perf_counter()
+        for _ in range(steps):
+            _, v = sim.potential_and_velocity(sim.positions, sim.prey)
+            sim.advance(v)
+        seconds = time.perf_counter() - start
+        runs.append({"n_agents": n, "steps": steps, "seconds": seconds, "steps_per_second": steps / seconds})
+        if not args.json:
+            print(f"N={n:>6}  {steps:>5} steps  {seconds:8.3f} s  {steps / seconds:10.1f} steps/s")
+    per_step = {r["n_agents"]: r["seconds"] / r["steps"] for r in runs}
+    ratio = per_step[10000] / per_step[1000] if {1000, 10000} <= per_step.keys() else None
+    out = {"runs": runs, "cost_ratio_10000_1000": ratio, "machine": machine()}
+    if args.json:
+        print(json.dumps(out))
+    else:
+        print(f"cost per step N=10000 : N=1000 = {ratio:.2f}" if ratio else "")
+        print(f"machine: {out['machine']}")
+    return 0
+
+
+def add_bench_sim_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--sizes", type=lambda s: [positive_int(x) for x in s.split(",")],
+                        default=[10, 100, 1000, 10000], help="comma-separated N (default 10,100,1000,10000)")
+    parser.add_argument("--steps", type=positive_int, default=1000,
+                        help="steps for N <= 1000 (a tenth of it, at least 20, above)")
+    parser.add_argument("--json", action="store_true")
+

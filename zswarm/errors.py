@@ -1,0 +1,13 @@
+"""The two kinds of mistake a user can make and fix: one line on stderr, exit code 2, no traceback."""
+
+from __future__ import annotations
+
+EXIT_USAGE = 2
+
+
+class UsageError(Exception):
+    """A mistake the user can fix (bad value, missing file, unknown scenario): one line, exit 2."""
+
+
+class ParamError(ValueError):
+    """A parameter is unknown or out of its allowed range (message is one line, user-facing)."""

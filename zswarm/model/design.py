@@ -1,0 +1,358 @@
+"""The paper's analytical design guidelines (Propositions 1-5) as exact computations.
+
+The 1-D collinear system (Figs 7-8): robot R, goal G, obstacle O on the x axis, R left of both and
+moving right. With x = |psi^g|, y = |psi^o| and the multiplicative potential (eq 14), the force on R
+along +x (eq 16) is
+
+    F = -2 c_o y/l_o^2 e_o (1 - e_g) + 2 c_o x/l_g^2 e_o e_g + 2 c_g x/l_g^2 e_g,
+    e_o = exp(-y^2/l_o^2), e_g = exp(-x^2/l_g^2),
+
+so F >= 0  <=>  c_g/c_o >= B(x, y) = (l_g^2/x) e_o [ y/l_o^2 (e^{x^2/l_g^2} - 1) - x/l_g^2 ].
+
+Prop 1 (Fig 7, R-G-O, y = x + d_m^go): the goal is reached from every start iff F > 0 on the whole
+approach, i.e. c_g/c_o >= max_x B(x, x + d_m^go) (eqs 18-20; alpha is the bracket). The maximum is
+exact for this 1-D system, not only sufficient.
+
+Prop 2 (Fig 8, R-O-G, x = y + d_m^go): the robot stops at the outermost zero S of F (distance d_0^ro);
+eq 22 asks F <= 0 at y = d_m^ro, i.e. c_g/c_o <= B(d_m^ro + d_m^go, d_m^ro). That is sufficient; the
+exact condition for stopping at y >= d_m^ro is c_g/c_o <= sup_{y >= d_m^ro} B, reported as
+``exact_upper_bound``.
+
+Prop 3 (eq 34): epsilon = (N-1) e^{-1/2} (c_r/l_r + c_a/l_a) / (sqrt(2) c'_a N). The proof sums over
+all N agents (eq 30), so it covers a swarm whose members all sense each other: 2 epsilon <= R.
+
+Prop 4 (eqs 37-39): at |psi^o| = l_o/sqrt2 and |psi^f| = l_a/sqrt2,
+c_o/l_o > c_p (c_a/l_a + c'_a l_a e^{1/2}), c_p = n_p + 1 + (N - n_p - 1)/2; the worst case lines all
+other agents up behind the agent (n_p = N - 1, c_p = N).
+
+Prop 5 (eqs 40-41): c_r > c_g d^r l_r^2/(d_m^f l_g^2) exp(-(d^r)^2/l_g^2 + (d_m^f)^2/l_r^2), with
+d^r = robot_radius and d_m^f = d^f/10 (d^f: the numerically found stable spacing, else eq 27's).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from zswarm.model.cluster import squeeze
+from zswarm.model.formation import (
+    closed_form_spacing,
+    equilibria,
+    formation_offset,
+    h_stable,
+)
+from zswarm.model.numeric import maximize, sign_changes
+from zswarm.model.params import FIELDS, Params, PotentialParams
+
+GRID = 40_001
+
+
+def collinear_bound(x: np.ndarray, y: np.ndarray, p: PotentialParams) -> np.ndarray:
+    """B(x, y): the c_g/c_o at which the collinear force of eq 16 vanishes (x = |psi^g|, y = |psi^o|).
+
+    Written as (l_g^2/x)[ y/l_o^2 (e^{x^2/l_g^2 - y^2/l_o^2} - e^{-y^2/l_o^2}) - x/l_g^2 e^{-y^2/l_o^2} ]
+    so that no exponential overflows.
+    """
+    with np.errstate(over="ignore", invalid="ignore"):
+        e_o = np.exp(-np.square(y) / p.l_o**2)
+        grow = np.exp(np.square(x) / p.l_g**2 - np.square(y) / p.l_o**2)
+        return p.l_g**2 / x * (y / p.l_o**2 * (grow - e_o) - x / p.l_g**2 * e_o)
+
+
+def alpha(x: np.ndarray, d_go: float, p: PotentialParams) -> np.ndarray:
+    """alpha(|psi^g|) of eq 20: (x+d)/l_o^2 e^{x^2/l_g^2} - ((x+d)/l_o^2 + x/l_g^2)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        return (x + d_go) / p.l_o**2 * np.expm1(np.square(x) / p.l_g**2) - x / p.l_g**2
+
+
+def prop1_curve(x: np.ndarray, d_go: float, p: PotentialParams) -> np.ndarray:
+    """Right side of eq 18 against x = |psi^g| (Fig 9's c_g/o curve)."""
+    return collinear_bound(x, x + d_go, p)
+
+
+def prop2_curve(y: np.ndarray, d_go: float, p: PotentialParams) -> np.ndarray:
+    """Right side of eq 24 against y = |psi^o|."""
+    return collinear_bound(y + d_go, y, p)
+
+
+def _reach(p: PotentialParams, d_go: float) -> float:
+    """How far along the axis the collinear curves can matter (beyond it they are ~0 or monotone)."""
+    if p.l_g <= p.l_o:
+        return d_go + 50.0 * p.l_o
+    return d_go + 12.0 * p.l_o / math.sqrt(1.0 - (p.l_o / p.l_g) ** 2)
+
+
+def _ratio(p: PotentialParams) -> float:
+    return math.inf if p.c_o == 0 else p.c_g / p.c_o
+
+
+def prop1(params: Params) -> dict[str, Any]:
+    p, d = params.potential, params.margins.d_m_go
+    xs = np.linspace(0.0, _reach(p, d), GRID)[1:]
+    x_max, bound, i = maximize(lambda x: prop1_curve(x, d, p), xs)
+    if i == len(xs) - 1 and p.l_g <= p.l_o:
+        bound = math.inf
+    bound = max(bound, 0.0)
+    roots = sign_changes(lambda x: alpha(x, d, p), xs)
+    d_0 = roots[0][0] if roots else None
+    ratio = _ratio(p)
+    holds = ratio >= bound
+    detail = (
+        f"c_g/c_o = {ratio:.4g} {'>=' if holds else '<'} {bound:.4g}, the largest c_g/c_o the obstacle's "
+        f"push requires (at |psi_g| = {x_max:.4g}) for a goal {d:g} from an obstacle"
+        + ("" if holds else ": agents stall before such a goal")
+    )
+    return {"holds": holds, "lower_bound": bound, "d_0_go": d_0, "argmax": float(x_max),
+            "margin": ratio - bound, "detail": detail}
+
+
+def _outer_root(curve, level: float, ys: np.ndarray) -> float | None:
+    roots = sign_changes(lambda y: curve(y) - level, ys)
+    return roots[-1][0] if roots else None
+
+
+def prop2(params: Params) -> dict[str, Any]:
+    p, m = params.potential, params.margins
+    d, d_ro = m.d_m_go, m.d_m_ro
+    curve = lambda y: prop2_curve(y, d, p)  # noqa: E731
+    bound = float(curve(np.array(d_ro)))
+    ys = np.linspace(d_ro, d_ro + _reach(p, d), GRID)
+    _, exact, _ = maximize(curve, ys)
+    ratio = _ratio(p)
+    ys_all = np.linspace(0.0, d_ro + _reach(p, d), GRID)[1:]
+    d_0 = _outer_root(curve, ratio, ys_all) if math.isfinite(ratio) else None
+    holds = ratio <= bound
+    detail = (
+        f"c_g/c_o = {ratio:.4g} {'<=' if holds else '>'} {bound:.4g} (eq 22): "
+        + (f"an agent heading at an obstacle stops {d_0:.4g} from it, outside d_m^ro = {d_ro:g}"
+           if holds and d_0 is not None else
+           f"the goal's pull can bring an agent closer than d_m^ro = {d_ro:g} to an obstacle")
+    )
+    return {"holds": holds, "upper_bound": bound, "exact_upper_bound": max(exact, bound),
+            "d_0_ro": d_0, "d_0_ro_at_bound": _outer_root(curve, bound, ys_all),
+            "margin": bound - ratio, "detail": detail}
+
+
+def epsilon(p: PotentialParams, n_agents: int) -> float:
+    """Cohesion radius of Prop 3 (eq 34); infinite when c'_a = 0."""
+    if n_agents <= 1:
+        return 0.0
+    if p.c_a_prime == 0:
+        return math.inf
+    return ((n_agents - 1) * math.exp(-0.5) * (p.c_r / p.l_r + p.c_a / p.l_a)
+            / (math.sqrt(2.0) * p.c_a_prime * n_agents))
+
+
+def prop3(params: Params) -> dict[str, Any]:
+    p, s = params.potential, params.swarm
+    eps = epsilon(p, s.n_agents)
+    holds = 2.0 * eps <= s.sensing_radius
+    detail = (
+        f"every agent ends within epsilon = {eps:.4g} of the swarm centre, a guarantee that assumes all "
+        f"agents sense each other: 2 epsilon = {2 * eps:.4g} {'<=' if holds else '>'} "
+        f"sensing_radius = {s.sensing_radius:g}"
+        + ("" if holds else " (with this radius the swarm may split for good)")
+    )
+    return {"holds": holds, "epsilon": eps, "margin": s.sensing_radius - 2.0 * eps, "detail": detail}
+
+
+def prop4(params: Params) -> dict[str, Any]:
+    p, n = params.potential, params.swarm.n_agents
+    n_p = n - 1
+    c_p = n_p + 1 + (n - n_p - 1) / 2.0
+    lhs = p.c_o / p.l_o
+    rhs = c_p * (p.c_a / p.l_a + p.c_a_prime * p.l_a * math.exp(0.5))
+    holds = lhs > rhs
+    detail = (
+        f"obstacle push c_o/l_o = {lhs:.4g} {'>' if holds else '<='} {rhs:.4g}, the pull of "
+        f"{n - 1} agents lined up behind one (c_p = {c_p:g})"
+    )
+    return {"holds": holds, "lhs": lhs, "rhs": rhs, "c_p": c_p, "margin": lhs - rhs, "detail": detail}
+
+
+def formation(params: Params) -> dict[str, Any]:
+    p = params.potential
+    eq = equilibria(p)
+    closed = closed_form_spacing(p)
+    if eq.is_stable:
+        why = f"pairs rest at d^f = {eq.spacing:.4g} (stable minimum of eq 26)"
+    elif eq.attracts_at_contact:
+        why = ("the pair potential has its minimum at distance 0: attraction beats repulsion at contact "
+               "and close agents collapse onto each other")
+    elif eq.disperses:
+        why = "the pair potential keeps falling with distance: agents drift apart"
+    else:
+        why = "the pair potential has no stable spacing"
+    if closed is not None and eq.spacing is not None:
+        why += f"; eq 27's closed form, which ignores c'_a, gives {closed:.4g}"
+    hs = h_stable(p)
+    if not hs:
+        why += (f"; not H-stable (c_r l_r^2 = {p.c_r * p.l_r**2:.3g} vs c_a l_a^2 = {p.c_a * p.l_a**2:.3g}, "
+                f"l_r = {p.l_r:g} vs l_a = {p.l_a:g}): without the sensing radius, the more agents, the "
+                f"tighter they would pack")
+    return {"equilibrium_spacing": eq.spacing, "closed_form_spacing": closed,
+            "stable": eq.is_stable, "h_stable": hs,
+            "attracts_at_contact": eq.attracts_at_contact, "c_f": formation_offset(p),
+            "unstable_spacings": list(eq.unstable), "detail": why}
+
+
+def prop5(params: Params, spacing: float | None) -> dict[str, Any]:
+    p, d_r = params.potential, params.swarm.robot_radius
+    if spacing is None:
+        return {"holds": False, "lhs": p.c_r, "rhs": None, "d_m_f": None, "margin": None,
+                "detail": "no formation spacing d^f exists, so d_m^f = d^f/10 is undefined"}
+    d_mf = spacing / 10.0
+    rhs = (p.c_g * d_r * p.l_r**2 / (d_mf * p.l_g**2)
+           * math.exp(-d_r**2 / p.l_g**2 + d_mf**2 / p.l_r**2))
+    holds = p.c_r > rhs
+    detail = (
+        f"repulsion c_r = {p.c_r:.4g} {'>' if holds else '<='} {rhs:.4g}, what the goal's pull needs "
+        f"at d_m^f = d^f/10 = {d_mf:.4g} for agents of radius {d_r:g}"
+    )
+    return {"holds": holds, "lhs": p.c_r, "rhs": rhs, "d_m_f": d_mf, "margin": p.c_r - rhs,
+            "detail": detail}
+
+
+def contact(params: Params) -> dict[str, Any]:
+    """Beyond the paper: two agents that touch must be pushed apart, however the swarm squeezes them.
+
+    Two agents a, b at a small offset delta: their own pair force separates them at rate -2 g(0)
+    (eq 28 near r = 0); every other sensed agent k pulls both with the quadratic term -2 c'_a psi, which
+    closes delta at rate 2 c'_a for each of the N - 2 others whatever their distance; near the goal its
+    curvature closes it at up to 2 c_g/l_g^2. With g(0) = -2 c_r/l_r^2 + 2 c_a/l_a^2 + 2 c'_a, the pair
+    separates (to first order, others far) iff
+
+        2 c_r/l_r^2 - 2 c_a/l_a^2 > c'_a N + c_g/l_g^2.
+
+    Otherwise agents squeezed together by the swarm merge (min distance 0), whatever d^f is.
+    """
+    p, n = params.potential, params.swarm.n_agents
+    lhs = 2.0 * p.c_r / p.l_r**2 - 2.0 * p.c_a / p.l_a**2
+    rhs = p.c_a_prime * n + p.c_g / p.l_g**2
+    holds = lhs > rhs
+    detail = (
+        f"repulsion at contact 2c_r/l_r^2 - 2c_a/l_a^2 = {lhs:.4g} {'>' if holds else '<='} {rhs:.4g} = "
+        f"c'_a N + c_g/l_g^2, the squeeze of {n - 2} other agents and the goal"
+        + ("" if holds else ": agents pressed together merge")
+    )
+    return {"holds": holds, "lhs": lhs, "rhs": rhs, "margin": lhs - rhs, "detail": detail}
+
+
+def swarm_rest(params: Params, spacing: float | None) -> dict[str, Any]:
+    """Beyond the paper, by brute force: a swarm pressed against an obstacle by the goal (Fig 10)."""
+    p, s, m = params.potential, params.swarm, params.margins
+    r = squeeze(p, s.n_agents, s.sensing_radius, s.v_max)
+    need = max(2.0 * s.robot_radius, spacing / 10.0 if spacing else 0.0)
+    holds = r.min_pair_distance >= need and r.min_obstacle_distance >= m.d_m_ro
+    detail = (
+        f"{r.n_agents} agents pressed against an obstacle by the goal (Fig 10) come {r.min_pair_distance:.3g} "
+        f"from each other ({'>=' if r.min_pair_distance >= need else '<'} {need:.3g} = max(2 d^r, d^f/10)) "
+        f"and {r.min_obstacle_distance:.3g} from the obstacle "
+        f"({'>=' if r.min_obstacle_distance >= m.d_m_ro else '<'} d_m^ro = {m.d_m_ro:g})"
+    )
+    return {"holds": holds, "min_pair_distance": r.min_pair_distance, "required_pair_distance": need,
+            "min_obstacle_distance": r.min_obstacle_distance, "n_simulated": r.n_agents,
+            "final_median_nearest": r.final_median_nearest, "margin": r.min_pair_distance - need,
+            "detail": detail}
+
+
+@dataclass(frozen=True)
+class DesignReport:
+    params: Params
+    prop1: dict[str, Any]
+    prop2: dict[str, Any]
+    prop3: dict[str, Any]
+    prop4: dict[str, Any]
+    prop5: dict[str, Any]
+    formation: dict[str, Any]
+    contact: dict[str, Any]
+    swarm: dict[str, Any] | None  # None: not evaluated (the pair potential has no stable spacing)
+
+    def failures(self) -> list[str]:
+        out = [f"prop{i}" for i in range(1, 6) if not getattr(self, f"prop{i}")["holds"]]
+        out += [] if self.formation["stable"] else ["formation"]
+        out += [] if self.contact["holds"] else ["contact"]
+        return out + ([] if self.swarm is not None and self.swarm["holds"] else ["swarm"])
+
+    @property
+    def ok(self) -> bool:
+        return not self.failures()
+
+    def to_json(self) -> dict[str, Any]:
+        clean = lambda d: None if d is None else {k: _json_number(v) for k, v in d.items()}  # noqa: E731
+        return {"params": self.params.flat(), **{f"prop{i}": clean(getattr(self, f"prop{i}"))
+                for i in range(1, 6)}, "formation": clean(self.formation), "contact": clean(self.contact),
+                "swarm": clean(self.swarm),
+                "ok": self.ok}
+
+
+def _json_number(v: Any) -> Any:
+    if isinstance(v, float) and not math.isfinite(v):
+        return None if math.isnan(v) else ("inf" if v > 0 else "-inf")
+    if isinstance(v, list):
+        return [_json_number(x) for x in v]
+    return v
+
+
+def check(params: Params, swarm: bool = True) -> DesignReport:
+    """Judge a parameter set against Propositions 1-5, the pair spacing and the swarm at rest.
+
+    ``swarm=False`` skips the (slower) swarm-at-rest simulation; the report then lists it as failed.
+    """
+    form = formation(params)
+    spacing = form["equilibrium_spacing"] or form["closed_form_spacing"]
+    swarm = swarm_rest(params, form["equilibrium_spacing"]) if swarm and form["stable"] else None
+    return DesignReport(params, prop1(params), prop2(params), prop3(params), prop4(params),
+                        prop5(params, spacing), form, contact(params), swarm)
+
+
+POTENTIAL_FIELDS = [name for name, spec in FIELDS.items() if spec.group == "potential"]
+
+
+def nearest_passing(params: Params, factors: np.ndarray | None = None,
+                    names: list[str] | None = None) -> tuple[Params, dict[str, float]] | None:
+    """The closest parameter set that passes every check, changing one potential parameter, else two.
+
+    Distance is sum |ln(new/old)| over the changed values (0 stays 0); the search tries each factor
+    of ``factors`` on each name, then each pair of names. Returns (params, {name: new value}).
+    """
+    if factors is None:
+        factors = np.exp(np.linspace(-np.log(20.0), np.log(20.0), 121))
+    names = names or POTENTIAL_FIELDS
+    base = params.flat()
+    order = np.argsort(np.abs(np.log(factors)))
+    best: tuple[float, dict[str, float]] | None = None
+
+    def passes(change: dict[str, float]) -> bool:
+        try:
+            candidate = params.with_values(change)
+        except ValueError:
+            return False
+        return check(candidate, swarm=False).failures() == ["swarm"] and check(candidate).ok
+
+    for name in names:
+        for f in factors[order]:
+            change = {name: base[name] * float(f)}
+            if passes(change):
+                cost = abs(math.log(f))
+                if best is None or cost < best[0]:
+                    best = (cost, change)
+                break
+    if best is None:
+        coarse = factors[order][::6]
+        for i, a in enumerate(names):
+            for b in names[i + 1:]:
+                for fa in coarse:
+                    for fb in coarse:
+                        cost = abs(math.log(fa)) + abs(math.log(fb))
+                        if best is not None and cost >= best[0]:
+                            continue
+                        change = {a: base[a] * float(fa), b: base[b] * float(fb)}
+                        if passes(change):
+                            best = (cost, change)
+    if best is None:
+        return None
+    return params.with_values(best[1]), best[1]

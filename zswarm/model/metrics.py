@@ -1,0 +1,190 @@
+"""Swarm metrics, per step and summarized: the same code for the simulator, the world and replay.
+
+Per step (:func:`step_metrics`), from positions, velocities and the prey:
+
+- ``mean_goal_distance``, ``centroid_goal_distance``: to the prey/goal;
+- ``min_pair_distance``, ``colliding_pairs`` (closer than 2 robot_radius);
+- ``min_obstacle_clearance`` (|P - C| - rho, the |psi^o| that Props 1-2 bound) and
+  ``obstacle_contacts`` (clearance below robot_radius);
+- ``cohesion``: the largest distance to the centroid (Prop 3's epsilon bounds it);
+- ``components`` of the sensing graph, ``union`` = (N - components)/(N - 1) and
+  ``algebraic_connectivity`` (Fiedler value of its Laplacian; computed for N <= 400, else NaN);
+- ``spacing_error``: mean |nearest-neighbour distance - d^f| over agents with a neighbour;
+- ``order``: |sum v_i| / sum |v_i| (velocity alignment; 1 = all move alike);
+- ``energy``: sum of the agents' potentials U_i (eq 35), the Lyapunov trace.
+
+:class:`Summary` folds a run's steps into the summary keys of ``zswarm sim --json``.
+"""
+
+from __future__ import annotations
+
+import math
+from array import array
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from zswarm.model.neighbours import ObstacleIndex, pairs_within
+
+FIEDLER_MAX_N = 400
+
+
+@dataclass(frozen=True)
+class MetricContext:
+    robot_radius: float
+    sensing_radius: float
+    spacing: float | None  # the design's d^f
+    obstacles: ObstacleIndex
+
+
+def components(n: int, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+    """Component label of every node (the smallest index in its component); vectorized."""
+    labels = np.arange(n)
+    while True:
+        new = labels.copy()
+        np.minimum.at(new, i, labels[j])
+        new = new[new]
+        if np.array_equal(new, labels):
+            return labels
+        labels = new
+
+
+def algebraic_connectivity(n: int, i: np.ndarray, j: np.ndarray) -> float:
+    if n < 2 or n > FIEDLER_MAX_N:
+        return math.nan
+    lap = np.zeros((n, n))
+    lap[i, j] = -1.0
+    np.fill_diagonal(lap, -lap.sum(axis=1))
+    return float(np.linalg.eigvalsh(lap)[1])
+
+
+def _min_pair_distance(positions: np.ndarray, i: np.ndarray, j: np.ndarray) -> float:
+    if len(i):
+        d = positions[i] - positions[j]
+        return float(np.sqrt(np.einsum("ij,ij->i", d, d).min()))
+    n = len(positions)
+    if n < 2:
+        return math.inf
+    best = math.inf
+    for start in range(0, n, 512):  # nobody within the sensing radius: exact, chunked brute force
+        d = np.linalg.norm(positions[start:start + 512, None] - positions[None], axis=-1)
+        d[np.arange(len(d)), np.arange(start, start + len(d))] = np.inf
+        best = min(best, float(d.min()))
+    return best
+
+
+def step_metrics(positions: np.ndarray, velocities: np.ndarray, prey: np.ndarray, ctx: MetricContext,
+                 energy: float = math.nan) -> tuple[dict[str, float], np.ndarray, np.ndarray]:
+    """Metrics of one step, plus the colliding agent pairs (i < j) and agent-obstacle contacts."""
+    n = len(positions)
+    i, j = pairs_within(positions, ctx.sensing_radius)
+    centroid = positions.mean(axis=0)
+    to_goal = np.linalg.norm(positions - prey, axis=1)
+    labels = components(n, i, j)
+    n_comp = len(np.unique(labels))
+    d_ij = np.linalg.norm(positions[i] - positions[j], axis=1)
+    close = (d_ij < 2.0 * ctx.robot_radius) & (i < j)
+    colliding = np.stack([i[close], j[close]], axis=1)
+
+    a, m = ctx.obstacles.sensed(positions)
+    clearance = np.linalg.norm(positions[a] - ctx.obstacles.centers[m], axis=1) - ctx.obstacles.radii[m]
+    touching = clearance < ctx.robot_radius
+    contacts = np.stack([a[touching], m[touching]], axis=1)
+
+    spacing_error = math.nan
+    if ctx.spacing is not None and len(i):
+        nearest = np.full(n, np.inf)
+        np.minimum.at(nearest, i, d_ij)
+        has = np.isfinite(nearest)
+        spacing_error = float(np.mean(np.abs(nearest[has] - ctx.spacing)))
+    speed = np.linalg.norm(velocities, axis=1).sum()
+    out = {
+        "mean_goal_distance": float(to_goal.mean()),
+        "centroid_goal_distance": float(np.linalg.norm(centroid - prey)),
+        "min_pair_distance": _min_pair_distance(positions, i, j),
+        "colliding_pairs": float(len(colliding)),
+        "min_obstacle_clearance": float(clearance.min()) if len(clearance) else math.inf,
+        "obstacle_contacts": float(len(contacts)),
+        "cohesion": float(np.linalg.norm(positions - centroid, axis=1).max()),
+        "components": float(n_comp),
+        "union": (n - n_comp) / (n - 1) if n > 1 else 1.0,
+        "algebraic_connectivity": algebraic_connectivity(n, i, j),
+        "spacing_error": spacing_error,
+        "order": float(np.linalg.norm(velocities.sum(axis=0)) / speed) if speed > 0 else 0.0,
+        "energy": float(energy),
+    }
+    return out, colliding, contacts
+
+
+METRIC_NAMES = ("mean_goal_distance", "centroid_goal_distance", "min_pair_distance", "colliding_pairs",
+                "min_obstacle_clearance", "obstacle_contacts", "cohesion", "components", "union",
+                "algebraic_connectivity", "spacing_error", "order", "energy")
+
+
+@dataclass
+class Summary:
+    """Folds per-step metrics into a run summary; collision counts are onsets (a pair entering contact)."""
+
+    capture_radius: float
+    epsilon: float
+    # float64 arrays, not lists of Python floats: 8 bytes a value, so hours of steps stay small
+    times: array = field(default_factory=lambda: array("d"))
+    series: dict[str, array] = field(default_factory=lambda: {k: array("d") for k in METRIC_NAMES})
+    collisions: int = 0
+    obstacle_collisions: int = 0
+    _pairs: set[tuple[int, int]] = field(default_factory=set)
+    _contacts: set[tuple[int, int]] = field(default_factory=set)
+
+    def add(self, t: float, metrics: dict[str, float], colliding: np.ndarray, contacts: np.ndarray) -> None:
+        self.times.append(float(t))
+        for k in METRIC_NAMES:
+            self.series[k].append(metrics[k])
+        pairs = {(int(a), int(b)) for a, b in colliding}
+        touch = {(int(a), int(b)) for a, b in contacts}
+        self.collisions += len(pairs - self._pairs)
+        self.obstacle_collisions += len(touch - self._contacts)
+        self._pairs, self._contacts = pairs, touch
+
+    def capture_time(self) -> float | None:
+        d = np.asarray(self.series["centroid_goal_distance"])
+        hit = np.flatnonzero(d <= self.capture_radius)
+        return self.times[int(hit[0])] if len(hit) else None
+
+    def result(self) -> dict[str, Any]:
+        s = {k: np.asarray(v, dtype=float) for k, v in self.series.items()}
+        capture = self.capture_time()
+        comps = s["components"]
+        joined = np.flatnonzero(comps == 1)
+        split_after_joined = int(np.max(comps[joined[0]:])) if len(joined) else None
+        lag = None
+        if capture is not None:
+            after = np.asarray(self.times) >= capture
+            lag = _num(np.max(s["centroid_goal_distance"][after]))
+        return {
+            "final_mean_goal_distance": _num(s["mean_goal_distance"][-1]),
+            "final_centroid_goal_distance": _num(s["centroid_goal_distance"][-1]),
+            "capture_time": capture,
+            "max_lag_after_capture": lag,
+            "min_pair_distance": _num(np.min(s["min_pair_distance"])),
+            "collisions": self.collisions,
+            "min_obstacle_clearance": _num(np.min(s["min_obstacle_clearance"])),
+            "obstacle_collisions": self.obstacle_collisions,
+            "max_components": int(np.max(s["components"])),
+            "max_components_after_joined": split_after_joined,
+            "final_components": int(s["components"][-1]),
+            "max_cohesion": _num(np.max(s["cohesion"])),
+            "final_cohesion": _num(s["cohesion"][-1]),
+            "epsilon": _num(self.epsilon),
+            "final_union": _num(s["union"][-1]),
+            "final_algebraic_connectivity": _num(s["algebraic_connectivity"][-1]),
+            "final_spacing_error": _num(s["spacing_error"][-1]),
+            "final_order": _num(s["order"][-1]),
+            "final_energy": _num(s["energy"][-1]),
+        }
+
+
+def _num(x: float) -> float | None:
+    """JSON-safe float: NaN and infinities (e.g. no obstacle ever sensed) become null."""
+    x = float(x)
+    return x if math.isfinite(x) else None

@@ -1,0 +1,208 @@
+"""Parameter sets: frozen dataclasses, validated in one place.
+
+Symbols follow Kim, Wang & Shin (2006):
+
+- ``l_o, l_g, l_a, l_r``: correlation distances (ranges) of the obstacle, goal, inter-agent attraction
+  and inter-agent repulsion Gaussians (eqs 7, 10, 26).
+- ``c_o, c_g, c_a, c_r``: the matching strengths; ``c_a_prime`` is the auxiliary quadratic attraction
+  c'_a of eq 26.
+- ``d_m_go``: radius of the permissible goal region around an obstacle (Prop 1);
+  ``d_m_ro``: the closest an agent may come to an obstacle (Prop 2).
+
+Every field has one spec in :data:`FIELDS`; :func:`validate` is the only place that checks them, and
+:meth:`Params.with_overrides` is how command lines (``--set NAME=VALUE``) reach them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+from zswarm.errors import ParamError
+
+
+@dataclass(frozen=True)
+class FieldSpec:
+    group: str
+    kind: type
+    lo: float
+    lo_open: bool  # True: value must be > lo; False: >= lo
+    doc: str
+    hi: float = math.inf  # inclusive upper bound
+
+    def describe(self) -> str:
+        kind = "an integer" if self.kind is int else "a finite number"
+        bound = f"{kind} {'>' if self.lo_open else '>='} {self.lo:g}"
+        return bound if math.isinf(self.hi) else f"{bound} and <= {self.hi:g}"
+
+
+#: The most agents a scenario may hold: the reference simulator and the metrics work in O(N) memory
+#: (cell grids, chunked brute force), and 100,000 agents already take minutes per simulated second.
+MAX_AGENTS = 100_000
+
+
+FIELDS: dict[str, FieldSpec] = {
+    "l_o": FieldSpec("potential", float, 0.0, True, "obstacle correlation distance (eq 10)"),
+    "l_g": FieldSpec("potential", float, 0.0, True, "goal correlation distance (eq 7)"),
+    "l_a": FieldSpec("potential", float, 0.0, True, "inter-agent attraction range (eq 26)"),
+    "l_r": FieldSpec("potential", float, 0.0, True, "inter-agent repulsion range (eq 26)"),
+    "c_o": FieldSpec("potential", float, 0.0, False, "obstacle strength (eq 10)"),
+    "c_g": FieldSpec("potential", float, 0.0, True, "goal strength (eq 7)"),
+    "c_a": FieldSpec("potential", float, 0.0, False, "inter-agent attraction strength (eq 26)"),
+    "c_r": FieldSpec("potential", float, 0.0, False, "inter-agent repulsion strength (eq 26)"),
+    "c_a_prime": FieldSpec("potential", float, 0.0, False, "auxiliary quadratic attraction c'_a (eq 26)"),
+    "n_agents": FieldSpec("swarm", int, 1, False, "number of agents N", hi=MAX_AGENTS),
+    "v_max": FieldSpec("swarm", float, 0.0, True, "agent speed limit (velocity saturation)"),
+    "sensing_radius": FieldSpec("swarm", float, 0.0, True, "range within which obstacles/agents are sensed"),
+    "robot_radius": FieldSpec("swarm", float, 0.0, True, "physical radius d^r of an agent (Prop 5)"),
+    "d_m_go": FieldSpec("margins", float, 0.0, False, "permissible goal-region radius d_m^go (Prop 1)"),
+    "d_m_ro": FieldSpec("margins", float, 0.0, True, "minimum robot-obstacle distance d_m^ro (Prop 2)"),
+}
+
+
+def validate(name: str, value: Any) -> float | int:
+    """Check one field; return its value coerced to the field's type, or raise :class:`ParamError`."""
+    spec = FIELDS.get(name)
+    if spec is None:
+        raise ParamError(f"unknown parameter {name!r}; known: {', '.join(FIELDS)}")
+    if isinstance(value, bool):
+        raise ParamError(f"{name} must be {spec.describe()} (got {value!r})")
+    if spec.kind is int:
+        if isinstance(value, float) and value.is_integer():
+            value = int(value)
+        if not isinstance(value, int):
+            raise ParamError(f"{name} must be {spec.describe()} (got {value!r})")
+    else:
+        if not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise ParamError(f"{name} must be {spec.describe()} (got {value!r})")
+        value = float(value)
+    if value < spec.lo or (spec.lo_open and value == spec.lo) or value > spec.hi:
+        raise ParamError(f"{name} must be {spec.describe()} (got {value!r})")
+    return value
+
+
+def _check(obj: Any) -> None:
+    for f in dataclasses.fields(obj):
+        object.__setattr__(obj, f.name, validate(f.name, getattr(obj, f.name)))
+
+
+@dataclass(frozen=True)
+class PotentialParams:
+    """Strengths and ranges of the potentials (eqs 7, 10, 26). Defaults: see :data:`DEFAULT_PARAMS`."""
+
+    l_o: float = 0.2
+    l_g: float = 2.0
+    l_a: float = 2.6
+    l_r: float = 0.47
+    c_o: float = 3.0
+    c_g: float = 1.0
+    c_a: float = 0.5
+    c_r: float = 0.5
+    c_a_prime: float = 0.1
+
+    def __post_init__(self) -> None:
+        _check(self)
+
+
+@dataclass(frozen=True)
+class SwarmParams:
+    """The agents themselves: how many, how fast, how far they sense, how big they are."""
+
+    n_agents: int = 10
+    v_max: float = 1.0
+    sensing_radius: float = 12.0
+    robot_radius: float = 0.05
+
+    def __post_init__(self) -> None:
+        _check(self)
+
+
+@dataclass(frozen=True)
+class DesignMargins:
+    """The distances the design guidelines must guarantee (Props 1 and 2, Section 3.2.3)."""
+
+    d_m_go: float = 0.2
+    d_m_ro: float = 0.2
+
+    def __post_init__(self) -> None:
+        _check(self)
+
+
+@dataclass(frozen=True)
+class Params:
+    """A complete parameter set: potentials, swarm and design margins."""
+
+    potential: PotentialParams = field(default_factory=PotentialParams)
+    swarm: SwarmParams = field(default_factory=SwarmParams)
+    margins: DesignMargins = field(default_factory=DesignMargins)
+
+    def flat(self) -> dict[str, float | int]:
+        """Every effective value by field name (the keys of :data:`FIELDS`)."""
+        out: dict[str, float | int] = {}
+        for part in (self.potential, self.swarm, self.margins):
+            out.update(dataclasses.asdict(part))
+        return out
+
+    def with_values(self, values: Mapping[str, Any]) -> Params:
+        """A copy with some fields replaced (already-typed values; validated)."""
+        groups: dict[str, dict[str, Any]] = {"potential": {}, "swarm": {}, "margins": {}}
+        for name, value in values.items():
+            groups[FIELDS[name].group if name in FIELDS else "potential"][name] = validate(name, value)
+        return Params(
+            potential=dataclasses.replace(self.potential, **groups["potential"]),
+            swarm=dataclasses.replace(self.swarm, **groups["swarm"]),
+            margins=dataclasses.replace(self.margins, **groups["margins"]),
+        )
+
+    def with_overrides(self, assignments: list[str]) -> Params:
+        """Apply ``NAME=VALUE`` strings from a command line."""
+        return self.with_values(parse_assignments(assignments))
+
+    @classmethod
+    def from_flat(cls, values: Mapping[str, Any]) -> Params:
+        return cls().with_values(values)
+
+
+def parse_assignments(assignments: list[str]) -> dict[str, float | int]:
+    """Parse ``NAME=VALUE`` strings (``VALUE`` may be a fraction such as ``1/3``)."""
+    out: dict[str, float | int] = {}
+    for item in assignments:
+        name, sep, text = item.partition("=")
+        name = name.strip()
+        if not sep or not name:
+            raise ParamError(f"--set expects NAME=VALUE (got {item!r})")
+        if name not in FIELDS:
+            validate(name, 0)  # raises the unknown-name error
+        out[name] = validate(name, _parse_number(name, text.strip()))
+    return out
+
+
+def _parse_number(name: str, text: str) -> float | int:
+    try:
+        if "/" in text:
+            num, den = text.split("/", 1)
+            return float(num) / float(den)
+        if FIELDS[name].kind is int:
+            try:
+                return int(text)
+            except ValueError:  # 1e5, 100.0: an integer written as a float
+                value = float(text)
+                if not value.is_integer():
+                    raise
+                return int(value)
+        return float(text)
+    except (ValueError, ZeroDivisionError):
+        raise ParamError(f"{name} must be {FIELDS[name].describe()} (got {text!r})") from None
+
+
+#: The paper's printed set (Sections 3.2.3, 4.2.2 and 5), with its swarm and margin values.
+PAPER_POTENTIAL = PotentialParams(
+    l_o=0.2, l_g=2.0, l_a=0.5, l_r=1.0, c_o=3.0, c_g=1.0, c_a=0.5, c_r=1.0 / 3.0, c_a_prime=0.1
+)
+PAPER_PARAMS = Params(potential=PAPER_POTENTIAL)
+
+#: The shipped default: the paper's set with l_a = 2.6, l_r = 0.47 (the nearest passing set that
+#: ``zswarm design --paper --nearest`` finds, rounded) and c_r = 1/2 for a margin (see README, "Defaults").
+DEFAULT_PARAMS = Params()

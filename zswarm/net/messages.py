@@ -1,0 +1,315 @@
+"""Every wire message, encoded and decoded in one place (msgpack), versioned and validated.
+
+A message is a msgpack map with ``v`` (format version) and ``k`` (kind). Decoding never trusts the
+bytes: a payload that is too large, not msgpack, of an unknown version or kind, with missing or
+mistyped fields, non-finite numbers or out-of-range sizes raises :class:`DecodeError`, whose
+``reason`` is one of :data:`REASONS` (processes count rejections by reason).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Any, Union
+
+import msgpack
+
+VERSION = 1
+MAX_PAYLOAD = 256 * 1024
+MAX_OBSTACLES = 4096
+MAX_ID = 1_000_000
+MAX_COORD = 1e6  # |x|, |y| beyond this is rejected as impossible
+MAX_HIST_BINS = 20_000
+MAX_HEARD = 4096
+
+REASONS = ("size", "malformed", "version", "kind", "schema", "nonfinite", "range")
+
+
+class DecodeError(ValueError):
+    def __init__(self, reason: str, detail: str) -> None:
+        super().__init__(f"{reason}: {detail}")
+        self.reason = reason
+
+
+@dataclass(frozen=True)
+class Pose:
+    """An agent's state: id, sequence number, sender wall time, lockstep step (-1 if free), x, y, vx, vy."""
+
+    id: int
+    seq: int
+    stamp: float
+    step: int
+    x: float
+    y: float
+    vx: float
+    vy: float
+
+
+@dataclass(frozen=True)
+class Prey:
+    seq: int
+    stamp: float
+    step: int
+    x: float
+    y: float
+
+
+@dataclass(frozen=True)
+class Tick:
+    """Lockstep: step ``step`` begins; the prey is at (x, y). ``final``: the run ends after it."""
+
+    step: int
+    stamp: float
+    x: float
+    y: float
+    final: bool = False
+
+
+@dataclass(frozen=True)
+class Obstacles:
+    centers: tuple[tuple[float, float], ...]
+    radii: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class Health:
+    """An agent's own counters beside its traffic: failed obstacle queries, poses counted and lost by
+    sequence number (observed loss), injected faults, and over the last stats period the longest
+    inbound queue at a tick and the latest a tick started."""
+
+    obstacle_queries_failed: int = 0
+    seq_received: int = 0
+    seq_lost: int = 0
+    injected_drops: int = 0
+    injected_passed: int = 0
+    queue_max: int = 0
+    tick_lag_max_ms: float = 0.0
+
+
+HEALTH_INTS = ("obstacle_queries_failed", "seq_received", "seq_lost", "injected_drops", "injected_passed",
+               "queue_max")
+
+
+@dataclass(frozen=True)
+class Stats:
+    """An agent's cumulative counters and histograms (0.5 ms bins) of the age of neighbour data when it
+    was used, and of the one-way latency (publish to receipt) of the poses it received."""
+
+    id: int
+    sent: int
+    received: int
+    rejected: dict[str, int]
+    late_ticks: int
+    ticks: int
+    age_hist: dict[int, int]
+    latency_hist: dict[int, int]
+    final: bool = False
+    health: Health = Health()
+    heard: tuple[int, ...] = ()  # ids whose poses it has received (at most MAX_HEARD)
+    departed: dict[int, float] | None = None  # id -> wall time it first dropped that neighbour
+    returned: dict[int, float] | None = None  # id -> wall time a dropped neighbour was first heard again
+
+
+Message = Union[Pose, Prey, Tick, Obstacles, Stats]
+
+
+def _pack(obj: dict[str, Any]) -> bytes:
+    return msgpack.packb({"v": VERSION, **obj}, use_bin_type=True)
+
+
+def encode(msg: Message) -> bytes:
+    if isinstance(msg, Pose):
+        return _pack({"k": "pose", "id": msg.id, "seq": msg.seq, "t": msg.stamp, "s": msg.step,
+                      "p": [msg.x, msg.y], "u": [msg.vx, msg.vy]})
+    if isinstance(msg, Prey):
+        return _pack({"k": "prey", "seq": msg.seq, "t": msg.stamp, "s": msg.step, "p": [msg.x, msg.y]})
+    if isinstance(msg, Tick):
+        return _pack({"k": "tick", "s": msg.step, "t": msg.stamp, "p": [msg.x, msg.y], "f": msg.final})
+    if isinstance(msg, Obstacles):
+        return _pack({"k": "obst", "c": [list(c) for c in msg.centers], "r": list(msg.radii)})
+    if isinstance(msg, Stats):
+        return _pack({"k": "stats", "id": msg.id, "sent": msg.sent, "recv": msg.received,
+                      "rej": dict(msg.rejected), "late": msg.late_ticks, "ticks": msg.ticks,
+                      "ages": {int(k): int(v) for k, v in msg.age_hist.items()},
+                      "lat": {int(k): int(v) for k, v in msg.latency_hist.items()}, "f": msg.final,
+                      "x": dataclasses.asdict(msg.health), "h": list(msg.heard[:MAX_HEARD]),
+                      "dep": dict(msg.departed or {}), "ret": dict(msg.returned or {})})
+    raise TypeError(f"cannot encode {type(msg).__name__}")
+
+
+# --- decoding -------------------------------------------------------------------------------------------
+
+def _int(d: dict, key: str, lo: int = 0, hi: int = 2**62) -> int:
+    v = d.get(key)
+    if not isinstance(v, int) or isinstance(v, bool):
+        raise DecodeError("schema", f"{key} must be an integer")
+    if not lo <= v <= hi:
+        raise DecodeError("range", f"{key}={v} outside [{lo}, {hi}]")
+    return v
+
+
+def _float(v: Any, key: str, bound: float = MAX_COORD) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise DecodeError("schema", f"{key} must be a number")
+    v = float(v)
+    if not math.isfinite(v):
+        raise DecodeError("nonfinite", f"{key} is {v}")
+    if abs(v) > bound:
+        raise DecodeError("range", f"|{key}| = {abs(v):g} > {bound:g}")
+    return v
+
+
+def _vec(d: dict, key: str) -> tuple[float, float]:
+    v = d.get(key)
+    if not isinstance(v, (list, tuple)) or len(v) != 2:
+        raise DecodeError("schema", f"{key} must be a pair of numbers")
+    return _float(v[0], key), _float(v[1], key)
+
+
+def _counts(v: Any, key: str, max_items: int) -> dict:
+    if not isinstance(v, dict) or len(v) > max_items:
+        raise DecodeError("schema", f"{key} must be a map of at most {max_items} counts")
+    for name, count in v.items():
+        if not isinstance(name, (str, int)) or isinstance(count, bool) or not isinstance(count, int) or count < 0:
+            raise DecodeError("schema", f"{key} holds a bad entry")
+    return dict(v)
+
+
+def _times(v: Any, key: str) -> dict[int, float]:
+    if not isinstance(v, dict) or len(v) > MAX_HEARD:
+        raise DecodeError("schema", f"{key} must be a map of agent ids to times")
+    out = {}
+    for k, t in v.items():
+        if not isinstance(k, int) or isinstance(k, bool) or not 0 <= k <= MAX_ID:
+            raise DecodeError("schema", f"{key} keys must be agent ids")
+        out[k] = _float(t, key, 1e12)
+    return out
+
+
+def _health(v: Any) -> Health:
+    if not isinstance(v, dict) or len(v) > 64:
+        raise DecodeError("schema", "x must be a small map")
+    known = {k: v[k] for k in HEALTH_INTS if k in v}
+    for k, n in known.items():
+        if isinstance(n, bool) or not isinstance(n, int) or not 0 <= n <= 2**62:
+            raise DecodeError("schema", f"x.{k} must be a count")
+    lag = _float(v.get("tick_lag_max_ms", 0.0), "x.tick_lag_max_ms", 1e12)
+    return Health(**known, tick_lag_max_ms=lag)
+
+
+def _bins(counts: dict) -> dict[int, int]:
+    return {int(k): int(v) for k, v in counts.items() if isinstance(k, int) and 0 <= k < MAX_HIST_BINS}
+
+
+BIN_MS = 0.5
+
+
+def to_bin(ms: float) -> int:
+    """Histogram bin of a duration in milliseconds (0.5 ms bins, clamped to the last bin)."""
+    return min(max(int(ms / BIN_MS), 0), MAX_HIST_BINS - 1)
+
+
+def percentile(hist: dict[int, int], q: float) -> float | None:
+    """The q-quantile (0..1) of a binned histogram, in milliseconds (bin centre); None if empty."""
+    total = sum(hist.values())
+    if total == 0:
+        return None
+    rank = q * (total - 1)
+    seen = 0
+    for b in sorted(hist):
+        seen += hist[b]
+        if seen > rank:
+            return (b + 0.5) * BIN_MS
+    return (max(hist) + 0.5) * BIN_MS
+
+
+def merge(hists: list[dict[int, int]]) -> dict[int, int]:
+    out: dict[int, int] = {}
+    for h in hists:
+        for b, c in h.items():
+            out[b] = out.get(b, 0) + c
+    return out
+
+
+def decode(data: bytes) -> Message:
+    """Parse and validate one message; raises :class:`DecodeError` for anything unacceptable."""
+    if len(data) > MAX_PAYLOAD:
+        raise DecodeError("size", f"{len(data)} bytes > {MAX_PAYLOAD}")
+    try:
+        obj = msgpack.unpackb(data, raw=False, strict_map_key=False, max_bin_len=MAX_PAYLOAD,
+                              max_str_len=MAX_PAYLOAD, max_array_len=2 * MAX_OBSTACLES + 16,
+                              max_map_len=MAX_HIST_BINS + 16)
+    except Exception as exc:  # msgpack raises many types for garbage
+        raise DecodeError("malformed", f"not msgpack ({type(exc).__name__})") from None
+    if not isinstance(obj, dict):
+        raise DecodeError("malformed", "not a map")
+    if obj.get("v") != VERSION:
+        raise DecodeError("version", f"version {obj.get('v')!r}, expected {VERSION}")
+    kind = obj.get("k")
+    if kind == "pose":
+        x, y = _vec(obj, "p")
+        vx, vy = _vec(obj, "u")
+        return Pose(_int(obj, "id", 0, MAX_ID), _int(obj, "seq"), _float(obj.get("t"), "t", 1e12),
+                    _int(obj, "s", -1), x, y, vx, vy)
+    if kind == "prey":
+        x, y = _vec(obj, "p")
+        return Prey(_int(obj, "seq"), _float(obj.get("t"), "t", 1e12), _int(obj, "s", -1), x, y)
+    if kind == "tick":
+        x, y = _vec(obj, "p")
+        final = obj.get("f", False)
+        if not isinstance(final, bool):
+            raise DecodeError("schema", "f must be a boolean")
+        return Tick(_int(obj, "s"), _float(obj.get("t"), "t", 1e12), x, y, final)
+    if kind == "obst":
+        centers, radii = obj.get("c"), obj.get("r")
+        if not isinstance(centers, list) or not isinstance(radii, list) or len(centers) != len(radii):
+            raise DecodeError("schema", "c and r must be lists of equal length")
+        if len(centers) > MAX_OBSTACLES:
+            raise DecodeError("size", f"{len(centers)} obstacles > {MAX_OBSTACLES}")
+        cs = tuple(_vec({"c": c}, "c") for c in centers)
+        rs = tuple(_float(r, "r") for r in radii)
+        if any(r < 0 for r in rs):
+            raise DecodeError("range", "negative obstacle radius")
+        return Obstacles(cs, rs)
+    if kind == "stats":
+        ages = _counts(obj.get("ages"), "ages", MAX_HIST_BINS)
+        lat = _counts(obj.get("lat", {}), "lat", MAX_HIST_BINS)
+        health = _health(obj.get("x", {}))
+        heard = obj.get("h", [])
+        if (not isinstance(heard, list) or len(heard) > MAX_HEARD
+                or not all(isinstance(h, int) and not isinstance(h, bool) and 0 <= h <= MAX_ID for h in heard)):
+            raise DecodeError("schema", "h must be a list of agent ids")
+        return Stats(_int(obj, "id", 0, MAX_ID), _int(obj, "sent"), _int(obj, "recv"),
+                     {str(k): v for k, v in _counts(obj.get("rej"), "rej", 64).items()},
+                     _int(obj, "late"), _int(obj, "ticks"),
+                     _bins(ages), _bins(lat), bool(obj.get("f", False)),
+                     health, tuple(heard),
+                     _times(obj.get("dep", {}), "dep"), _times(obj.get("ret", {}), "ret"))
+    raise DecodeError("kind", f"unknown kind {kind!r}")
+
+
+def implausible_jump(old: Pose, new: Pose, max_step: float, elapsed_steps: float | None = None) -> bool:
+    """``new`` lies farther from ``old`` than ``max_step`` per elapsed step could carry an agent.
+
+    Steps are counted by lockstep step numbers when both have them, else by sequence numbers (one
+    pose per control tick), at least one; ``elapsed_steps`` (the receiver's own clock) caps the
+    count, so a forged sequence number cannot buy a forged pose an arbitrarily long way.
+    """
+    if new.step >= 0 and old.step >= 0:
+        steps = max(new.step - old.step, 1)
+    else:
+        steps = max(new.seq - old.seq, 1)
+    if elapsed_steps is not None:
+        steps = min(steps, max(elapsed_steps, 1.0))
+    return math.hypot(new.x - old.x, new.y - old.y) > max_step * steps + 1e-9
+
+
+SEQ_RESTART = 1000
+
+
+def supersedes(old: Pose, new: Pose) -> bool:
+    """``new`` replaces ``old``: a newer sequence number, or one so far behind that the sender must
+    have restarted (a restarted agent counts from 1 again, and may be anywhere: no jump check then;
+    so a forged huge number cannot lock the real sender out)."""
+    return new.seq > old.seq or old.seq - new.seq > SEQ_RESTART

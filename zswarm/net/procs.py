@@ -1,0 +1,151 @@
+"""Child processes that never outlive their parent: spawn, stop in order, always reap.
+
+Every child gets ``PR_SET_PDEATHSIG`` (SIGTERM when the parent dies, even by SIGKILL) and its own
+session, so a terminal's Ctrl-C reaches only the launcher, which then stops the children in order
+(agents, then the world, which flushes its recording, then the router).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, TYPE_CHECKING, Sequence
+
+if TYPE_CHECKING:
+    from zswarm.net.runspec import RunSpec
+
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent() -> None:  # runs in the child between fork and exec
+    try:
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
+    except OSError:
+        pass
+
+
+def python_env() -> dict[str, str]:
+    """The children run the installed modules (``python -m world``, ``-m agents``) with this Python."""
+    env = dict(os.environ)
+    env.setdefault("PYTHONUNBUFFERED", "1")
+    return env
+
+
+@dataclass
+class Child:
+    name: str
+    proc: subprocess.Popen
+
+    @property
+    def pid(self) -> int:
+        return self.proc.pid
+
+    def alive(self) -> bool:
+        return self.proc.poll() is None
+
+
+@dataclass
+class Children:
+    """A set of named child processes, stopped and reaped together."""
+
+    children: list[Child] = field(default_factory=list)
+
+    def spawn(self, name: str, args: Sequence[str], stdout: int | IO | None = None,
+              stderr: int | IO | None = None) -> Child:
+        proc = subprocess.Popen([sys.executable, *args], env=python_env(),
+                                stdout=stdout, stderr=stderr, stdin=subprocess.DEVNULL,
+                                preexec_fn=_die_with_parent, start_new_session=True)
+        child = Child(name, proc)
+        self.children.append(child)
+        return child
+
+    def named(self, prefix: str) -> list[Child]:
+        return [c for c in self.children if c.name.startswith(prefix)]
+
+    @staticmethod
+    def stop(children: Sequence[Child], grace: float, sig: int = signal.SIGTERM) -> None:
+        """Signal, wait up to ``grace`` seconds, then SIGKILL whoever is left; always reap."""
+        for c in children:
+            if c.alive():
+                try:
+                    c.proc.send_signal(sig)
+                    c.proc.send_signal(signal.SIGCONT)  # a frozen (SIGSTOPped) child must see it too
+                except ProcessLookupError:
+                    pass
+        deadline = time.monotonic() + grace
+        for c in children:
+            try:
+                c.proc.wait(timeout=max(deadline - time.monotonic(), 0.01))
+            except subprocess.TimeoutExpired:
+                c.proc.kill()
+                c.proc.wait()
+
+    def stop_all(self, grace: float = 5.0) -> None:
+        """Agents first, then the world (it flushes), then everything else (the router)."""
+        self.stop(self.named("agent"), grace)
+        self.stop(self.named("world"), max(grace, 10.0))
+        self.stop([c for c in self.children if c.alive()], grace)
+
+
+def free_port(host: str = "127.0.0.1") -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind((host, 0))
+        return s.getsockname()[1]
+
+
+def port_in_use(host: str, port: int) -> bool:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.settimeout(0.2)
+        return s.connect_ex((host, port)) == 0
+
+
+def wait_for_port(host: str, port: int, timeout: float, child: Child | None = None) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if port_in_use(host, port):
+            return True
+        if child is not None and not child.alive():
+            return False
+        time.sleep(0.05)
+    return False
+
+
+def rss_mb(pid: int) -> float | None:
+    try:
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024.0
+    except OSError:
+        return None
+    return None
+
+
+def start_router(kids: Children, host: str = "127.0.0.1", proto: str = "tcp", extra: Sequence[str] = ()) -> str:
+    """A router child listening on a free port of ``host`` (``extra``: more router arguments, e.g.
+    ``--config``); returns its endpoint once the port accepts connections."""
+    port = free_port(host)
+    endpoint = f"{proto}/{host}:{port}"
+    router = kids.spawn("router", ["-m", ROUTER_MODULE, "--listen", endpoint, *extra], stdout=subprocess.DEVNULL)
+    if not wait_for_port(host, port, 10.0, router):
+        raise RuntimeError(f"the router did not start on {endpoint}")
+    return endpoint
+
+
+ROUTER_MODULE = "zswarm.net.router"
+
+
+def world_argv(spec: RunSpec, connect: str, *extra: str) -> list[str]:
+    """The world's command line (after the interpreter) for ``spec``; ``extra``: world options."""
+    return ["-m", "world", *spec.to_argv(), "--connect", connect, *extra]
+
+
+def agent_argv(spec: RunSpec, agent: int, connect: str, *extra: str) -> list[str]:
+    """Agent ``agent``'s command line (after the interpreter) for ``spec``."""
+    return ["-m", "agents", "--id", str(agent), *spec.to_argv(), "--connect", connect, *extra]

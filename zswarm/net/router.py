@@ -1,0 +1,40 @@
+"""``python -m zswarm.net.router``: a Zenoh router (a Python session in router mode).
+
+No router binary installs from the package registries; a router-mode session routes for every client.
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+import threading
+from typing import Sequence
+
+from zswarm.args import Parser, run_main
+from zswarm.net.config import add_zenoh_args, config_from_args, open_session
+
+
+def _main(argv: Sequence[str] | None) -> int:
+    parser = Parser(prog="zswarm.net.router", description="Run a Zenoh router until SIGINT/SIGTERM.")
+    add_zenoh_args(parser, default_mode="router")
+    args = parser.parse_args(argv)
+    if not args.listen and args.config is None:
+        args.listen = ["tcp/127.0.0.1:7447"]
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+    session = open_session(config_from_args(args), what="router")
+    try:
+        print(f"router: listening on {', '.join(args.listen) or 'the config file endpoints'}", flush=True)
+        stop.wait()
+    finally:
+        session.close()
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    return run_main(_main, argv, prog="zswarm.net.router")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

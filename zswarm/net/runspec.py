@@ -1,0 +1,162 @@
+"""One specification of a run: what every process of it must agree on, parsed and written in one place.
+
+The world and every agent are started with the same run arguments (``--run --scenario --seed --set
+... --clock --time-scale --duration`` and the faults); each derives what it needs from them (an agent:
+its own start position and the control law; the world: obstacles, prey, metrics), so no process hands
+another its state. :func:`add_run_args` declares those arguments (for every program, ``zswarm run``
+included), :func:`spec_from_args` is the only place that reads them, and :meth:`RunSpec.to_argv` the
+only place that writes a spec back into a child's command line:
+``spec_from_args(parse(spec.to_argv())) == spec`` for every valid spec.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Any, Literal
+
+from zswarm.args import add_param_args, seed_arg
+from zswarm.errors import UsageError
+from zswarm.model.faults import FaultModel, parse_duration
+from zswarm.model.params import parse_assignments
+from zswarm.model.potentials import COMBINATIONS, Combination
+from zswarm.model.scenarios import Scenario, get_scenario
+from zswarm.net.keys import Keys, check_run_id
+
+Clock = Literal["free", "lockstep"]
+CLOCKS: tuple[Clock, ...] = ("free", "lockstep")
+DEFAULT_RUN = "demo"
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """A run: its id, the scenario (a registered name or a .toml path) with parameter overrides, the
+    seed, the obstacle-goal combination (None: the scenario's), the clock and pace, the duration
+    (None: the scenario's) and the injected faults (seeded by the run's seed)."""
+
+    run: str = DEFAULT_RUN
+    scenario_name: str = "moving-prey"
+    overrides: tuple[tuple[str, float | int], ...] = ()
+    seed: int = 0
+    potential: Combination | None = None
+    clock: Clock = "free"
+    time_scale: float = 1.0
+    duration: float | None = None
+    faults: FaultModel = field(default_factory=FaultModel)
+
+    def __post_init__(self) -> None:
+        check_run_id(self.run)
+        if not isinstance(self.seed, int) or not 0 <= self.seed < 2**63:
+            raise UsageError(f"--seed must be an integer in [0, 2^63) (got {self.seed!r})")
+        if self.clock not in CLOCKS:
+            raise UsageError(f"--clock must be one of {', '.join(CLOCKS)} (got {self.clock!r})")
+        if self.potential is not None and self.potential not in COMBINATIONS:
+            raise UsageError(f"--potential must be one of {', '.join(COMBINATIONS)} (got {self.potential!r})")
+        if not 0 < self.time_scale < 1e3:
+            raise UsageError(f"--time-scale must be in (0, 1000) (got {self.time_scale})")
+        if self.duration is not None and not 0 < self.duration < float("inf"):
+            raise UsageError(f"--duration must be a finite number > 0 (got {self.duration})")
+        if self.faults.seed != self.seed:
+            object.__setattr__(self, "faults", dataclasses.replace(self.faults, seed=self.seed))
+        object.__setattr__(self, "overrides", tuple(sorted(dict(self.overrides).items())))
+
+    @cached_property
+    def scenario(self) -> Scenario:
+        return get_scenario(self.scenario_name, dict(self.overrides))
+
+    @property
+    def combination(self) -> Combination:
+        return self.potential or self.scenario.combination
+
+    @property
+    def keys(self) -> Keys:
+        return Keys(self.run, cell_size=self.scenario.params.swarm.sensing_radius)
+
+    @property
+    def period(self) -> float:
+        """Wall seconds between control ticks in free mode."""
+        return self.scenario.dt / self.time_scale
+
+    @property
+    def steps(self) -> int:
+        """World ticks in the run (after the initial one)."""
+        return int(round((self.duration if self.duration is not None else self.scenario.duration)
+                         / self.scenario.dt))
+
+    def with_overrides(self, **values: float | int) -> RunSpec:
+        return dataclasses.replace(self, overrides=(*self.overrides, *values.items()))
+
+    def describe(self) -> dict[str, Any]:
+        """What the run was asked to do, as plain data (the recording's ``run/config``)."""
+        return {"run": self.run, "scenario": self.scenario.name, "seed": self.seed, "potential": self.combination,
+                "clock": self.clock, "time_scale": self.time_scale, "n_agents": self.scenario.n_agents,
+                "duration": self.steps * self.scenario.dt, "faults": self.faults.requested(),
+                "scenario_definition": self.scenario.to_dict()}
+
+    def to_argv(self) -> list[str]:
+        """The run arguments that :func:`spec_from_args` turns back into this spec."""
+        out = ["--run", self.run, "--scenario", self.scenario_name, "--seed", str(self.seed),
+               "--clock", self.clock, "--time-scale", repr(self.time_scale)]
+        for name, value in self.overrides:
+            out += ["--set", f"{name}={value!r}"]
+        if self.potential is not None:
+            out += ["--potential", self.potential]
+        if self.duration is not None:
+            out += ["--duration", repr(self.duration)]
+        f = self.faults
+        out += ["--latency", f"{f.latency!r}s", "--jitter", f"{f.jitter!r}s", "--dropout", repr(f.dropout),
+                "--burst", repr(f.burst), "--distance-loss", repr(f.distance_loss)]
+        return out
+
+
+def add_run_args(parser: argparse.ArgumentParser, run_help: str = f"run id: namespaces every key "
+                 f"(default {DEFAULT_RUN})") -> None:
+    group = parser.add_argument_group("run")
+    group.add_argument("--run", default=None, help=run_help)
+    group.add_argument("--scenario", default="moving-prey", help="scenario name or .toml file (default moving-prey)")
+    group.add_argument("--seed", type=seed_arg, default=0, help="random seed of the run (default 0)")
+    add_param_args(group)
+    group.add_argument("--potential", choices=COMBINATIONS, default=None,
+                       help="obstacle-goal combination (default: the scenario's)")
+    group.add_argument("--clock", choices=CLOCKS, default="free",
+                       help="free: each agent on its own timer; lockstep: the world ticks (default free)")
+    group.add_argument("--time-scale", type=float, default=1.0,
+                       help="simulated seconds per wall second in free mode (default 1: dt=0.05 s at 20 Hz)")
+    group.add_argument("--duration", type=float, default=None,
+                       help="simulated seconds (default: the scenario's)")
+    add_fault_args(parser)
+
+
+def add_fault_args(parser: argparse.ArgumentParser) -> None:
+    group = parser.add_argument_group("faults (applied by every receiving agent, seeded by --seed)")
+    group.add_argument("--latency", default="0", help="fixed delay of every incoming message, e.g. 100ms")
+    group.add_argument("--jitter", default="0", help="uniform jitter around the delay, e.g. 20ms")
+    group.add_argument("--dropout", type=float, default=0.0, help="loss probability in [0, 1)")
+    group.add_argument("--burst", type=float, default=0.0,
+                       help="mean loss-burst length (Gilbert-Elliott); 0: independent losses")
+    group.add_argument("--distance-loss", type=float, default=0.0,
+                       help="pose loss probability at the sensing radius, growing with distance squared")
+
+
+def faults_from_args(args: argparse.Namespace) -> FaultModel:
+    try:
+        return FaultModel(latency=parse_duration(args.latency), jitter=parse_duration(args.jitter),
+                          dropout=args.dropout, burst=args.burst, distance_loss=args.distance_loss,
+                          seed=args.seed)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+
+
+def spec_from_args(args: argparse.Namespace, run: str | None = None, extra: dict[str, float | int] | None = None
+                   ) -> RunSpec:
+    """The spec the parsed run arguments describe; ``run`` stands in for a missing ``--run`` and
+    ``extra`` adds overrides (e.g. ``zswarm run --agents N``). The scenario is built here, so every
+    mistake in it is reported before anything starts."""
+    overrides = {**parse_assignments(args.assignments), **(extra or {})}
+    spec = RunSpec(run=args.run or run or DEFAULT_RUN, scenario_name=args.scenario,
+                   overrides=tuple(overrides.items()), seed=args.seed, potential=args.potential, clock=args.clock,
+                   time_scale=args.time_scale, duration=args.duration, faults=faults_from_args(args))
+    spec.scenario  # noqa: B018  (validate now)
+    return spec

@@ -1,0 +1,131 @@
+"""TLS and access control for a swarm: the Zenoh configuration of each role.
+
+The router is the only place every message passes, so it enforces the rules. Every session must
+present a certificate signed by the swarm's CA (mutual TLS: no certificate, no connection), and the
+router's access control gives rights by the certificate's common name:
+
+========  ==========================================================================================
+role      may send (router ingress)
+========  ==========================================================================================
+agent     poses ``zswarm/*/pose/**`` (put, queryable, reply), ``zswarm/*/stats/*``,
+          liveliness ``zswarm/*/alive/*``
+agent-I   (made with ``agents=N``, instead of the shared ``agent``) the same, but only for keys
+          that end in its own id I: an agent cannot speak for another
+world     ``zswarm/*/prey``, ``zswarm/*/tick``, ``zswarm/*/control`` (put), and answers
+          ``zswarm/*/obstacles`` (queryable, reply)
+both      subscribe, query and watch liveliness anywhere under ``zswarm/**``, and receive from it
+anyone    nothing: the default is deny, so a session with another name (``guest``) is connected
+          but cannot publish, subscribe, query or answer
+========  ==========================================================================================
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from zswarm.net.certs import ROLES, CertPaths, make_certs
+from zswarm.net.keys import Keys
+
+ANY_RUN = Keys("*", 1.0)  # the key expressions of every run: zswarm/*/...
+
+OBSERVE = ["declare_subscriber", "query", "declare_liveliness_subscriber", "liveliness_query"]
+RECEIVE = ["put", "delete", "query", "reply", "declare_subscriber", "declare_queryable", "liveliness_token"]
+
+
+AGENT_SEND = ["put", "declare_queryable", "reply", "liveliness_token"]
+
+
+def agent_name(i: int) -> str:
+    """The certificate common name of agent ``i`` when every agent has its own identity."""
+    return f"agent-{i}"
+
+
+def access_control(agents: int = 0) -> dict:
+    """The router's ``access_control`` block (default deny; rights by certificate common name).
+
+    ``agents == 0``: one ``agent`` identity for all agents, which may publish any agent's pose.
+    ``agents == N``: identities ``agent-0`` .. ``agent-{N-1}``, each allowed only the keys that end in
+    its own id (its pose in any cell, its stats, its liveliness token), so an agent cannot speak for
+    another; the shared ``agent`` certificate then has no rights to send.
+    """
+    rules = [
+        {"id": "observe", "permission": "allow", "messages": OBSERVE, "key_exprs": ["zswarm/**"]},
+        {"id": "receive", "permission": "allow", "flows": ["egress"], "messages": RECEIVE,
+         "key_exprs": ["zswarm/**"]},
+        {"id": "world-send", "permission": "allow", "flows": ["ingress"],
+         "messages": ["put", "declare_queryable", "reply"],
+         "key_exprs": [ANY_RUN.prey, ANY_RUN.tick, ANY_RUN.control, ANY_RUN.obstacles]},
+    ]
+    subjects = [{"id": "world", "cert_common_names": ["world"]}]
+    policies = [{"rules": ["world-send"], "subjects": ["world"]}]
+    if agents == 0:
+        rules.append({"id": "agent-send", "permission": "allow", "flows": ["ingress"], "messages": AGENT_SEND,
+                      "key_exprs": [ANY_RUN.all_poses, ANY_RUN.all_stats, ANY_RUN.all_alive]})
+        subjects.append({"id": "agents", "cert_common_names": ["agent"]})
+        policies.append({"rules": ["agent-send"], "subjects": ["agents"]})
+        readers = ["agents", "world"]
+    else:
+        readers = ["world"]
+        for i in range(agents):
+            name = agent_name(i)
+            rules.append({"id": f"{name}-send", "permission": "allow", "flows": ["ingress"], "messages": AGENT_SEND,
+                          "key_exprs": [ANY_RUN.any_cell_pose(i), ANY_RUN.stats(i), ANY_RUN.alive(i)]})
+            subjects.append({"id": name, "cert_common_names": [name]})
+            policies.append({"rules": [f"{name}-send"], "subjects": [name]})
+            readers.append(name)
+    policies.insert(0, {"rules": ["observe", "receive"], "subjects": readers})
+    return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects,
+            "policies": policies}
+
+
+def tls(paths: CertPaths, listen: bool) -> dict:
+    """``transport/link/tls`` for one role: mutual TLS against the swarm's CA."""
+    block = {"root_ca_certificate": str(paths.ca.resolve()), "enable_mtls": True,
+             "connect_private_key": str(paths.key.resolve()), "connect_certificate": str(paths.cert.resolve()),
+             "verify_name_on_connect": True}
+    if listen:
+        block.update(listen_private_key=str(paths.key.resolve()), listen_certificate=str(paths.cert.resolve()))
+    return block
+
+
+def role_config(paths: CertPaths, endpoint: str, agents: int = 0) -> dict:
+    """A complete Zenoh configuration: the router listens on ``endpoint``, every other role connects."""
+    router = paths.name == "router"
+    conf: dict = {"mode": "router" if router else "client",
+                  "scouting": {"multicast": {"enabled": False}},
+                  "transport": {"link": {"tls": tls(paths, listen=router)}}}
+    if router:
+        conf["listen"] = {"endpoints": [endpoint]}
+        conf["access_control"] = access_control(agents)
+    else:
+        conf["connect"] = {"endpoints": [endpoint]}
+    return conf
+
+
+def write_secure_dir(directory: Path, endpoint: str = "tls/localhost:7447",
+                     hosts: tuple[str, ...] = ("localhost", "127.0.0.1"), names: tuple[str, ...] = ROLES,
+                     days: int = 30, agents: int = 0) -> dict[str, Path]:
+    """Make the CA and certificates, and write ``NAME.json5`` (a full Zenoh config) for every name;
+    with ``agents = N`` also ``agent-0`` .. ``agent-{N-1}``, each with rights to its own keys only.
+
+    Pass each file with ``--config``; ``--connect``/``--listen`` still override its endpoint.
+    """
+    names = tuple(names) + tuple(agent_name(i) for i in range(agents))
+    certs = make_certs(directory, names=names, hosts=hosts, days=days)
+    out = {}
+    for name, paths in certs.items():
+        path = Path(directory) / f"{name}.json5"
+        path.write_text(json.dumps(role_config(paths, endpoint, agents), indent=2) + "\n")
+        out[name] = path
+    return out
+
+
+def agent_config(directory: Path, agent: int) -> Path:
+    """The config agent ``agent`` uses from a secure directory: its own identity if there is one."""
+    own = Path(directory) / f"{agent_name(agent)}.json5"
+    return own if own.is_file() else Path(directory) / "agent.json5"
+
+
+def is_secure_dir(directory: Path) -> bool:
+    return all((Path(directory) / f"{name}.json5").is_file() for name in ROLES)

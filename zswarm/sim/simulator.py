@@ -1,0 +1,153 @@
+"""The centralized reference simulator: the same equations, vectorized over the whole swarm.
+
+Each step (explicit Euler, step ``dt``):
+
+    v_k     = sat(-grad U_i(P_k), v_max)      (eq 5 / eq 36 with the speed limit)
+    P_{k+1} = P_k + dt v_k
+    prey_{k+1} = prey.step(prey_k, P_k)
+
+where agent i's potential uses only the obstacles and neighbours within its sensing radius, found with
+a cell grid (:mod:`zswarm.model.neighbours`). Every quantity agent i uses is what a distributed agent would
+have sensed at step k, so a lockstep distributed run reproduces these trajectories.
+Deterministic: the same scenario and seed give the same trajectories, bit for bit.
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from zswarm.model import prey as prey_motion
+from zswarm.model.faults import FaultModel
+from zswarm.model.metrics import Summary
+from zswarm.model.neighbours import ObstacleIndex
+from zswarm.model.observer import SwarmObserver, swarm_field
+from zswarm.model.potentials import Combination, make_controller, saturate
+from zswarm.model.scenarios import Scenario
+from zswarm.provenance import versions
+from zswarm.sim.channel import FaultyChannel
+
+
+class Simulator:
+    """State of a simulated swarm and its step function."""
+
+    def __init__(self, scenario: Scenario, seed: int, combination: Combination | None = None,
+                 faults: FaultModel | None = None) -> None:
+        self.scenario = scenario
+        self.seed = seed
+        self.combination: Combination = combination or scenario.combination
+        p = scenario.params
+        self.controller = make_controller(p.potential, self.combination, scenario.formation)
+        self.rng = np.random.default_rng(seed)
+        self.positions = scenario.initial_positions(self.rng)
+        self.ids = np.arange(len(self.positions))
+        self.prey = np.array(scenario.prey_start, dtype=float)
+        centers, radii = scenario.obstacle_arrays()
+        self.obstacles = ObstacleIndex(centers, radii, p.swarm.sensing_radius)
+        self.step_index = 0
+        self.channel = (FaultyChannel(len(self.positions), faults, scenario.dt, p.swarm.sensing_radius,
+                                      seed=faults.seed)
+                        if faults is not None and faults.active else None)
+
+    @property
+    def t(self) -> float:
+        return self.step_index * self.scenario.dt
+
+    def potential_and_velocity(self, positions: np.ndarray, goal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Every agent's U_i and commanded velocity from what it senses at ``positions``."""
+        pairs, blind = None, None
+        if self.channel is not None:  # what each agent believes, through the faulty channel
+            i, _, believed, goal = self.channel.step(self.step_index, positions, goal)
+            blind = np.isnan(goal[:, 0])  # no prey heard yet: it does not move
+            goal = np.where(blind[:, None], positions, goal)
+            pairs = (i, positions[i] - believed)
+        u, f = swarm_field(self.controller, self.obstacles, positions, goal, pairs)
+        v = saturate(f, self.scenario.params.swarm.v_max)
+        if blind is not None:
+            v[blind] = 0.0
+        return u, v
+
+    def advance(self, velocities: np.ndarray) -> None:
+        """Move the prey (from the agents' current positions), then the agents."""
+        dt = self.scenario.dt
+        self.prey = prey_motion.step(self.scenario.prey, self.prey, dt, self.positions)
+        self.positions = self.positions + dt * velocities
+        self.step_index += 1
+
+
+@dataclass
+class RunResult:
+    summary: dict[str, Any]
+    metrics: Summary
+    trajectory: np.ndarray | None = None  # (steps + 1, N, 2) when kept
+    prey_trajectory: np.ndarray | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+def simulate(scenario: Scenario, seed: int, *, combination: Combination | None = None,
+             duration: float | None = None, record: Path | None = None, record_every: int = 1,
+             metrics_every: int = 1, keep_trajectory: bool = False, sensing_discs: bool = False,
+             argv: list[str] | None = None, faults: FaultModel | None = None) -> RunResult:
+    """Run a scenario to its end; optionally record it to Rerun and keep the trajectories.
+
+    ``faults``: pass neighbour and prey data through a seeded faulty channel (:mod:`zswarm.sim.channel`).
+    """
+    sim = Simulator(scenario, seed, combination, faults)
+    p = scenario.params
+    steps = int(round((duration if duration is not None else scenario.duration) / scenario.dt))
+    observer = SwarmObserver(scenario, sim.combination)
+    traj = np.empty((steps + 1, *sim.positions.shape)) if keep_trajectory else None
+    prey_traj = np.empty((steps + 1, 2)) if keep_trajectory else None
+    header = {"scenario": scenario.name, "n_agents": int(len(sim.positions)), "seed": seed,
+              "potential": sim.combination, "duration": steps * scenario.dt, "steps": steps,
+              "dt": scenario.dt}
+    rec = None
+    if record is not None:
+        from zswarm.record import swarm_log
+        from zswarm.record.recording import open_recording
+
+        rec = open_recording(record, "zswarm-sim", swarm_log.blueprint(),
+                             recording_id=f"sim-{scenario.name}-{seed}")
+        swarm_log.log_config(rec, {**header, "scenario_definition": scenario.to_dict(),
+                                   "versions": versions(), "argv": argv or sys.argv})
+        swarm_log.log_obstacles(rec, sim.obstacles.centers, sim.obstacles.radii)
+    trail: list[np.ndarray] = []
+    for k in range(steps + 1):
+        u, v = sim.potential_and_velocity(sim.positions, sim.prey)
+        if traj is not None:
+            traj[k], prey_traj[k] = sim.positions, sim.prey
+        if k % metrics_every == 0 or k == steps:
+            # the energy of the true configuration: the agents' own sum when they sense it exactly
+            energy = float(u.sum()) if sim.channel is None else None
+            metrics = observer.observe(sim.t, sim.ids, sim.positions, v, sim.prey, energy)
+            if rec is not None and (k % record_every == 0 or k == steps):
+                _log_step(rec, sim, v, metrics, trail, p.swarm.sensing_radius if sensing_discs else None)
+        if k < steps:
+            sim.advance(v)
+    result = {**header, **observer.summary.result()}
+    if sim.channel is not None:
+        result["requested_faults"] = faults.requested()
+        result["observed_dropout"] = sim.channel.observed_dropout
+        result["observed_latency_ms"] = sim.channel.observed_latency_ms
+    if rec is not None:
+        from zswarm.record import swarm_log
+        from zswarm.record.recording import close_recording
+
+        swarm_log.log_summary(rec, result)
+        close_recording(rec)
+    return RunResult(result, observer.summary, traj, prey_traj)
+
+
+def _log_step(rec, sim: Simulator, v: np.ndarray, metrics: dict[str, float], trail: list[np.ndarray],
+              sensing_radius: float | None) -> None:
+    from zswarm.record import swarm_log
+
+    swarm_log.set_time(rec, sim.step_index, sim.t)
+    trail.append(sim.prey.copy())
+    swarm_log.log_swarm(rec, sim.t, sim.ids, sim.positions, v, sensing_radius)
+    swarm_log.log_prey(rec, sim.prey, np.array(trail[-400:]))
+    swarm_log.log_metrics(rec, metrics)
