@@ -41,7 +41,7 @@ def test_router_restart_mid_run(tmp_path):
         for i in range(3):
             start_agent(kids, endpoint, "rr", "moving-prey", i, *args)
         with Watch(endpoint, "rr") as watch:
-            watch.reach_step(40)  # 2 s into the run
+            watch.reach_step(100)  # 5 s into the run
         router.proc.terminate()
         router.proc.wait(timeout=10)
         time.sleep(2.0)  # the outage itself: two seconds without a router

@@ -55,6 +55,25 @@ def session(certs: Path, role: str, endpoint: str) -> zenoh.Session:
     return open_session(zenoh_config(None, [endpoint], (), certs / f"{role}.json5"), what=role, retry_for=5.0)
 
 
+def until(condition, timeout: float) -> bool:
+    """Poll ``condition`` until it holds or ``timeout`` seconds pass; returns whether it held."""
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.02)
+    return True
+
+
+def probe(sender: zenoh.Session, key: str, arrived, timeout: float = 20.0) -> None:
+    """Put a probe on ``key`` until ``arrived()``: the listener's subscription is in place."""
+    deadline = time.monotonic() + timeout
+    while not arrived():
+        assert time.monotonic() < deadline, f"no probe on {key} arrived within {timeout} s"
+        sender.put(key, b"probe")
+        time.sleep(0.05)
+
+
 def exchange(certs: Path, endpoint: str) -> dict:
     """Every role tries to publish a pose and the prey and to answer obstacle queries; an agent
     listens, queries, and the guest listens too."""
@@ -68,17 +87,22 @@ def exchange(certs: Path, endpoint: str) -> dict:
         answers = [world.declare_queryable(keys.obstacles, lambda q: q.reply(keys.obstacles, b"world")),
                    guest.declare_queryable(keys.obstacles, lambda q: q.reply(keys.obstacles, b"guest")),
                    agent.declare_queryable(keys.obstacles, lambda q: q.reply(keys.obstacles, b"agent"))]
-        time.sleep(0.5)
+        probe(world, keys.control, lambda: any(p == b"probe" for _, p in heard))
         for name, s in (("agent", agent), ("world", world), ("guest", guest)):
             s.put(keys.pose((0, 0), 5), name.encode())
             s.put(keys.prey, name.encode())
-        time.sleep(0.5)
+        # each rightful sender's last word, sent after its other puts: once both are in, so is the rest
+        agent.put(keys.stats(5), b"end")
+        world.put(keys.control, b"end")
+        assert until(lambda: sum(p == b"end" for _, p in heard) == 2, 20.0)
+        until(lambda: guest_heard.count(b"end") == 2, 1.0)  # only without access control can it hear them
         replies = sorted(r.ok.payload.to_bytes().decode() for r in listener.get(
             keys.obstacles, target=zenoh.QueryTarget.ALL, consolidation=zenoh.ConsolidationMode.NONE, timeout=2.0)
                          if r.ok is not None)
         del subs, answers
-    return {"heard": sorted((k.rsplit("/", 1)[-1], p.decode()) for k, p in heard),
-            "guest_heard": sorted(p.decode() for p in guest_heard), "obstacle_answers": replies}
+    words = {b"probe", b"end"}
+    return {"heard": sorted((k.rsplit("/", 1)[-1], p.decode()) for k, p in heard if p not in words),
+            "guest_heard": sorted(p.decode() for p in guest_heard if p not in words), "obstacle_answers": replies}
 
 
 def test_rights_follow_the_certificate(certs):
@@ -119,13 +143,16 @@ def test_an_agent_can_only_speak_for_itself(per_agent):
               session(per_agent, "agent", endpoint) as shared):
             sub = world.declare_subscriber(f"{keys.root}/**", lambda s: heard.append(str(s.key_expr)))
             watch = world.liveliness().declare_subscriber(keys.all_alive, lambda s: alive.append(str(s.key_expr)) if s.kind == zenoh.SampleKind.PUT else None)
-            time.sleep(0.5)
-            tokens = [one.liveliness().declare_token(keys.alive(1)), one.liveliness().declare_token(keys.alive(2))]
-            for who, s in (("one", one), ("shared", shared)):
-                for agent in (1, 2):
+            probe(world, keys.control, lambda: keys.control in heard)
+            heard.clear()
+            tokens = [one.liveliness().declare_token(keys.alive(2)), one.liveliness().declare_token(keys.alive(1))]
+            for who, s in (("shared", shared), ("one", one)):
+                for agent in (2, 1):
                     s.put(keys.pose((-3, 4), agent), who.encode())
                     s.put(keys.stats(agent), who.encode())
-            time.sleep(0.7)
+            # agent-1's own last words came after everything forbidden it sent
+            assert until(lambda: keys.stats(1) in heard and keys.alive(1) in alive, 20.0)
+            until(lambda: False, 0.3)  # and the shared identity's, sent before them, had as long
             del sub, watch, tokens
     # agent-1's own pose, stats and token got through; nothing it said for agent 2, and nothing from
     # the shared identity (which has no rights once agents have their own)

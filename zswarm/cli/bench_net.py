@@ -13,20 +13,15 @@ import json
 import statistics
 import subprocess
 import tempfile
+import threading
 import time
 from pathlib import Path
 from typing import Any
 
 from zswarm.cli.figures import figure
+from zswarm.cli.measure import CpuWindow, pss_mb, rss_mb
 from zswarm.model.faults import FaultModel
-from zswarm.net.procs import (
-    Child,
-    Children,
-    agent_argv,
-    rss_mb,
-    start_router,
-    world_argv,
-)
+from zswarm.net.procs import Child, Children, agent_argv, start_router, world_argv
 from zswarm.net.runspec import RunSpec
 
 
@@ -49,48 +44,125 @@ def start_field(kids: Children, spec: RunSpec, summary_path: Path,
     return endpoint, world, agents
 
 
+def _world_started(world: Child) -> threading.Event:
+    """Set when the world's clock starts (it prints ``world: started``)."""
+    started = threading.Event()
+
+    def read() -> None:
+        for line in world.proc.stdout:
+            if line.startswith(b"world: started"):
+                started.set()
+    threading.Thread(target=read, daemon=True).start()
+    return started
+
+
 def run(n_agents: int, duration: float, scenario: str = "bench-field") -> dict[str, Any]:
+    """One swarm run: the transport figures from the world's summary, and what each process cost
+    over the middle of the run (from 30 % to 90 % of its duration)."""
     kids = Children()
     with tempfile.TemporaryDirectory() as tmp:
         summary_path = Path(tmp) / "bench.json"
         try:
-            _, world, agents = start_field(kids, field_spec(n_agents, f"bench{n_agents}", duration, scenario),
-                                           summary_path)
+            spec = field_spec(n_agents, f"bench{n_agents}", duration, scenario)
+            _, world, agents = start_field(kids, spec, summary_path, world_stdout=subprocess.PIPE)
+            started = _world_started(world)
+            names = {c.name: c.pid for c in kids.children}
+            window = CpuWindow(names)
+            memory: dict[str, list[float]] = {"rss": [], "pss": []}
+            if not started.wait(180.0):
+                raise RuntimeError("the world's clock did not start within 180 s")
             t0 = time.monotonic()
-            rss: list[float] = []
-            sampled = False
-            while world.alive():
-                if not sampled and time.monotonic() - t0 > 0.5 * duration + 5 and summary_path.parent.exists():
-                    rss = [r for r in (rss_mb(a.pid) for a in agents) if r is not None]
-                    sampled = bool(rss)
+            time.sleep(0.3 * duration)
+            window.start(time.monotonic())
+            time.sleep(0.6 * duration)
+            window.stop(time.monotonic())
+            memory["rss"] = [v for v in (rss_mb(a.pid) for a in agents) if v is not None]
+            memory["pss"] = [v for v in (pss_mb(a.pid) for a in agents) if v is not None]
+            while world.alive() and time.monotonic() - t0 < duration + 60:
                 time.sleep(0.2)
-            if world.proc.returncode != 0:
+            if world.proc.wait(timeout=60) != 0:
                 raise RuntimeError(f"the world exited with code {world.proc.returncode}")
             s = json.loads(summary_path.read_text())
         finally:
             kids.stop_all(grace=5.0)
+    per_tick = [1000.0 * c * spec.period for c in window.share(a.name for a in agents)]
     poses = s.get("poses_received", 0)
     return {
-        "n_agents": n_agents, "rate_hz": round(1.0 / 0.05, 3), "duration_s": duration,
+        "n_agents": n_agents, "rate_hz": round(1.0 / spec.period, 3), "duration_s": duration,
         "latency_ms": s["pose_latency_ms"], "age_at_use_ms": s["pose_age_ms"],
         "on_time_ratio": s["on_time_ratio"],
         "received_per_agent_per_s": poses / n_agents / duration if duration else None,
         "startup_s": s["startup_s"],
-        "rss_mb_per_agent": statistics.median(rss) if rss else None,
+        "cpu_ms_per_tick_agent": statistics.mean(per_tick) if per_tick else None,
+        "cpu_ms_per_tick_agent_max": max(per_tick) if per_tick else None,
+        "cpu_share_world": _one(window.share(["world"])), "cpu_share_router": _one(window.share(["router"])),
+        "rss_mb_per_agent": statistics.median(memory["rss"]) if memory["rss"] else None,
+        "pss_mb_per_agent": statistics.median(memory["pss"]) if memory["pss"] else None,
+        "world_late_ticks": s.get("world_late_ticks"), "world_ticks": s.get("world_ticks"),
         "messages_rejected": s["messages_rejected"], "agents_reporting": s["agents_reporting"],
     }
+
+
+def run_floor(n_agents: int, duration: float, scenario: str = "bench-field") -> dict[str, Any]:
+    """The same traffic from N bare Zenoh processes (:mod:`zswarm.cli.floor`) over a router."""
+    spec = field_spec(n_agents, f"floor{n_agents}", duration, scenario)
+    kids = Children()
+    try:
+        endpoint = start_router(kids)
+        floors = [kids.spawn(f"floor-{i}", ["-m", "zswarm.cli.floor", "--id", str(i), *spec.to_argv(),
+                                            "--connect", endpoint], stdout=subprocess.DEVNULL)
+                  for i in range(n_agents)]
+        window = CpuWindow({c.name: c.pid for c in kids.children})
+        time.sleep(0.3 * duration + 3.0)  # every process connected and publishing
+        window.start(time.monotonic())
+        time.sleep(0.6 * duration)
+        window.stop(time.monotonic())
+        pss = [v for v in (pss_mb(f.pid) for f in floors) if v is not None]
+        rss = [v for v in (rss_mb(f.pid) for f in floors) if v is not None]
+        alive = sum(f.alive() for f in floors)
+    finally:
+        kids.stop_all(grace=5.0)
+    per_tick = [1000.0 * c * spec.period for c in window.share(f.name for f in floors)]
+    return {"n_agents": n_agents, "floor_alive": alive,
+            "cpu_ms_per_tick_floor": statistics.mean(per_tick) if per_tick else None,
+            "cpu_share_router_floor": _one(window.share(["router"])),
+            "pss_mb_per_floor": statistics.median(pss) if pss else None,
+            "rss_mb_per_floor": statistics.median(rss) if rss else None}
+
+
+def _one(values: list[float]) -> float | None:
+    return values[0] if values else None
+
+
+def measure(n_agents: int, duration: float, floor: bool) -> dict[str, Any]:
+    """The swarm at N and, with ``floor``, the bare middleware with the same traffic, right after."""
+    r = run(n_agents, duration)
+    if floor:
+        r.update(run_floor(n_agents, duration))
+        a, f = r["cpu_ms_per_tick_agent"], r["cpu_ms_per_tick_floor"]
+        r["cpu_ratio_agent_to_floor"] = a / f if a is not None and f else None
+    return r
 
 
 def main_bench(args) -> int:
     from zswarm.provenance import machine
 
-    results = [run(n, args.duration) for n in args.agents]
+    results = [measure(n, args.duration, args.floor) for n in args.agents]
     if args.json:
         print(json.dumps(results[0] if len(results) == 1 else {"runs": results, "machine": machine()}))
         return 0
     for r in results:
         print(f"N={r['n_agents']:>4}  latency p50 {r['latency_ms']['p50']} ms  p99 {r['latency_ms']['p99']} ms  "
-              f"on time {figure(r['on_time_ratio'], '.3f')}  received/agent/s {figure(r['received_per_agent_per_s'], '.1f')}  "
-              f"startup {figure(r['startup_s'], '.2f')} s  rss/agent {figure(r['rss_mb_per_agent'], '.1f')} MB")
+              f"age at use p99 {r['age_at_use_ms']['p99']} ms  on time {figure(r['on_time_ratio'], '.4f')}  "
+              f"received/agent/s {figure(r['received_per_agent_per_s'], '.1f')}  startup {figure(r['startup_s'], '.2f')} s")
+        print(f"        agent CPU {figure(r['cpu_ms_per_tick_agent'], '.2f')} ms/tick (max "
+              f"{figure(r['cpu_ms_per_tick_agent_max'], '.2f')}), world {figure(r['cpu_share_world'], '.1%')} of a core, "
+              f"router {figure(r['cpu_share_router'], '.1%')}; agent RSS {figure(r['rss_mb_per_agent'], '.1f')} MB, "
+              f"PSS {figure(r['pss_mb_per_agent'], '.1f')} MB; world late ticks {r['world_late_ticks']}/{r['world_ticks']}")
+        if "cpu_ms_per_tick_floor" in r:
+            print(f"        floor CPU {figure(r['cpu_ms_per_tick_floor'], '.2f')} ms/tick "
+                  f"(agent/floor {figure(r['cpu_ratio_agent_to_floor'], '.2f')}x), router "
+                  f"{figure(r['cpu_share_router_floor'], '.1%')}; floor PSS {figure(r['pss_mb_per_floor'], '.1f')} MB, "
+                  f"RSS {figure(r['rss_mb_per_floor'], '.1f')} MB; {r['floor_alive']}/{r['n_agents']} alive")
     print(f"machine: {machine()}")
     return 0

@@ -9,7 +9,8 @@ from pathlib import Path
 from typing import Any
 
 from zswarm.args import add_param_args
-from zswarm.model.design import DesignReport, check, nearest_passing
+from zswarm.model.design import DesignReport, check
+from zswarm.model.nearest import nearest_passing
 from zswarm.model.params import DEFAULT_PARAMS, PAPER_PARAMS
 
 

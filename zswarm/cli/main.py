@@ -49,6 +49,9 @@ def build_parser() -> Parser:
                     default=[10], help="N, or a comma-separated list (default 10)")
     bn.add_argument("--duration", type=positive_float, default=15.0,
                     help="simulated = wall seconds per run (default 15)")
+    bn.add_argument("--floor", action="store_true",
+                    help="also run N bare Zenoh processes with the same traffic and report the agents' CPU "
+                         "as a ratio to theirs")
     bn.add_argument("--json", action="store_true")
     bn.set_defaults(run=bench_net.main_bench)
     so = bench_sub.add_parser("soak", help="a long run under loss: memory flat? backlog growing?",

@@ -1,0 +1,128 @@
+"""What a scenario is: obstacles, the prey's motion, where agents spawn, N and the parameters.
+
+A scenario is a frozen description; everything random about a run (the spawn positions) is drawn from
+the run's seed by :meth:`Scenario.initial_positions`. The registered ones and TOML files are in
+:mod:`zswarm.model.scenarios`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from zswarm.errors import UsageError
+from zswarm.model.neighbours import ObstacleIndex
+from zswarm.model.params import DEFAULT_PARAMS, Params
+from zswarm.model.potentials import COMBINATIONS, Combination
+from zswarm.model.prey import PreyMotion
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    """A circular obstacle; radius 0 is the paper's point obstacle (eq 9)."""
+
+    x: float
+    y: float
+    radius: float = 0.0
+
+
+Box = tuple[float, float, float, float]  # x_min, y_min, x_max, y_max
+
+
+@dataclass(frozen=True)
+class Scenario:
+    name: str
+    description: str
+    params: Params = DEFAULT_PARAMS
+    obstacles: tuple[Obstacle, ...] = ()
+    prey_start: tuple[float, float] = (0.0, 0.0)
+    prey: PreyMotion = field(default_factory=PreyMotion)
+    spawn: Box = (-4.5, -1.5, -2.5, 1.5)
+    starts: tuple[tuple[float, float], ...] = ()  # explicit start positions (override spawn)
+    duration: float = 30.0
+    dt: float = 0.05
+    combination: Combination = "multiplicative"
+    formation: bool = True
+    capture_radius: float = 0.5
+
+    def __post_init__(self) -> None:
+        if self.combination not in COMBINATIONS:
+            raise ValueError(f"combination must be one of {', '.join(COMBINATIONS)} (got {self.combination!r})")
+        for name in ("duration", "dt", "capture_radius"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ValueError(f"scenario {name} must be a finite number > 0 (got {value!r})")
+        x0, y0, x1, y1 = self.spawn
+        if not (x0 < x1 and y0 < y1):
+            raise ValueError(f"spawn must be (x_min, y_min, x_max, y_max) with min < max (got {self.spawn})")
+        if self.prey.speed >= self.params.swarm.v_max:
+            raise ValueError(f"the prey must be slower than the agents (Section 5): prey speed "
+                             f"{self.prey.speed} >= v_max {self.params.swarm.v_max}")
+
+    @property
+    def n_agents(self) -> int:
+        return len(self.starts) if self.starts else self.params.swarm.n_agents
+
+    @property
+    def steps(self) -> int:
+        return int(round(self.duration / self.dt))
+
+    def obstacle_arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        centers = np.array([(o.x, o.y) for o in self.obstacles], dtype=float).reshape(-1, 2)
+        return centers, np.array([o.radius for o in self.obstacles], dtype=float)
+
+    def initial_positions(self, rng: np.random.Generator) -> np.ndarray:
+        if self.starts:
+            return np.array(self.starts, dtype=float)
+        centers, radii = self.obstacle_arrays()
+        return spawn_positions(rng, self.n_agents, self.spawn, 4.0 * self.params.swarm.robot_radius,
+                               centers, radii)
+
+    def with_params(self, params: Params) -> Scenario:
+        return dataclasses.replace(self, params=params)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data (JSON-safe): what a recording stores as ``scenario_definition``."""
+        out = dataclasses.asdict(self)
+        out["params"] = self.params.flat()
+        return out
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> Scenario:
+        """The inverse of :meth:`to_dict` (a recording's ``scenario_definition``)."""
+        try:
+            prey = dict(d["prey"])
+            prey["center"], prey["bounds"] = tuple(prey["center"]), tuple(prey["bounds"])
+            return cls(name=d["name"], description=d["description"], params=Params.from_flat(d["params"]),
+                       obstacles=tuple(Obstacle(**o) for o in d["obstacles"]), prey_start=tuple(d["prey_start"]),
+                       prey=PreyMotion(**prey), spawn=tuple(d["spawn"]), starts=tuple(tuple(s) for s in d["starts"]),
+                       duration=d["duration"], dt=d["dt"], combination=d["combination"], formation=d["formation"],
+                       capture_radius=d["capture_radius"])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise UsageError(f"not a zswarm scenario definition ({type(exc).__name__}: {exc})") from None
+
+
+def spawn_positions(rng: np.random.Generator, n: int, box: Box, min_sep: float,
+                    centers: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """``n`` points in ``box``, at least ``min_sep`` apart and clear of obstacles (jittered grid)."""
+    x0, y0, x1, y1 = box
+    w, h = x1 - x0, y1 - y0
+    s = math.sqrt(w * h / n) / 1.1
+    for _ in range(60):
+        xs = x0 + s * (0.5 + np.arange(max(int(w // s), 1)))
+        ys = y0 + s * (0.5 + np.arange(max(int(h // s), 1)))
+        cells = np.stack(np.meshgrid(xs, ys, indexing="ij"), axis=-1).reshape(-1, 2)
+        if len(centers):  # drop cells within s of an obstacle (a cell grid: O(N) memory, not N x obstacles)
+            blocked, _ = ObstacleIndex(centers, radii, s).sensed(cells)
+            cells = np.delete(cells, np.unique(blocked), axis=0)
+        if len(cells) >= n:
+            break
+        s *= 0.95
+    if len(cells) < n or s <= min_sep:
+        raise UsageError(f"cannot place {n} agents {min_sep:g} apart in spawn region {box}; enlarge it")
+    chosen = cells[rng.choice(len(cells), size=n, replace=False)]
+    return chosen + rng.uniform(-(s - min_sep) / 2, (s - min_sep) / 2, size=(n, 2))
