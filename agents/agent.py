@@ -6,9 +6,9 @@ queryable, never the whole map) and the prey it observes (:mod:`agents.sensing`)
 reaches it.
 
 Clocks:
-- ``free``: a wall-clock timer at 1/period; each tick uses the freshest neighbour data younger than the
-  staleness limit. Late ticks are counted and never queued up.
-- ``lockstep``: the world's tick k+1 (sent once the world has every pose of step k) makes the agent
+- ``free`` (:mod:`agents.free`, no event loop): a wall-clock timer at 1/period; each tick uses the
+  freshest neighbour data younger than the staleness limit. Late ticks are counted and never queued up.
+- ``lockstep`` (here, on an asyncio loop): the world's tick k+1 (sent once the world has every pose of step k) makes the agent
   compute step k from the step-k poses of its neighbours, move, and publish its pose of step k+1.
   That is the reference simulator's step, so the trajectories agree.
 """
@@ -17,11 +17,10 @@ from __future__ import annotations
 
 import asyncio
 import time
-
-import numpy as np
+from typing import Any
 
 from agents.sensing import Body, Sensing
-from zswarm.model.potentials import Controller, make_controller, sense_one
+from zswarm.model.agent_law import agent_velocity
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Bridge
 from zswarm.net.runspec import RunSpec
@@ -30,58 +29,59 @@ STATS_PERIOD = 1.0
 
 
 class Agent:
-    def __init__(self, spec: RunSpec, agent_id: int, bridge: Bridge, start: np.ndarray,
+    def __init__(self, spec: RunSpec, agent_id: int, bridge: Bridge, start: tuple[float, float],
                  staleness: float = 0.5, lockstep_wait: float = 0.25) -> None:
         self.spec, self.id, self.bridge = spec, agent_id, bridge
         self.keys = spec.keys
         p = spec.scenario.params
         self.v_max, self.dt = p.swarm.v_max, spec.scenario.dt
-        self.controller: Controller = make_controller(p.potential, spec.combination, spec.scenario.formation)
-        self.body = Body(np.array(start, dtype=float), np.zeros(2))
+        self.potential, self.formation = p.potential, spec.scenario.formation
+        self.combination = spec.combination
+        self.body = Body(float(start[0]), float(start[1]))
         self.sensing = Sensing(spec, agent_id, bridge, self.body)
         self.counters = self.sensing.counters
         self.staleness, self.lockstep_wait = staleness, lockstep_wait
         self.seq = 0
         self.pose_cell: tuple[int, int] | None = None
-        self.queryable = None
+        self.queryable: Any = None
+        self.publisher: Any = None
         self.latest_reply: tuple[str, bytes] | None = None
         self.replies_by_step: dict[int, tuple[str, bytes]] = {}
-        self.prey_by_step: dict[int, np.ndarray] = {}
+        self.prey_by_step: dict[int, tuple[float, float]] = {}
         self.stop = asyncio.Event()
         self.injector = None  # a FaultInjector when faults are injected
 
     # --- control ---------------------------------------------------------------------------------------
 
-    def control(self, goal: np.ndarray, neighbours: np.ndarray) -> np.ndarray:
-        """P' = sat(-grad U_i) from what it sensed (eq 5 with the speed limit)."""
-        s = self.sensing
-        sensed = sense_one(self.body.position, s.obstacle_centers, s.obstacle_radii, neighbours, s.radius)
-        return self.controller.velocity(self.body.position, goal, sensed, self.v_max)
-
-    def move(self, goal: np.ndarray, neighbours: np.ndarray) -> None:
+    def move(self, goal: tuple[float, float], neighbours: list[tuple[float, float]]) -> None:
+        """P' = sat(-grad U_i) from what it sensed (eq 5 with the speed limit), one Euler step."""
         b = self.body
-        b.velocity = self.control(goal, neighbours)
-        b.position = b.position + self.dt * b.velocity
+        b.vx, b.vy = agent_velocity(b.x, b.y, goal, self.sensing.obstacles, neighbours, self.sensing.radius,
+                                    self.potential, self.combination, self.formation, self.v_max)
+        b.x, b.y = b.x + self.dt * b.vx, b.y + self.dt * b.vy
 
     # --- outbound --------------------------------------------------------------------------------------
 
     def publish_pose(self, step: int) -> None:
+        """Into the cell it is in, through that cell's declared publisher; its queryable there answers
+        with the latest pose (and, in lockstep, the pose of a step)."""
         b = self.body
-        cell = self.keys.cell(*map(float, b.position))
+        cell = self.keys.cell(b.x, b.y)
         key = self.keys.pose(cell, self.id)
         self.seq += 1
-        payload = msg.encode(msg.Pose(self.id, self.seq, time.time(), step, float(b.position[0]),
-                                      float(b.position[1]), float(b.velocity[0]), float(b.velocity[1])))
+        payload = msg.encode(msg.Pose(self.id, self.seq, time.time(), step, b.x, b.y, b.vx, b.vy))
         self.latest_reply = (key, payload)
         if step >= 0:
             self.replies_by_step = {s: r for s, r in self.replies_by_step.items() if s > step - 3}
             self.replies_by_step[step] = (key, payload)
         if cell != self.pose_cell:
-            if self.queryable is not None:
-                self.queryable.undeclare()
+            for old in (self.queryable, self.publisher):
+                if old is not None:
+                    old.undeclare()
             self.queryable = self.bridge.queryable(key, self._answer)
+            self.publisher = self.bridge.session.declare_publisher(key)
             self.pose_cell = cell
-        self.bridge.session.put(key, payload)
+        self.publisher.put(payload)
         self.counters.sent += 1
 
     def _answer(self, params: dict[str, str]) -> list[tuple[str, bytes]]:
@@ -99,40 +99,20 @@ class Agent:
         injected = (faults.dropped, faults.passed) if faults is not None else (0, 0)
         return msg.encode(self.counters.stats(self.id, injected, final))
 
+    def publish_stats_now(self) -> None:
+        """The stats message, and a new window for the per-period figures (queue, tick lag)."""
+        self.bridge.session.put(self.keys.stats(self.id), self.stats())
+        self.counters.new_window()
+
     async def publish_stats(self) -> None:
+        """Lockstep: the stats message every STATS_PERIOD seconds, until stopped."""
         while not self.stop.is_set():
             try:
                 await asyncio.wait_for(self.stop.wait(), STATS_PERIOD)
             except asyncio.TimeoutError:
-                self.bridge.session.put(self.keys.stats(self.id), self.stats())
-                self.counters.new_window()
+                self.publish_stats_now()
 
     # --- the two clocks --------------------------------------------------------------------------------
-
-    async def run_free(self) -> None:
-        period = self.spec.period
-        loop = asyncio.get_running_loop()
-        s, c = self.sensing, self.counters
-        next_tick = loop.time()
-        while not self.stop.is_set():
-            now = loop.time()
-            c.window_queue_max = max(c.window_queue_max, self.bridge.queue.qsize())
-            c.window_lag_ms = max(c.window_lag_ms, 1000.0 * (now - next_tick))
-            if now - next_tick > 0.5 * period:
-                c.late_ticks += 1
-                next_tick = max(next_tick, now)  # skip, never queue up a backlog
-            c.ticks += 1
-            await s.refresh_obstacles()
-            if s.prey is not None:
-                self.move(s.prey, s.neighbour_positions(None, self.staleness))
-            self.body.step += 1
-            await s.update_cells()
-            self.publish_pose(-1)
-            next_tick += period
-            try:
-                await asyncio.wait_for(self.stop.wait(), max(next_tick - loop.time(), 0.0))
-            except asyncio.TimeoutError:
-                pass
 
     async def run_lockstep(self) -> None:
         s = self.sensing
@@ -148,13 +128,13 @@ class Agent:
             if tick.final:
                 self.stop.set()
                 return
-            self.prey_by_step[tick.step] = np.array([tick.x, tick.y])
+            self.prey_by_step[tick.step] = (tick.x, tick.y)
             self.counters.ticks += 1
             while self.body.step < tick.step:  # tick k: every pose of step k-1 is out; do step k-1
                 k = self.body.step
                 await s.await_step_poses(k, self.lockstep_wait)
                 await s.refresh_obstacles()
-                self.move(self.prey_by_step.get(k, np.array([tick.x, tick.y])), s.neighbour_positions(k, self.staleness))
+                self.move(self.prey_by_step.get(k, (tick.x, tick.y)), s.neighbour_positions(k, self.staleness))
                 self.body.step += 1
                 self.prey_by_step.pop(k - 2, None)
             await s.update_cells()

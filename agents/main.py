@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import asyncio
 import signal
 import sys
@@ -10,16 +11,17 @@ from typing import Sequence
 import numpy as np
 
 from agents.agent import Agent
+from agents.free import run_free, wait_for_world
 from zswarm.args import Parser, UsageError, run_main
-from zswarm.net.bridge import Bridge, pump, teardown
+from zswarm.net.bridge import Bridge, teardown
 from zswarm.net.config import add_zenoh_args, config_from_args, open_session
 from zswarm.net.injector import FaultInjector
 from zswarm.net.runspec import RunSpec, add_run_args, spec_from_args
 
 
 def build_parser() -> Parser:
-    parser = Parser(prog="agents", description="One zswarm agent: an independent asyncio process that "
-                    "senses its neighbours over Zenoh and follows the APF control law.")
+    parser = Parser(prog="agents", description="One zswarm agent: an independent process that senses its "
+                    "neighbours over Zenoh and follows the APF control law.")
     parser.add_argument("--id", type=int, required=True, help="this agent's id (0 .. N-1 for spawn)")
     parser.add_argument("--start", metavar="X,Y", help="start position (default: the scenario's spawn "
                         "for this id and seed)")
@@ -36,66 +38,99 @@ def build_parser() -> Parser:
     return parser
 
 
-def start_position(spec: RunSpec, agent_id: int, text: str | None) -> np.ndarray:
+def start_position(spec: RunSpec, agent_id: int, text: str | None) -> tuple[float, float]:
     if text is not None:
         try:
             x, y = (float(v) for v in text.split(","))
         except ValueError:
             raise UsageError(f"--start expects X,Y (got {text!r})") from None
-        return np.array([x, y])
+        return x, y
     spawn = spec.scenario.initial_positions(np.random.default_rng(spec.seed))
     if not 0 <= agent_id < len(spawn):
         raise UsageError(f"--id {agent_id} has no spawn position in {spec.scenario.name} "
                          f"(N = {len(spawn)}); give --start X,Y or an id below {len(spawn)}")
-    return spawn[agent_id]
+    return float(spawn[agent_id, 0]), float(spawn[agent_id, 1])
 
 
-async def run_agent(spec: RunSpec, args) -> int:
+class Process:
+    """What one agent process holds: its session, the bridge, the agent, the faults it injects and
+    what it declared (undeclared in reverse order at the end)."""
+
+    def __init__(self, spec: RunSpec, args: argparse.Namespace, loop: asyncio.AbstractEventLoop | None) -> None:
+        start = start_position(spec, args.id, args.start)
+        self.spec, self.id = spec, args.id
+        self.session = open_session(config_from_args(args), what=f"agent {args.id}", retry_for=args.connect_timeout)
+        # free clock: samples wait in an inbox taken in once per tick; lockstep: each one wakes the loop
+        self.bridge = Bridge(self.session, loop, deliver=lambda item: None, batch=loop is None)
+        self.agent = Agent(spec, args.id, self.bridge, start, args.staleness, args.lockstep_wait)
+        self.bridge.deliver = self.agent.sensing.handle
+        self.injector: FaultInjector | None = None
+        if spec.faults.active:
+            self.injector = FaultInjector(spec.faults, args.id, loop, self.agent.sensing.handle,
+                                          self.agent.sensing.fault_source)
+            self.bridge.deliver, self.bridge.reply_filter = self.injector.deliver, self.injector.filter_replies
+            self.agent.injector = self.injector
+        keys = spec.keys
+        self.declared = [self.bridge.subscribe_liveliness(keys.all_alive, "alive"),
+                         self.bridge.subscribe(keys.prey, "prey"), self.bridge.subscribe(keys.tick, "tick")]
+
+    def no_world(self, waited: float) -> UsageError:
+        return UsageError(f"agent {self.id}: the world of run {self.spec.run!r} did not answer for {waited:g} s "
+                          f"(start the world, or check --run/--connect)")
+
+    def announce(self) -> None:
+        """Alive: a liveliness token under its id (only agents holding one count as neighbours)."""
+        self.declared.append(self.session.liveliness().declare_token(self.spec.keys.alive(self.id)))
+
+    def close(self, final_stats: bool) -> None:
+        if final_stats:
+            self.session.put(self.spec.keys.stats(self.id), self.agent.stats(final=True))
+        teardown(self.bridge, self.declared, self.session)
+
+
+def run_free_agent(spec: RunSpec, args: argparse.Namespace) -> int:
+    """The free clock, without an event loop (:mod:`agents.free`)."""
+    stop: list[int] = []
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda signum, _frame: stop.append(signum))
+    proc = Process(spec, args, loop=None)
+    done = False
+    try:
+        if not wait_for_world(proc.agent, proc.injector, args.start_timeout, lambda: bool(stop)):
+            if stop:
+                return 0
+            raise proc.no_world(args.start_timeout)
+        proc.announce()
+        run_free(proc.agent, proc.injector, lambda: bool(stop))
+        done = True
+        return 0
+    finally:
+        proc.close(final_stats=done or bool(stop))
+
+
+async def run_lockstep_agent(spec: RunSpec, args: argparse.Namespace) -> int:
     loop = asyncio.get_running_loop()
-    start = start_position(spec, args.id, args.start)
-    session = open_session(config_from_args(args), what=f"agent {args.id}", retry_for=args.connect_timeout)
-    queue: asyncio.Queue = asyncio.Queue()
-    bridge = Bridge(session, loop, queue)
-    agent = Agent(spec, args.id, bridge, start, args.staleness, args.lockstep_wait)
-    if spec.faults.active:
-        injector = FaultInjector(spec.faults, args.id, loop, queue.put_nowait, agent.sensing.fault_source)
-        bridge.deliver, bridge.reply_filter = injector.deliver, injector.filter_replies
-        agent.injector = injector
+    proc = Process(spec, args, loop)
+    agent = proc.agent
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, agent.stop.set)
-    keys = spec.keys
-    declared = []
+    done = False
     try:
-        declared.append(bridge.subscribe_liveliness(keys.all_alive, "alive"))
-        declared.append(bridge.subscribe(keys.prey, "prey"))
-        declared.append(bridge.subscribe(keys.tick, "tick"))
-
-        pump_task = asyncio.ensure_future(pump(queue, agent.sensing.handle))
         deadline = loop.time() + args.start_timeout
         while not await agent.sensing.refresh_obstacles(timeout=1.0):
             if loop.time() > deadline or agent.stop.is_set():
-                raise UsageError(f"agent {args.id}: the world of run {spec.run!r} did not answer for "
-                                 f"{args.start_timeout:g} s (start the world, or check --run/--connect)")
+                raise proc.no_world(args.start_timeout)
+            await asyncio.sleep(0.25)  # no world yet: a query without a queryable fails at once
         await agent.sensing.update_cells()
-        declared.append(session.liveliness().declare_token(keys.alive(args.id)))
+        proc.announce()
         stats_task = asyncio.ensure_future(agent.publish_stats())
-        if spec.clock == "lockstep":
-            await agent.run_lockstep()
-        else:
-            async def end_on_final_tick() -> None:
-                while not agent.stop.is_set():
-                    if (await agent.sensing.ticks.get()).final:
-                        agent.stop.set()
-            end_task = asyncio.ensure_future(end_on_final_tick())
-            await agent.run_free()
-            end_task.cancel()
+        await agent.run_lockstep()
         agent.stop.set()
         stats_task.cancel()
-        pump_task.cancel()
-        session.put(keys.stats(args.id), agent.stats(final=True))
+        done = True
         return 0
     finally:
-        teardown(bridge, declared, session)
+        proc.close(final_stats=done)
 
 
 def _main(argv: Sequence[str] | None) -> int:
@@ -103,7 +138,9 @@ def _main(argv: Sequence[str] | None) -> int:
     spec = spec_from_args(args)
     if args.id < 0:
         raise UsageError(f"--id must be >= 0 (got {args.id})")
-    return asyncio.run(run_agent(spec, args))
+    if spec.clock == "lockstep":
+        return asyncio.run(run_lockstep_agent(spec, args))
+    return run_free_agent(spec, args)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

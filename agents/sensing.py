@@ -13,12 +13,10 @@ import math
 import time
 from dataclasses import dataclass
 
-import numpy as np
-
 from agents.counters import Counters
 from zswarm.model.faults import OBSTACLE_SOURCE, PREY_SOURCE
 from zswarm.net import messages as msg
-from zswarm.net.bridge import Bridge
+from zswarm.net.bridge import Bridge, Inbound
 from zswarm.net.keys import cells_in_disc
 from zswarm.net.poses import PoseTable, Rejections
 from zswarm.net.runspec import RunSpec
@@ -28,8 +26,10 @@ from zswarm.net.runspec import RunSpec
 class Body:
     """The agent's own state: where it is, how it moves, how many control steps it took."""
 
-    position: np.ndarray
-    velocity: np.ndarray
+    x: float
+    y: float
+    vx: float = 0.0
+    vy: float = 0.0
     step: int = 0
 
 
@@ -45,19 +45,20 @@ class Sensing:
         self.counters = Counters(Rejections(f"agent {agent_id}"))
         self.alive: set[int] = set()  # ids with a liveliness token
         self.last_seq: dict[int, int] = {}
-        self.prey: np.ndarray | None = None
+        self.prey: tuple[float, float] | None = None
         self.ticks: asyncio.Queue[msg.Tick] = asyncio.Queue()
         self.pose_arrived = asyncio.Event()
-        self.obstacle_centers = np.zeros((0, 2))
-        self.obstacle_radii = np.zeros(0)
-        self.obstacle_query_at: np.ndarray | None = None
+        self.obstacles: list[tuple[float, float, float]] = []  # centre x, y and radius of each known one
+        self.obstacle_query_at: tuple[float, float] | None = None
+        self.obstacle_query: tuple[float, float, float] | None = None  # (x, y, sent at): a query in flight
+        self.final_tick = False
         self.cells: dict[tuple[int, int], object] = {}
         self.cell_since: dict[tuple[int, int], int] = {}  # step at which each cell was subscribed
 
     # --- inbound ---------------------------------------------------------------------------------------
 
-    def handle(self, item: tuple[str, str, bytes, bool]) -> None:
-        tag, key, payload, deleted = item
+    def handle(self, item: Inbound) -> None:
+        tag, key, payload, deleted, received = item
         if tag == "alive":
             who = self.keys.agent_of(key)
             if who is None:
@@ -67,7 +68,7 @@ class Sensing:
                 return
             self.alive.discard(who)
             if self.neighbours.forget(who) is not None:  # departed: forget it at once
-                self.counters.departed.setdefault(who, time.time())
+                self.counters.departed.setdefault(who, received)
             self.last_seq.pop(who, None)
             return
         self.counters.received += 1
@@ -77,11 +78,15 @@ class Sensing:
             self.counters.rejections.add(exc.reason, str(exc))
             return
         if tag == "pose" and isinstance(m, msg.Pose):
-            self._on_pose(key, m)
+            self._on_pose(key, m, received)
         elif tag == "prey" and isinstance(m, msg.Prey):
-            self.prey = np.array([m.x, m.y])
+            self.prey = (m.x, m.y)
         elif tag == "tick" and isinstance(m, msg.Tick):
+            self.final_tick = self.final_tick or m.final
             self.ticks.put_nowait(m)
+        elif tag == "obstacles" and isinstance(m, msg.Obstacles) and self.obstacle_query is not None:
+            self.obstacles = [(cx, cy, r) for (cx, cy), r in zip(m.centers, m.radii)]
+            self.obstacle_query_at, self.obstacle_query = self.obstacle_query[:2], None
         else:
             self.counters.rejections.add("kind", f"{type(m).__name__} on {tag} key")
 
@@ -103,7 +108,7 @@ class Sensing:
         return None
 
     def _distance(self, x: float, y: float) -> float:
-        return math.hypot(x - self.body.position[0], y - self.body.position[1])
+        return math.hypot(x - self.body.x, y - self.body.y)
 
     def _count_sequence(self, pose: msg.Pose) -> None:
         """Observed loss from sequence numbers: a gap of g counts g - 1 lost when the sender was within
@@ -124,13 +129,12 @@ class Sensing:
                 c.seq_received += 1
         self.last_seq[pose.id] = max(pose.seq, last or 0)
 
-    def _on_pose(self, key: str, pose: msg.Pose) -> None:
+    def _on_pose(self, key: str, pose: msg.Pose, now: float) -> None:
         if self.keys.agent_of(key) != pose.id:
             self.counters.rejections.add("schema", f"pose of {pose.id} under key {key}")
             return
         if pose.id == self.id:
             return
-        now = time.time()
         self._count_sequence(pose)
         self.counters.heard.add(pose.id)
         self.counters.add(self.counters.latency, (now - pose.stamp) * 1000.0)
@@ -147,10 +151,9 @@ class Sensing:
 
     async def refresh_obstacles(self, timeout: float = 2.0) -> bool:
         """Ask the world for the obstacles within 2R; re-ask after moving R from the last question."""
-        position = self.body.position
-        if self.obstacle_query_at is not None and np.linalg.norm(position - self.obstacle_query_at) < self.radius:
+        x, y = self.body.x, self.body.y
+        if self.obstacle_query_at is not None and math.dist((x, y), self.obstacle_query_at) < self.radius:
             return True
-        x, y = map(float, position)
         try:
             replies = await self.bridge.get(self.keys.obstacle_query(x, y, 2.0 * self.radius), timeout)
         except Exception:
@@ -162,16 +165,35 @@ class Sensing:
                 self.counters.rejections.add(exc.reason, str(exc))
                 continue
             if isinstance(m, msg.Obstacles):
-                self.obstacle_centers = np.array(m.centers, dtype=float).reshape(-1, 2)
-                self.obstacle_radii = np.array(m.radii, dtype=float)
-                self.obstacle_query_at = position.copy()
+                self.obstacles = [(cx, cy, r) for (cx, cy), r in zip(m.centers, m.radii)]
+                self.obstacle_query_at = (x, y)
                 return True
         self.counters.obstacle_queries_failed += 1
         return False  # keep what it knew (world away)
 
-    async def update_cells(self) -> None:
-        """Subscribe to the cells the sensing disc overlaps; ask new cells for their agents at once."""
-        x, y = map(float, self.body.position)
+    def request_obstacles(self, now: float, timeout: float = 2.0) -> None:
+        """Without an event loop: ask the world for the obstacles within 2R when it has moved R from
+        the last answer (or has none); the answer is taken in with the next samples. An unanswered
+        query counts as failed after ``timeout`` seconds and is asked again."""
+        x, y = self.body.x, self.body.y
+        if self.obstacle_query is not None:
+            if now - self.obstacle_query[2] < timeout:
+                return
+            self.counters.obstacle_queries_failed += 1
+            self.obstacle_query = None
+        if self.obstacle_query_at is not None and math.dist((x, y), self.obstacle_query_at) < self.radius:
+            return
+        self.obstacle_query = (x, y, now)
+        self.bridge.get_into_inbox(self.keys.obstacle_query(x, y, 2.0 * self.radius), "obstacles", timeout)
+
+    def follow_cells(self) -> None:
+        """Without an event loop: :meth:`update_cells`, the new cells' answers taken in later."""
+        for cell in self._move_cells():
+            self.bridge.get_into_inbox(self.keys.cell_poses(cell), "pose", 1.0)
+
+    def _move_cells(self) -> list[tuple[int, int]]:
+        """Subscribe to the cells the sensing disc overlaps, leave the others; returns the new ones."""
+        x, y = self.body.x, self.body.y
         wanted = cells_in_disc(self.keys, x, y, self.subscription_radius)
         for cell in [c for c in self.cells if c not in wanted]:
             self.cells.pop(cell).undeclare()
@@ -180,11 +202,15 @@ class Sensing:
         for cell in new:
             self.cells[cell] = self.bridge.subscribe(self.keys.cell_poses(cell), "pose")
             self.cell_since[cell] = self.body.step
-        for cell in new:
-            for key, payload in await self.bridge.get(self.keys.cell_poses(cell), timeout=1.0):
-                self.handle(("pose", key, payload, False))
+        return new
 
-    def neighbour_positions(self, step: int | None, staleness: float) -> np.ndarray:
+    async def update_cells(self) -> None:
+        """Subscribe to the cells the sensing disc overlaps; ask new cells for their agents at once."""
+        for cell in self._move_cells():
+            for key, payload in await self.bridge.get(self.keys.cell_poses(cell), timeout=1.0):
+                self.handle(("pose", key, payload, False, time.time()))
+
+    def neighbour_positions(self, step: int | None, staleness: float) -> list[tuple[float, float]]:
         """Positions of the neighbours it may use now: step-k poses (lockstep) or fresh ones (free:
         received within ``staleness`` seconds), of agents that hold a liveliness token.
 
@@ -201,7 +227,7 @@ class Sensing:
             if self._distance(pose.x, pose.y) <= self.radius:
                 self.counters.add(self.counters.ages, (now - pose.stamp) * 1000.0)
             out.append((pose.x, pose.y))
-        return np.array(out, dtype=float).reshape(-1, 2)
+        return out
 
     async def await_step_poses(self, step: int, wait: float) -> None:
         """Make sure it has the step pose of every agent that can be within its radius now.
@@ -229,5 +255,6 @@ class Sensing:
             cells |= cells_in_disc(self.keys, nb.latest.x, nb.latest.y, 2.0 * self.v_max * self.dt)
         replies = await asyncio.gather(*(self.bridge.get(f"{self.keys.cell_poses(c)}?step={step}", timeout=1.0)
                                          for c in cells))
+        now = time.time()
         for key, payload in (r for batch in replies for r in batch):
-            self.handle(("pose", key, payload, False))
+            self.handle(("pose", key, payload, False, now))

@@ -120,11 +120,13 @@ def test_the_check_catches_an_import_against_the_layers(tmp_path, where, line):
     assert violations([(module, ROOT / where)]) == []
 
 
-def test_an_agent_process_does_not_import_rerun():
-    """The agent program's imports stay lean (the scale work depends on it)."""
+@pytest.mark.parametrize("modules", ["agents.main, agents.agent, agents.free", "world.main, world.world"])
+def test_the_processes_do_not_import_rerun_until_they_record(modules):
+    """The agent never imports Rerun, the world only when it records (a 100-agent swarm cannot carry
+    tens of megabytes of it per process)."""
     import subprocess
 
-    code = ("import sys, agents.main, agents.agent; "
+    code = (f"import sys, {modules}; "
             "print(sorted(m for m in sys.modules if m.split('.')[0] in ('rerun', 'pyarrow')))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, cwd=ROOT)
     assert out.returncode == 0, out.stderr

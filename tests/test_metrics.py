@@ -62,3 +62,12 @@ def test_summary_counts_collision_onsets_and_capture():
     out = s.result()
     assert out["collisions"] == 3  # (0,1) at 0.1, again at 0.4, and (2,3) at 0.4
     assert out["capture_time"] == 0.1 and out["max_lag_after_capture"] == 0.6
+
+
+def test_a_summary_of_no_steps_has_no_values_and_does_not_fail():
+    """A world whose agents never came observes nothing: its summary says so instead of crashing."""
+    from zswarm.model.metrics import SUMMARY_KEYS
+
+    empty = Summary(capture_radius=0.5, epsilon=1.0).result()
+    assert empty["steps_observed"] == 0 and empty["capture_time"] is None and empty["collisions"] == 0
+    assert set(SUMMARY_KEYS) <= set(empty)

@@ -44,6 +44,8 @@ CASES = [
     ([LAUNCH, "--agents", "0"], "--agents must be"),
     ([LAUNCH, "--role", "agents"], "--connect"),
     ([LAUNCH, "--ids", "x-y"], "--ids"),
+    ([LAUNCH, "--routers", "0"], "--routers must be between 1 and 64"),
+    ([LAUNCH, "--routers", "2", "--role", "agents", "--connect", "tcp/127.0.0.1:1"], "give the router role"),
     ([LAUNCH, "--scenario", "nope"], "unknown scenario"),
     ([LAUNCH, "--scenario", "{junk}.toml"], "scenario"),
     ([LAUNCH, "--dropout", "2"], "dropout must be in [0, 1)"),

@@ -16,7 +16,7 @@ from world.world import World
 from zswarm.args import Parser, UsageError, run_main
 from zswarm.files import check_writable
 from zswarm.net import messages as msg
-from zswarm.net.bridge import Bridge, pump, teardown
+from zswarm.net.bridge import Bridge, teardown
 from zswarm.net.config import add_zenoh_args, config_from_args, open_session
 from zswarm.net.runspec import RunSpec, add_run_args, spec_from_args
 
@@ -44,10 +44,11 @@ def build_parser() -> Parser:
 async def run_world(args: argparse.Namespace, spec: RunSpec) -> dict:
     loop = asyncio.get_running_loop()
     session = open_session(config_from_args(args), what="world", retry_for=args.connect_timeout)
-    queue: asyncio.Queue = asyncio.Queue()
-    bridge = Bridge(session, loop, queue)
+    # free clock: what arrived is taken in at each world tick; lockstep: each pose wakes the loop
+    bridge = Bridge(session, loop, deliver=lambda item: None, batch=spec.clock == "free")
     recorder = WorldRecorder(args.record, args.summary, args.trajectory, spec.scenario.n_agents, spec.scenario.dt)
     world = World(spec, bridge, recorder, list(sys.argv))
+    bridge.deliver = world.handle
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, world.stop.set)
     keys = spec.keys
@@ -59,7 +60,6 @@ async def run_world(args: argparse.Namespace, spec: RunSpec) -> dict:
         declared.append(bridge.subscribe(keys.all_stats, "stats"))
         declared.append(bridge.subscribe_liveliness(keys.all_alive, "alive"))
 
-        pump_task = asyncio.ensure_future(pump(queue, world.handle))
         print(f"world: run {spec.run!r}, scenario {spec.scenario.name}, {spec.scenario.n_agents} agents, "
               f"{spec.clock} clock; waiting for the agents", flush=True)
         await world.wait_for_agents(min(args.start_timeout, 3.0) if world.resumed else args.start_timeout)
@@ -73,7 +73,7 @@ async def run_world(args: argparse.Namespace, spec: RunSpec) -> dict:
         deadline = loop.time() + 3.0  # let the agents' final stats arrive
         while loop.time() < deadline and not all(i in world.stats and world.stats[i].final for i in expected):
             await asyncio.sleep(0.05)
-        pump_task.cancel()
+            bridge.drain()
         return world.finish()
     finally:
         teardown(bridge, declared, session)

@@ -28,7 +28,7 @@ from world.report import transport_summary
 from zswarm.model import prey as prey_motion
 from zswarm.model.observer import SwarmObserver
 from zswarm.net import messages as msg
-from zswarm.net.bridge import Bridge
+from zswarm.net.bridge import Bridge, Inbound
 from zswarm.net.poses import PoseTable, Rejections
 from zswarm.net.runspec import RunSpec
 
@@ -98,8 +98,8 @@ class World:
 
     # --- what the world hears -------------------------------------------------------------------------
 
-    def handle(self, item: tuple[str, str, bytes, bool]) -> None:
-        tag, key, payload, deleted = item
+    def handle(self, item: Inbound) -> None:
+        tag, key, payload, deleted, received = item
         if tag == "alive":
             self._on_liveliness(self.keys.agent_of(key), deleted)
             return
@@ -110,7 +110,7 @@ class World:
             self.rejected.add(exc.reason, f"on {key}: {exc}")
             return
         if tag == "pose" and isinstance(m, msg.Pose):
-            reason = self.poses.accept(self.keys.agent_of(key), m, time.time())
+            reason = self.poses.accept(self.keys.agent_of(key), m, received)
             if reason is not None:
                 self.rejected.add(reason)
                 return
@@ -169,6 +169,7 @@ class World:
         alive, n = self.census.alive, self.scenario.n_agents
         while len(alive) < n and loop.time() < deadline and not self.stop.is_set():
             await asyncio.sleep(0.05)
+            self.bridge.drain()
         if len(alive) < n:
             print(f"world: {len(alive)} of {n} agents alive after {timeout:g} s; starting anyway",
                   file=sys.stderr, flush=True)
@@ -180,6 +181,7 @@ class World:
         start = next_tick - clock.t / self.spec.time_scale  # a restarted world goes on from its t
         last_print = -math.inf
         while not self.stop.is_set():
+            self.bridge.drain()  # every sample that arrived since the last tick
             live = self.poses.latest(self.census.alive)
             self.publish(self.keys.prey, msg.Prey(clock.step, time.time(), -1, *map(float, self.prey)))
             last_print = self._progress(self.observe(live), steps, progress, last_print)

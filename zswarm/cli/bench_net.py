@@ -20,6 +20,7 @@ from typing import Any
 
 from zswarm.cli.figures import figure
 from zswarm.cli.measure import CpuWindow, pss_mb, rss_mb
+from zswarm.files import check_writable
 from zswarm.model.faults import FaultModel
 from zswarm.net.procs import Child, Children, agent_argv, start_router, world_argv
 from zswarm.net.runspec import RunSpec
@@ -103,14 +104,17 @@ def run(n_agents: int, duration: float, scenario: str = "bench-field") -> dict[s
     }
 
 
-def run_floor(n_agents: int, duration: float, scenario: str = "bench-field") -> dict[str, Any]:
-    """The same traffic from N bare Zenoh processes (:mod:`zswarm.cli.floor`) over a router."""
+def run_floor(n_agents: int, duration: float, scenario: str = "bench-field", handler: str = "ring") -> dict[str, Any]:
+    """The same traffic from N bare Zenoh processes (:mod:`zswarm.cli.floor`) over a router, with a
+    bare stand-in for the world publishing the prey at the same rate."""
     spec = field_spec(n_agents, f"floor{n_agents}", duration, scenario)
     kids = Children()
     try:
         endpoint = start_router(kids)
-        floors = [kids.spawn(f"floor-{i}", ["-m", "zswarm.cli.floor", "--id", str(i), *spec.to_argv(),
-                                            "--connect", endpoint], stdout=subprocess.DEVNULL)
+        kids.spawn("floor-world", ["-m", "zswarm.cli.floor", "--prey", *spec.to_argv(), "--connect", endpoint],
+                   stdout=subprocess.DEVNULL)
+        floors = [kids.spawn(f"floor-{i}", ["-m", "zswarm.cli.floor", "--id", str(i), "--handler", handler,
+                                            *spec.to_argv(), "--connect", endpoint], stdout=subprocess.DEVNULL)
                   for i in range(n_agents)]
         window = CpuWindow({c.name: c.pid for c in kids.children})
         time.sleep(0.3 * duration + 3.0)  # every process connected and publishing
@@ -139,15 +143,52 @@ def measure(n_agents: int, duration: float, floor: bool) -> dict[str, Any]:
     r = run(n_agents, duration)
     if floor:
         r.update(run_floor(n_agents, duration))
-        a, f = r["cpu_ms_per_tick_agent"], r["cpu_ms_per_tick_floor"]
-        r["cpu_ratio_agent_to_floor"] = a / f if a is not None and f else None
+        callback = run_floor(n_agents, duration, handler="callback")
+        r["cpu_ms_per_tick_floor_callback"] = callback["cpu_ms_per_tick_floor"]
+        a = r["cpu_ms_per_tick_agent"]
+        for key, f in (("cpu_ratio_agent_to_floor", r["cpu_ms_per_tick_floor"]),
+                       ("cpu_ratio_agent_to_floor_callback", r["cpu_ms_per_tick_floor_callback"])):
+            r[key] = a / f if a is not None and f else None
     return r
 
 
-def main_bench(args) -> int:
-    from zswarm.provenance import machine
+CURVES = {"cpu ms per tick": ("cpu_ms_per_tick_agent", "cpu_ms_per_tick_floor", "cpu_ms_per_tick_floor_callback"),
+          "latency ms": ("latency_p50", "latency_p99", "age_at_use_p99"),
+          "ticks on time": ("on_time_ratio",),
+          "memory MB per process": ("pss_mb_per_agent", "rss_mb_per_agent", "pss_mb_per_floor")}
 
+
+def record_curves(results: list[dict[str, Any]], path: Path, settings: dict[str, Any]) -> None:
+    """The cost and latency curves against N (agents and floor) as a Rerun recording."""
+    import rerun as rr
+    import rerun.blueprint as rrb
+
+    from zswarm.record.recording import close_recording, open_recording
+
+    bp = rrb.Blueprint(rrb.Grid(*(rrb.TimeSeriesView(origin=f"bench/{title}", name=title) for title in CURVES)),
+                       collapse_panels=True)
+    rec = open_recording(path, "zswarm-bench-net", bp)
+    rec.log("bench/settings", rr.TextDocument(json.dumps(settings, indent=2)), static=True)
+    for r in results:
+        flat = {**r, "latency_p50": r["latency_ms"]["p50"], "latency_p99": r["latency_ms"]["p99"],
+                "age_at_use_p99": r["age_at_use_ms"]["p99"]}
+        rec.set_time("n_agents", sequence=r["n_agents"])
+        for title, names in CURVES.items():
+            for name in names:
+                if flat.get(name) is not None:
+                    rec.log(f"bench/{title}/{name}", rr.Scalars(float(flat[name])))
+    close_recording(rec)
+
+
+def main_bench(args) -> int:
+    from zswarm.provenance import machine, versions
+
+    if args.record is not None:
+        check_writable(args.record)
     results = [measure(n, args.duration, args.floor) for n in args.agents]
+    if args.record is not None:
+        record_curves(results, args.record, {"agents": args.agents, "duration_s": args.duration, "floor": args.floor,
+                                             "machine": machine(), "versions": versions()})
     if args.json:
         print(json.dumps(results[0] if len(results) == 1 else {"runs": results, "machine": machine()}))
         return 0
@@ -160,8 +201,10 @@ def main_bench(args) -> int:
               f"router {figure(r['cpu_share_router'], '.1%')}; agent RSS {figure(r['rss_mb_per_agent'], '.1f')} MB, "
               f"PSS {figure(r['pss_mb_per_agent'], '.1f')} MB; world late ticks {r['world_late_ticks']}/{r['world_ticks']}")
         if "cpu_ms_per_tick_floor" in r:
-            print(f"        floor CPU {figure(r['cpu_ms_per_tick_floor'], '.2f')} ms/tick "
-                  f"(agent/floor {figure(r['cpu_ratio_agent_to_floor'], '.2f')}x), router "
+            print(f"        floor CPU {figure(r['cpu_ms_per_tick_floor'], '.2f')} ms/tick with a ring channel "
+                  f"(agent/floor {figure(r['cpu_ratio_agent_to_floor'], '.2f')}x), "
+                  f"{figure(r['cpu_ms_per_tick_floor_callback'], '.2f')} ms/tick with a callback per sample "
+                  f"(agent/floor {figure(r['cpu_ratio_agent_to_floor_callback'], '.2f')}x); router "
                   f"{figure(r['cpu_share_router_floor'], '.1%')}; floor PSS {figure(r['pss_mb_per_floor'], '.1f')} MB, "
                   f"RSS {figure(r['rss_mb_per_floor'], '.1f')} MB; {r['floor_alive']}/{r['n_agents']} alive")
     print(f"machine: {machine()}")

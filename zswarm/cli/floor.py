@@ -2,9 +2,11 @@
 
 The floor of ``zswarm bench net --floor``: what the middleware alone costs for one agent's traffic.
 Like agent ``--id`` of the same run, it holds a liveliness token, subscribes to the cells within
-R + 2 v_max dt of the agent's spawn position, and publishes a real pose message (msgpack, about 60
-bytes) into its cell at the agent's rate through a declared publisher. It decodes nothing, runs no
-control law and no event loop: samples wait in a ring channel that is emptied once per tick.
+R + 2 v_max dt of the agent's spawn position and to the prey, and publishes a real pose message
+(msgpack, about 76 bytes) into its cell at the agent's rate through a declared publisher. It decodes
+nothing, runs no control law and no event loop: samples wait in a ring channel emptied once per tick
+(``--handler callback``: a Python callback appends each to a list, as an agent's inbox does).
+``--prey`` makes it the world's stand-in instead: it only publishes the prey at the same rate.
 """
 
 from __future__ import annotations
@@ -26,7 +28,10 @@ from zswarm.net.runspec import add_run_args, spec_from_args
 
 def build_parser() -> Parser:
     parser = Parser(prog="zswarm.cli.floor", description="A bare Zenoh process with one agent's traffic.")
-    parser.add_argument("--id", type=int, required=True, help="the agent whose traffic it carries")
+    parser.add_argument("--id", type=int, default=0, help="the agent whose traffic it carries")
+    parser.add_argument("--handler", choices=("ring", "callback", "direct"), default="ring",
+                        help="how samples reach Python (default ring: a channel drained once per tick)")
+    parser.add_argument("--prey", action="store_true", help="publish the prey at the agents' rate, nothing else")
     add_run_args(parser)
     add_zenoh_args(parser)
     return parser
@@ -43,22 +48,39 @@ def run_floor(args: argparse.Namespace) -> int:
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.append(True))
     session = open_session(config_from_args(args), what=f"floor {args.id}", retry_for=args.connect_timeout)
+    inbox: list = []
+
+    def handler():
+        if args.handler == "ring":
+            return zenoh.handlers.RingChannel(256)
+        append = lambda sample: inbox.append((str(sample.key_expr), sample.payload.to_bytes(), time.time()))  # noqa: E731
+        return zenoh.handlers.Callback(append, indirect=args.handler == "callback")
     try:
-        token = session.liveliness().declare_token(keys.alive(args.id))
-        subs = [session.declare_subscriber(keys.cell_poses(c), zenoh.handlers.RingChannel(256))
-                for c in cells_in_disc(keys, x, y, reach)]
-        publisher = session.declare_publisher(keys.pose(keys.cell(x, y), args.id))
+        if args.prey:
+            declared = [session.declare_publisher(keys.prey)]
+            message = lambda seq: msg.encode(msg.Prey(seq, time.time(), -1, 1000.0, 0.0))  # noqa: E731
+        else:
+            declared = [session.liveliness().declare_token(keys.alive(args.id)),
+                        session.declare_subscriber(keys.prey, handler()),
+                        *(session.declare_subscriber(keys.cell_poses(c), handler())
+                          for c in cells_in_disc(keys, x, y, reach)),
+                        session.declare_publisher(keys.pose(keys.cell(x, y), args.id))]
+            message = lambda seq: msg.encode(msg.Pose(args.id, seq, time.time(), -1, x, y, 0.0, 0.0))  # noqa: E731
+        subs = [d for d in declared if hasattr(d, "try_recv") and args.handler == "ring"]
+        publisher = declared[-1] if not args.prey else declared[0]
         seq, received = 0, 0
         next_tick = time.monotonic()
         while not stop:
             for sub in subs:
                 while sub.try_recv() is not None:
                     received += 1
+            received += len(inbox)
+            inbox.clear()
             seq += 1
-            publisher.put(msg.encode(msg.Pose(args.id, seq, time.time(), -1, x, y, 0.0, 0.0)))
+            publisher.put(message(seq))
             next_tick += spec.period
             time.sleep(max(next_tick - time.monotonic(), 0.0))
-        for d in (publisher, *subs, token):
+        for d in reversed(declared):
             d.undeclare()
     finally:
         session.close()

@@ -63,6 +63,10 @@ def build_parser(prog: str = "zswarm run") -> Parser:
                    help="router to join when this machine runs no router, e.g. tcp/10.0.0.1:7447")
     p.add_argument("--listen", default=None, metavar="ENDPOINT",
                    help="router endpoint (default tcp/127.0.0.1:FREE_PORT)")
+    p.add_argument("--routers", type=int, default=1, metavar="K",
+                   help="run K routers meshed together (the 2nd..Kth join the first) and spread the agents "
+                        "over them, agent i on router i mod K (default 1). With --role router and --connect, "
+                        "this machine's router joins the router at --connect")
     p.add_argument("--ids", type=parse_ids, default=None, help="agent ids this machine runs, e.g. 10-19")
     p.add_argument("--secure", type=Path, default=None, metavar="DIR",
                    help="TLS with access control: use the certificates and configs in DIR ('zswarm certs DIR'; "
@@ -101,6 +105,7 @@ class Plan:
 
     spec: RunSpec
     roles: tuple[str, ...]
+    routers: int
     ids: tuple[int, ...]  # the agents this machine runs
     record: Path
     summary: Path
@@ -142,12 +147,19 @@ def plan_from_args(args: argparse.Namespace) -> Plan:
             from zswarm.net.config import zenoh_config
 
             zenoh_config(None, config=path)  # a missing or unreadable file fails here, not in a child
+    if not 1 <= args.routers <= 64:
+        raise UsageError(f"--routers must be between 1 and 64 (got {args.routers})")
+    if args.routers > 1 and "router" not in args.role:
+        raise UsageError("--routers K starts K routers: give the router role too (or leave --role alone)")
+    if args.routers > 1 and args.secure is not None:
+        raise UsageError("--routers K with --secure is not supported yet: run one secure router, or several "
+                         "without --secure")
     if args.restart_after is not None and not args.restart_after >= 0:
         raise UsageError(f"--restart-after must be >= 0 (got {args.restart_after})")
     ids = tuple(args.ids if args.ids is not None else range(n))
     if args.secure is not None:
         _check_secure_dir(args.secure, ids if "agents" in args.role else ())
-    return Plan(spec=spec, roles=tuple(args.role), ids=ids, record=args.record,
+    return Plan(spec=spec, roles=tuple(args.role), routers=args.routers, ids=ids, record=args.record,
                 summary=args.summary or args.record.with_suffix(".json"), trajectory=args.trajectory,
                 connect=args.connect, listen=args.listen, secure=args.secure, config=args.config,
                 router_config=args.router_config, quiet=args.quiet, kill=args.kill, restart_after=args.restart_after,

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 from typing import Sequence
 
 from zswarm.args import Parser, positive_float, positive_int, run_main, seed_arg
@@ -52,6 +53,8 @@ def build_parser() -> Parser:
     bn.add_argument("--floor", action="store_true",
                     help="also run N bare Zenoh processes with the same traffic and report the agents' CPU "
                          "as a ratio to theirs")
+    bn.add_argument("--record", type=Path, default=None, metavar="FILE.rrd",
+                    help="also write the curves (cost and latency against N) as a Rerun recording")
     bn.add_argument("--json", action="store_true")
     bn.set_defaults(run=bench_net.main_bench)
     so = bench_sub.add_parser("soak", help="a long run under loss: memory flat? backlog growing?",

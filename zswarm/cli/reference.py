@@ -29,9 +29,11 @@ def reference_comparison(result: dict[str, Any], spec: RunSpec) -> dict[str, Any
                              for k in COMPARED}}
 
 
-def add_reference(summary_path: Path, spec: RunSpec) -> dict[str, Any]:
-    """Add the reference comparison to the summary file (rewritten whole); returns the summary."""
+def add_reference(summary_path: Path, spec: RunSpec, extra: dict[str, Any] | None = None) -> dict[str, Any]:
+    """Add the reference comparison (and ``extra``, what the launcher knows: the routers and which
+    agent used which) to the summary file, rewritten whole; returns the summary."""
     result = json.loads(Path(summary_path).read_text())
     result.update(reference_comparison(result, spec))
+    result.update(extra or {})
     write_json(Path(summary_path), result)
     return result

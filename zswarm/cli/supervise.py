@@ -41,7 +41,8 @@ class Launch:
         self.world_started = threading.Event()  # the current world's clock is running
         self.world_down = False  # killed, and a replacement is scheduled
         self.started_at = time.time()
-        self.endpoint = plan.connect
+        self.endpoint = plan.connect  # the first router's: the world's, and agent i's on router i mod K
+        self.endpoints: list[str] = []
         self.configs: dict[str, list[str]] = {}
         self.pending: list[Event] = schedule(plan.kill, plan.restart_after, plan.world_outage, plan.world_crash)
         self.rng = np.random.default_rng([self.spec.seed, 0xC0FFEE])
@@ -80,20 +81,28 @@ class Launch:
 
     def _start(self) -> None:
         plan = self.plan
+        self.endpoints = [self.endpoint]
         if "router" in plan.roles:
-            router = self.kids.spawn("router", ["-m", ROUTER_MODULE, "--listen", self.endpoint,
-                                                *self.configs.get("router", [])], stdout=subprocess.DEVNULL)
-            host, port = endpoint_host_port(self.endpoint)
-            if not wait_for_port(_local(host), port, 10.0, router):
-                raise UsageError(f"the router did not start on {self.endpoint} (port taken? address not local?)")
+            proto = self.endpoint.split("/", 1)[0]
+            self.endpoints += [f"{proto}/127.0.0.1:{free_port()}" for _ in range(plan.routers - 1)]
+            for k, endpoint in enumerate(self.endpoints):
+                joins = self.endpoints[0] if k > 0 else plan.connect  # the others join the first
+                router = self.kids.spawn("router" if k == 0 else f"router-{k}",
+                                         ["-m", ROUTER_MODULE, "--listen", endpoint,
+                                          *(["--connect", joins] if joins else []), *self.configs.get("router", [])],
+                                         stdout=subprocess.DEVNULL)
+                host, port = endpoint_host_port(endpoint)
+                if not wait_for_port(_local(host), port, 10.0, router):
+                    raise UsageError(f"the router did not start on {endpoint} (port taken? address not local?)")
         if "world" in plan.roles:
             self._spawn_world(resume=False)
         if "agents" in plan.roles:
             for i in plan.ids:
                 self._spawn_agent(i)
         if not plan.quiet:
-            _say(f"run {self.spec.run!r}, {len(self.kids.named('agent'))} agent processes, router {self.endpoint}",
-                 err=False)
+            routers = f"router {self.endpoint}" if len(self.endpoints) == 1 else \
+                f"{len(self.endpoints)} routers {', '.join(self.endpoints)}"
+            _say(f"run {self.spec.run!r}, {len(self.kids.named('agent'))} agent processes, {routers}", err=False)
 
     def _zenoh_configs(self) -> dict[str, list[str]]:
         """``--config`` arguments by role: --config/--router-config as given, or --secure DIR's files
@@ -122,8 +131,12 @@ class Launch:
 
         return ["--config", str(agent_config(self.plan.secure, agent))]
 
+    def router_of(self, agent: int) -> int:
+        return agent % len(self.endpoints)
+
     def _spawn_agent(self, agent: int) -> None:
-        self.kids.spawn(f"agent-{agent}", agent_argv(self.spec, agent, self.endpoint, *self._agent_config(agent)),
+        endpoint = self.endpoints[self.router_of(agent)]
+        self.kids.spawn(f"agent-{agent}", agent_argv(self.spec, agent, endpoint, *self._agent_config(agent)),
                         stdout=subprocess.DEVNULL)
 
     def _spawn_world(self, resume: bool) -> None:
@@ -165,9 +178,9 @@ class Launch:
             if self.world is None and "agents" in self.plan.roles and not any(
                     c.alive() for c in self.kids.named("agent")):
                 return 0
-            router = self.kids.named("router")
-            if router and not router[0].alive():
-                _say("the router died; stopping the run")
+            dead = [c.name for c in self.kids.named("router") if not c.alive()]
+            if dead:
+                _say(f"the router died ({', '.join(dead)}); stopping the run")
                 self.kids.stop_all()
                 self._finish_recording(None)
                 return 1
@@ -233,7 +246,9 @@ class Launch:
         if fresh and world.proc.returncode == 0:
             from zswarm.cli.reference import add_reference
 
-            add_reference(plan.summary, self.spec)
+            add_reference(plan.summary, self.spec, {
+                "routers": self.endpoints,
+                "agent_router": {str(i): self.router_of(i) for i in plan.ids} if "agents" in plan.roles else {}})
         elif world.proc.returncode != 2 and plan.record.exists():
             from zswarm.record.salvage import salvage_summary
 

@@ -152,6 +152,10 @@ class Summary:
         return self.times[int(hit[0])] if len(hit) else None
 
     def result(self) -> dict[str, Any]:
+        """The summary keys; a run that observed no step (no agent ever showed up) has no values."""
+        if not self.times:
+            return {**{k: None for k in SUMMARY_KEYS}, "collisions": 0, "obstacle_collisions": 0,
+                    "epsilon": _num(self.epsilon), "steps_observed": 0}
         s = {k: np.asarray(v, dtype=float) for k, v in self.series.items()}
         capture = self.capture_time()
         comps = s["components"]
@@ -181,7 +185,14 @@ class Summary:
             "final_spacing_error": _num(s["spacing_error"][-1]),
             "final_order": _num(s["order"][-1]),
             "final_energy": _num(s["energy"][-1]),
+            "steps_observed": len(self.times),
         }
+
+
+SUMMARY_KEYS = ("final_mean_goal_distance", "final_centroid_goal_distance", "capture_time", "max_lag_after_capture",
+                "min_pair_distance", "collisions", "min_obstacle_clearance", "obstacle_collisions", "max_components",
+                "max_components_after_joined", "final_components", "max_cohesion", "final_cohesion", "epsilon",
+                "final_union", "final_algebraic_connectivity", "final_spacing_error", "final_order", "final_energy")
 
 
 def _num(x: float) -> float | None:

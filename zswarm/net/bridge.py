@@ -8,43 +8,79 @@ blocking ``get`` calls run in the loop's executor.
 from __future__ import annotations
 
 import asyncio
+import time
+from collections import deque
 from typing import Any, Callable
 
 import zenoh
 
 from zswarm.net.keys import parse_parameters
 
-Inbound = tuple[str, str, bytes, bool]  # (tag, key, payload, is_delete)
+Inbound = tuple[str, str, bytes, bool, float]  # (tag, key, payload, is_delete, local wall time of receipt)
 Deliver = Callable[[Inbound], None]
 
 
 class Bridge:
-    """Zenoh callbacks -> one asyncio queue; blocking calls -> the executor.
+    """Zenoh callbacks -> ``deliver`` on the event loop's thread; blocking calls -> the executor.
 
-    ``deliver`` (optional) replaces the direct hand-over; the fault injector uses it to delay or drop
-    each inbound message on the event loop's thread.
+    Two ways in, chosen per bridge:
+
+    - ``batch=False`` (the world, a lockstep agent): each sample is handed to the loop at once with
+      ``loop.call_soon_threadsafe``, which wakes it;
+    - ``batch=True`` (a free-running agent): the callback only appends the sample to an inbox, and the
+      owner empties it with :meth:`drain` once per control tick. The loop is not woken per sample.
+
+    Either way every sample carries the wall time it arrived (the latency figures stay transport
+    latency). ``deliver`` may be replaced (the fault injector delays or drops samples there).
     """
 
-    def __init__(self, session: zenoh.Session, loop: asyncio.AbstractEventLoop,
-                 queue: asyncio.Queue, deliver: Deliver | None = None) -> None:
+    def __init__(self, session: zenoh.Session, loop: asyncio.AbstractEventLoop, deliver: Deliver,
+                 batch: bool = False) -> None:
         self.session = session
         self.loop = loop
-        self.queue = queue
-        self.deliver: Deliver = deliver or queue.put_nowait
+        self.deliver: Deliver = deliver
+        self.batch = batch
+        self.inbox: deque[Inbound] = deque()
+        self.in_flight = 0  # handed to the loop, not yet delivered (wake mode)
         self.reply_filter: Callable[[list[tuple[str, bytes]]], Any] | None = None
         self.closed = False
 
-    def _hand_over(self, tag: str):
-        def callback(sample: Any) -> None:
+    def _hand_over(self, tag: str) -> Callable[[Any], None]:
+        delete = zenoh.SampleKind.DELETE
+        append, now = self.inbox.append, time.time
+
+        def to_inbox(sample: Any) -> None:
+            if not self.closed:
+                append((tag, str(sample.key_expr), sample.payload.to_bytes(), sample.kind == delete, now()))
+
+        def to_loop(sample: Any) -> None:
             if self.closed:
                 return
-            item = (tag, str(sample.key_expr), sample.payload.to_bytes(),
-                    sample.kind == zenoh.SampleKind.DELETE)
+            item = (tag, str(sample.key_expr), sample.payload.to_bytes(), sample.kind == delete, now())
+            self.in_flight += 1
             try:
-                self.loop.call_soon_threadsafe(self.deliver, item)
+                self.loop.call_soon_threadsafe(self._deliver_one, item)
             except RuntimeError:  # loop closed during shutdown
                 pass
-        return callback
+        return to_inbox if self.batch else to_loop
+
+    def _deliver_one(self, item: Inbound) -> None:
+        self.in_flight -= 1
+        self.deliver(item)
+
+    @property
+    def pending(self) -> int:
+        """Samples received and not yet delivered: the inbound backlog."""
+        return len(self.inbox) + self.in_flight
+
+    def drain(self) -> int:
+        """Deliver every sample in the inbox (batch mode), oldest first; returns how many."""
+        n = 0
+        inbox, deliver = self.inbox, self.deliver
+        while inbox:
+            deliver(inbox.popleft())
+            n += 1
+        return n
 
     def subscribe(self, key: str, tag: str) -> Any:
         return self.session.declare_subscriber(key, self._hand_over(tag))
@@ -74,14 +110,18 @@ class Bridge:
             replies = await self.reply_filter(replies)
         return replies
 
+    def get_into_inbox(self, selector: str, tag: str, timeout: float) -> None:
+        """Send a query and return at once; each reply lands in the inbox as a ``tag`` sample (batch
+        mode), to be taken in at a later tick like any other sample."""
+        append, now = self.inbox.append, time.time
+
+        def on_reply(reply: Any) -> None:
+            if not self.closed and reply.ok is not None:
+                append((tag, str(reply.ok.key_expr), reply.ok.payload.to_bytes(), False, now()))
+        self.session.get(selector, on_reply, timeout=timeout)
+
     def close(self) -> None:
         self.closed = True
-
-
-async def pump(queue: asyncio.Queue, handle: Callable[[Inbound], None]) -> None:
-    """Hand every inbound message to ``handle`` on the event loop, forever (cancel to stop)."""
-    while True:
-        handle(await queue.get())
 
 
 def teardown(bridge: Bridge, declared: list[Any], session: zenoh.Session) -> None:

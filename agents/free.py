@@ -1,0 +1,68 @@
+"""The free clock without an event loop: one agent's whole life is a plain loop at 1/period.
+
+Every tick it takes in what arrived since the last one (samples wait in the bridge's inbox, stamped
+with the time they arrived, and pass the fault injector there), asks for what it lacks without
+waiting for the answer (obstacles, the poses of cells it just entered: the replies join the inbox),
+steps its control law and publishes its pose. Nothing wakes the process between ticks but Zenoh's own
+threads filling the inbox: this is what keeps an agent close to the middleware's own cost.
+
+A late tick is counted and the schedule moves on (never a backlog of ticks). The run ends on the
+world's final tick or when ``stopped()`` says so (SIGINT, SIGTERM).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Callable
+
+from agents.agent import STATS_PERIOD, Agent
+from zswarm.net.injector import FaultInjector
+
+
+def take_in(agent: Agent, injector: FaultInjector | None) -> None:
+    """Everything that arrived (and, under injected delay, fell due) since the last call."""
+    agent.bridge.drain()
+    if injector is not None:
+        injector.release(time.time())
+
+
+def wait_for_world(agent: Agent, injector: FaultInjector | None, timeout: float,
+                   stopped: Callable[[], bool]) -> bool:
+    """Until the world has answered the first obstacle query (it is there), then enter the cells;
+    False if it did not answer within ``timeout`` seconds or the agent was stopped."""
+    s = agent.sensing
+    deadline = time.monotonic() + timeout
+    while s.obstacle_query_at is None:
+        if stopped() or time.monotonic() > deadline:
+            return False
+        s.request_obstacles(time.time(), timeout=1.0)
+        time.sleep(0.05)
+        take_in(agent, injector)
+    s.follow_cells()
+    return True
+
+
+def run_free(agent: Agent, injector: FaultInjector | None, stopped: Callable[[], bool]) -> None:
+    period = agent.spec.period
+    s, c, bridge = agent.sensing, agent.counters, agent.bridge
+    stats_every = max(int(round(STATS_PERIOD / period)), 1)
+    next_tick = time.monotonic()
+    while not stopped() and not s.final_tick:
+        now = time.monotonic()
+        c.window_queue_max = max(c.window_queue_max, bridge.pending)
+        c.window_lag_ms = max(c.window_lag_ms, 1000.0 * (now - next_tick))
+        if now - next_tick > 0.5 * period:
+            c.late_ticks += 1
+            next_tick = max(next_tick, now)  # skip, never queue up a backlog
+        c.ticks += 1
+        take_in(agent, injector)
+        s.request_obstacles(time.time())
+        if s.prey is not None:
+            agent.move(s.prey, s.neighbour_positions(None, agent.staleness))
+        agent.body.step += 1
+        s.follow_cells()
+        agent.publish_pose(-1)
+        if c.ticks % stats_every == 0:
+            agent.publish_stats_now()
+        next_tick += period
+        time.sleep(max(next_tick - time.monotonic(), 0.0))
