@@ -44,8 +44,9 @@ def build_parser() -> Parser:
 async def run_world(args: argparse.Namespace, spec: RunSpec) -> dict:
     loop = asyncio.get_running_loop()
     session = open_session(config_from_args(args), what="world", retry_for=args.connect_timeout)
-    # free clock: what arrived is taken in at each world tick; lockstep: each pose wakes the loop
-    bridge = Bridge(session, loop, deliver=lambda item: None, batch=spec.clock == "free")
+    # free clock: what arrived waits in channels taken out at each world tick; lockstep: each pose wakes
+    # the loop (the world waits for the poses of a step)
+    bridge = Bridge(session, loop, deliver=lambda item: None, channels=spec.clock == "free")
     recorder = WorldRecorder(args.record, args.summary, args.trajectory, spec.scenario.n_agents, spec.scenario.dt)
     world = World(spec, bridge, recorder, list(sys.argv))
     bridge.deliver = world.handle
@@ -56,9 +57,9 @@ async def run_world(args: argparse.Namespace, spec: RunSpec) -> dict:
     try:
         world.open(args.resume)
         declared.append(bridge.queryable(keys.obstacles, world.obstacles.answer))
+        declared.append(bridge.subscribe_liveliness(keys.all_alive, "alive"))  # drained first: who is alive
         declared.append(bridge.subscribe(keys.all_poses, "pose"))
         declared.append(bridge.subscribe(keys.all_stats, "stats"))
-        declared.append(bridge.subscribe_liveliness(keys.all_alive, "alive"))
 
         print(f"world: run {spec.run!r}, scenario {spec.scenario.name}, {spec.scenario.n_agents} agents, "
               f"{spec.clock} clock; waiting for the agents", flush=True)
@@ -71,7 +72,7 @@ async def run_world(args: argparse.Namespace, spec: RunSpec) -> dict:
         expected = set(world.census.alive)
         world.publish(keys.tick, msg.Tick(world.clock.step + 1, time.time(), *map(float, world.prey), final=True))
         deadline = loop.time() + 3.0  # let the agents' final stats arrive
-        while loop.time() < deadline and not all(i in world.stats and world.stats[i].final for i in expected):
+        while loop.time() < deadline and not all(world.stats.final(i) for i in expected):
             await asyncio.sleep(0.05)
             bridge.drain()
         return world.finish()

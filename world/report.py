@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Callable
 
 from zswarm.net import messages as msg
+from zswarm.net.poses import Rejections
 
 
 def _ratio(a: float, b: float) -> float | None:
@@ -39,3 +40,49 @@ def transport_summary(stats: list[msg.Stats], world_rejected: dict[str, int]) ->
         "neighbour_departures": {str(s.id): {str(k): v for k, v in (s.departed or {}).items()} for s in stats},
         "neighbour_returns": {str(s.id): {str(k): v for k, v in (s.returned or {}).items()} for s in stats},
     }
+
+
+class StatsBook:
+    """The agents' stats messages, kept raw and decoded only when read.
+
+    Every agent re-sends its cumulative counters and histograms once a second; decoding and
+    validating each on arrival cost a 100-agent world more than all the poses it observes. Only the
+    latest message of each agent matters: it is decoded when read (the end-of-run wait, the summary),
+    and a message that does not decode is counted as rejected and the agent's last good one kept.
+    """
+
+    def __init__(self, agent_of: Callable[[str], int | None], rejected: Rejections) -> None:
+        self.agent_of, self.rejected = agent_of, rejected
+        self.raw: dict[int, tuple[str, bytes]] = {}
+        self.good: dict[int, msg.Stats] = {}
+
+    def add(self, key: str, payload: bytes) -> None:
+        who = self.agent_of(key)
+        if who is None:
+            self.rejected.add("kind")
+        elif len(payload) > msg.MAX_PAYLOAD:
+            self.rejected.add("size", f"on {key}: {len(payload)} bytes")
+        else:
+            self.raw[who] = (key, payload)
+
+    def get(self, who: int) -> msg.Stats | None:
+        pending = self.raw.pop(who, None)
+        if pending is not None:
+            key, payload = pending
+            try:
+                m = msg.decode(payload)
+            except msg.DecodeError as exc:
+                self.rejected.add(exc.reason, f"on {key}: {exc}")
+            else:
+                if isinstance(m, msg.Stats) and m.id == who:
+                    self.good[who] = m
+                else:
+                    self.rejected.add("kind")
+        return self.good.get(who)
+
+    def final(self, who: int) -> bool:
+        s = self.get(who)
+        return s is not None and s.final
+
+    def all(self) -> list[msg.Stats]:
+        return [s for s in (self.get(w) for w in sorted({*self.raw, *self.good})) if s is not None]

@@ -24,7 +24,7 @@ import numpy as np
 
 from world.obstacles import ObstacleService
 from world.recorder import Resumed, WorldRecorder
-from world.report import transport_summary
+from world.report import StatsBook, transport_summary
 from zswarm.model import prey as prey_motion
 from zswarm.model.observer import SwarmObserver
 from zswarm.net import messages as msg
@@ -65,7 +65,7 @@ class World:
         self.rejected = Rejections("world", self._event)
         self.census = Census()
         self.clock = Clock()
-        self.stats: dict[int, msg.Stats] = {}
+        self.stats = StatsBook(self.keys.agent_of, self.rejected)
         self.prey = np.array(self.scenario.prey_start, dtype=float)
         self.received = self.sent = 0
         self.pose_arrived = asyncio.Event()
@@ -104,6 +104,9 @@ class World:
             self._on_liveliness(self.keys.agent_of(key), deleted)
             return
         self.received += 1
+        if tag == "stats":
+            self.stats.add(key, payload)
+            return
         try:
             m = msg.decode(payload)
         except msg.DecodeError as exc:
@@ -115,8 +118,6 @@ class World:
                 self.rejected.add(reason)
                 return
             self.pose_arrived.set()
-        elif tag == "stats" and isinstance(m, msg.Stats) and self.keys.agent_of(key) == m.id:
-            self.stats[m.id] = m
         else:
             self.rejected.add("kind")
 
@@ -245,7 +246,7 @@ class World:
         result = {"scenario": self.scenario.name, "n_agents": self.scenario.n_agents, "seed": s.seed,
                   "potential": s.combination, "duration": c.t, "steps": c.step, "dt": self.scenario.dt,
                   **self.observer.summary.result(), "clock": s.clock, "run": s.run,
-                  **transport_summary(list(self.stats.values()), self.rejected.counts)}
+                  **transport_summary(self.stats.all(), self.rejected.counts)}
         result["messages_sent"] += self.sent
         result["messages_received"] += self.received
         result.update({"startup_s": self.census.all_alive_after, "departures": self.census.departures,

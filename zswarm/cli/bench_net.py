@@ -22,7 +22,7 @@ from zswarm.cli.figures import figure
 from zswarm.cli.measure import CpuWindow, pss_mb, rss_mb
 from zswarm.files import check_writable
 from zswarm.model.faults import FaultModel
-from zswarm.net.procs import Child, Children, agent_argv, start_router, world_argv
+from zswarm.net.procs import Child, Children, Fleet, agent_argv, start_router, world_argv
 from zswarm.net.runspec import RunSpec
 
 
@@ -35,13 +35,14 @@ def field_spec(n_agents: int, run: str, duration: float, scenario: str = "bench-
 
 def start_field(kids: Children, spec: RunSpec, summary_path: Path,
                 world_stdout: int = subprocess.DEVNULL) -> tuple[str, Child, list[Child]]:
-    """A router, the world (waiting up to 120 s for the agents) and the N agent processes of ``spec``.
-    Returns the router's endpoint, the world and the agents."""
+    """A router, the world (waiting up to 120 s for the agents) and the N agent processes of ``spec``,
+    forked from one fleet as ``zswarm run`` starts them. Returns the router's endpoint, the world and
+    the agents."""
     endpoint = start_router(kids)
     world = kids.spawn("world", world_argv(spec, endpoint, "--summary", str(summary_path), "--progress", "0",
                                            "--start-timeout", "120"), stdout=world_stdout)
-    agents = [kids.spawn(f"agent-{i}", agent_argv(spec, i, endpoint), stdout=subprocess.DEVNULL)
-              for i in range(spec.scenario.n_agents)]
+    fleet = Fleet(kids)
+    agents = [fleet.spawn(f"agent-{i}", agent_argv(spec, i, endpoint)[2:]) for i in range(spec.scenario.n_agents)]
     return endpoint, world, agents
 
 
@@ -165,8 +166,8 @@ def record_curves(results: list[dict[str, Any]], path: Path, settings: dict[str,
 
     from zswarm.record.recording import close_recording, open_recording
 
-    bp = rrb.Blueprint(rrb.Grid(*(rrb.TimeSeriesView(origin=f"bench/{title}", name=title) for title in CURVES)),
-                       collapse_panels=True)
+    bp = rrb.Blueprint(rrb.Grid(*(rrb.TimeSeriesView(origin=f"bench/{title.replace(' ', '_')}", name=title)
+                                  for title in CURVES)), collapse_panels=True)
     rec = open_recording(path, "zswarm-bench-net", bp)
     rec.log("bench/settings", rr.TextDocument(json.dumps(settings, indent=2)), static=True)
     for r in results:
@@ -176,7 +177,7 @@ def record_curves(results: list[dict[str, Any]], path: Path, settings: dict[str,
         for title, names in CURVES.items():
             for name in names:
                 if flat.get(name) is not None:
-                    rec.log(f"bench/{title}/{name}", rr.Scalars(float(flat[name])))
+                    rec.log(f"bench/{title.replace(' ', '_')}/{name}", rr.Scalars(float(flat[name])))
     close_recording(rec)
 
 

@@ -77,6 +77,9 @@ def build_parser(prog: str = "zswarm run") -> Parser:
     p.add_argument("--router-config", type=Path, default=None, metavar="FILE",
                    help="a full Zenoh configuration (json5) for the router; --listen overrides its endpoints")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.add_argument("--no-fork", dest="fork", action="store_false",
+                   help="start every agent as a fresh Python process instead of forking it from one that "
+                        "imported the agent program once (slower to start, more memory; same behaviour)")
     p.add_argument("--kill", type=parse_kill, default=None, metavar="K@T",
                    help="SIGKILL K agents, chosen with the seed, T seconds after the start")
     p.add_argument("--restart-after", type=float, default=None, metavar="S",
@@ -116,6 +119,7 @@ class Plan:
     config: Path | None
     router_config: Path | None
     quiet: bool
+    fork: bool
     kill: tuple[int, float] | None
     restart_after: float | None
     world_outage: tuple[float, float] | None
@@ -162,7 +166,7 @@ def plan_from_args(args: argparse.Namespace) -> Plan:
     return Plan(spec=spec, roles=tuple(args.role), routers=args.routers, ids=ids, record=args.record,
                 summary=args.summary or args.record.with_suffix(".json"), trajectory=args.trajectory,
                 connect=args.connect, listen=args.listen, secure=args.secure, config=args.config,
-                router_config=args.router_config, quiet=args.quiet, kill=args.kill, restart_after=args.restart_after,
+                router_config=args.router_config, quiet=args.quiet, fork=args.fork, kill=args.kill, restart_after=args.restart_after,
                 world_outage=args.world_outage, world_crash=args.world_crash)
 
 

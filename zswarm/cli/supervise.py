@@ -17,16 +17,8 @@ import numpy as np
 from zswarm.args import UsageError
 from zswarm.cli.chaos import Event, schedule
 from zswarm.cli.launch import Plan, endpoint_host_port
-from zswarm.net.procs import (
-    ROUTER_MODULE,
-    Child,
-    Children,
-    agent_argv,
-    free_port,
-    port_in_use,
-    wait_for_port,
-    world_argv,
-)
+from zswarm.net.procs import (ROUTER_MODULE, Child, Children, Fleet, agent_argv, free_port, port_in_use,
+                              wait_for_port, world_argv)
 
 
 def _say(text: str, err: bool = True) -> None:
@@ -44,6 +36,7 @@ class Launch:
         self.endpoint = plan.connect  # the first router's: the world's, and agent i's on router i mod K
         self.endpoints: list[str] = []
         self.configs: dict[str, list[str]] = {}
+        self.fleet: Fleet | None = None
         self.pending: list[Event] = schedule(plan.kill, plan.restart_after, plan.world_outage, plan.world_crash)
         self.rng = np.random.default_rng([self.spec.seed, 0xC0FFEE])
         self.killed: list[int] = []
@@ -135,9 +128,13 @@ class Launch:
         return agent % len(self.endpoints)
 
     def _spawn_agent(self, agent: int) -> None:
-        endpoint = self.endpoints[self.router_of(agent)]
-        self.kids.spawn(f"agent-{agent}", agent_argv(self.spec, agent, endpoint, *self._agent_config(agent)),
-                        stdout=subprocess.DEVNULL)
+        argv = agent_argv(self.spec, agent, self.endpoints[self.router_of(agent)], *self._agent_config(agent))
+        if not self.plan.fork:
+            self.kids.spawn(f"agent-{agent}", argv, stdout=subprocess.DEVNULL)
+            return
+        if self.fleet is None:
+            self.fleet = Fleet(self.kids)
+        self.fleet.spawn(f"agent-{agent}", argv[2:])  # without "-m agents"
 
     def _spawn_world(self, resume: bool) -> None:
         """Start the world (``resume``: a replacement that records into the next segment)."""

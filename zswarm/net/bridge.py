@@ -29,18 +29,24 @@ class Bridge:
       ``loop.call_soon_threadsafe``, which wakes it;
     - ``batch=True`` (a free-running agent): the callback only appends the sample to an inbox, and the
       owner empties it with :meth:`drain` once per control tick. The loop is not woken per sample.
+    - ``channels=True`` (the free-running world, which hears every pose): no Python callback at all;
+      samples wait in a ring channel per subscription, and :meth:`drain` takes them out.
 
-    Either way every sample carries the wall time it arrived (the latency figures stay transport
-    latency). ``deliver`` may be replaced (the fault injector delays or drops samples there).
+    Every sample carries the wall time it arrived (the latency figures stay transport latency), or,
+    from a channel, the time it was taken out. ``deliver`` may be replaced (the fault injector delays
+    or drops samples there).
     """
 
-    def __init__(self, session: zenoh.Session, loop: asyncio.AbstractEventLoop, deliver: Deliver,
-                 batch: bool = False) -> None:
+    CHANNEL_CAPACITY = 16384  # samples a subscription holds between two drains before the oldest go
+
+    def __init__(self, session: zenoh.Session, loop: asyncio.AbstractEventLoop | None, deliver: Deliver,
+                 batch: bool = False, channels: bool = False) -> None:
         self.session = session
         self.loop = loop
         self.deliver: Deliver = deliver
         self.batch = batch
         self.inbox: deque[Inbound] = deque()
+        self.channels: list[tuple[str, Any]] | None = [] if channels else None  # (tag, subscriber)
         self.in_flight = 0  # handed to the loop, not yet delivered (wake mode)
         self.reply_filter: Callable[[list[tuple[str, bytes]]], Any] | None = None
         self.closed = False
@@ -74,19 +80,35 @@ class Bridge:
         return len(self.inbox) + self.in_flight
 
     def drain(self) -> int:
-        """Deliver every sample in the inbox (batch mode), oldest first; returns how many."""
+        """Deliver every sample waiting (inbox, then channels in the order subscribed); returns how many."""
         n = 0
         inbox, deliver = self.inbox, self.deliver
         while inbox:
             deliver(inbox.popleft())
             n += 1
+        if self.channels:
+            now, delete = time.time(), zenoh.SampleKind.DELETE
+            for tag, sub in self.channels:
+                while (sample := sub.try_recv()) is not None:
+                    deliver((tag, str(sample.key_expr), sample.payload.to_bytes(), sample.kind == delete, now))
+                    n += 1
         return n
 
+    def _handler(self, tag: str) -> Any:
+        if self.channels is not None:
+            return zenoh.handlers.RingChannel(self.CHANNEL_CAPACITY)
+        return self._hand_over(tag)
+
+    def _declared(self, tag: str, sub: Any) -> Any:
+        if self.channels is not None:
+            self.channels.append((tag, sub))
+        return sub
+
     def subscribe(self, key: str, tag: str) -> Any:
-        return self.session.declare_subscriber(key, self._hand_over(tag))
+        return self._declared(tag, self.session.declare_subscriber(key, self._handler(tag)))
 
     def subscribe_liveliness(self, key: str, tag: str) -> Any:
-        return self.session.liveliness().declare_subscriber(key, self._hand_over(tag), history=True)
+        return self._declared(tag, self.session.liveliness().declare_subscriber(key, self._handler(tag), history=True))
 
     def queryable(self, key: str, answer: Callable[[dict[str, str]], list[tuple[str, bytes]]]) -> Any:
         """``answer`` runs on a Zenoh thread: it must only read immutable data it was given."""

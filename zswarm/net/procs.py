@@ -8,11 +8,13 @@ session, so a terminal's Ctrl-C reaches only the launcher, which then stops the 
 from __future__ import annotations
 
 import ctypes
+import json
 import os
 import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -41,7 +43,7 @@ def python_env() -> dict[str, str]:
 @dataclass
 class Child:
     name: str
-    proc: subprocess.Popen
+    proc: subprocess.Popen | ForkedProc
 
     @property
     def pid(self) -> int:
@@ -58,9 +60,9 @@ class Children:
     children: list[Child] = field(default_factory=list)
 
     def spawn(self, name: str, args: Sequence[str], stdout: int | IO | None = None,
-              stderr: int | IO | None = None) -> Child:
+              stderr: int | IO | None = None, stdin: int | IO | None = subprocess.DEVNULL) -> Child:
         proc = subprocess.Popen([sys.executable, *args], env=python_env(),
-                                stdout=stdout, stderr=stderr, stdin=subprocess.DEVNULL,
+                                stdout=stdout, stderr=stderr, stdin=stdin,
                                 preexec_fn=_die_with_parent, start_new_session=True)
         child = Child(name, proc)
         self.children.append(child)
@@ -85,13 +87,95 @@ class Children:
                 c.proc.wait(timeout=max(deadline - time.monotonic(), 0.01))
             except subprocess.TimeoutExpired:
                 c.proc.kill()
-                c.proc.wait()
+                try:
+                    c.proc.wait(timeout=10.0)
+                except subprocess.TimeoutExpired:  # a forked agent whose fleet is stuck: it dies with it
+                    pass
 
     def stop_all(self, grace: float = 5.0) -> None:
         """Agents first, then the world (it flushes), then everything else (the router)."""
         self.stop(self.named("agent"), grace)
         self.stop(self.named("world"), max(grace, 10.0))
         self.stop([c for c in self.children if c.alive()], grace)
+
+
+class ForkedProc:
+    """An agent the fleet forked (``python -m agents.fleet``), behind the part of ``subprocess.Popen``'s
+    interface :class:`Children` uses; its exit status comes from the fleet."""
+
+    stdout = None
+
+    def __init__(self, pid: int) -> None:
+        self.pid = pid
+        self.returncode: int | None = None
+        self._done = threading.Event()
+
+    def poll(self) -> int | None:
+        return self.returncode
+
+    def wait(self, timeout: float | None = None) -> int:
+        if not self._done.wait(timeout):
+            raise subprocess.TimeoutExpired(f"agent pid {self.pid}", timeout or 0.0)
+        return self.returncode  # type: ignore[return-value]
+
+    def send_signal(self, sig: int) -> None:
+        if self.returncode is None:
+            try:
+                os.kill(self.pid, sig)
+            except ProcessLookupError:
+                pass
+
+    def kill(self) -> None:
+        self.send_signal(signal.SIGKILL)
+
+    def terminate(self) -> None:
+        self.send_signal(signal.SIGTERM)
+
+    def exited(self, code: int) -> None:
+        self.returncode = code
+        self._done.set()
+
+
+class Fleet:
+    """One ``python -m agents.fleet`` child that imports the agent program once and forks each agent
+    from itself (shared pages, a start in milliseconds); each agent is still its own process."""
+
+    def __init__(self, kids: Children) -> None:
+        self.kids = kids
+        self.child = kids.spawn("fleet", ["-m", "agents.fleet"], stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+        self.procs: dict[str, ForkedProc] = {}
+        self.started: dict[str, threading.Event] = {}
+        self.lock = threading.Lock()
+        threading.Thread(target=self._read, daemon=True).start()
+
+    def _read(self) -> None:
+        for raw in self.child.proc.stdout:
+            verb, name, value = (raw.decode().split() + ["", "", ""])[:3]
+            with self.lock:
+                if verb == "pid":
+                    self.procs[name] = ForkedProc(int(value))
+                    self.started.setdefault(name, threading.Event()).set()
+                elif verb == "exit" and name in self.procs:
+                    self.procs[name].exited(int(value))
+        with self.lock:  # the fleet is gone, and its agents with it
+            for proc in self.procs.values():
+                if proc.returncode is None:
+                    proc.exited(-signal.SIGKILL)
+            for event in self.started.values():
+                event.set()
+
+    def spawn(self, name: str, args: Sequence[str], timeout: float = 60.0) -> Child:
+        """Fork agent ``name`` with the agent program's arguments ``args`` (``-m agents`` not included)."""
+        with self.lock:
+            event = self.started[name] = threading.Event()
+            self.procs.pop(name, None)
+        self.child.proc.stdin.write(f"spawn {name} {json.dumps(list(args))}\n".encode())
+        self.child.proc.stdin.flush()
+        if not event.wait(timeout) or name not in self.procs:
+            raise RuntimeError(f"the agent fleet did not start {name} (it exited with {self.child.proc.poll()})")
+        child = Child(name, self.procs[name])
+        self.kids.children.append(child)
+        return child
 
 
 def free_port(host: str = "127.0.0.1") -> int:

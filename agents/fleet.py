@@ -1,0 +1,115 @@
+"""``python -m agents.fleet``: import the agent program once, then fork one process per agent.
+
+An agent process spends most of its start importing (Python, numpy, Zenoh's bindings, msgpack); a
+hundred of them starting at once on two cores take tens of seconds, and each keeps a private copy of
+what it imported. The fleet imports everything once and forks each agent from itself before any Zenoh
+session exists; each agent is still its own OS process with its own session and its own pid, and the
+imported pages stay shared between them until written.
+
+Protocol (one line each, on stdin and stdout): the launcher writes ``spawn NAME ARG...`` (JSON, the
+agent's command line), the fleet answers ``pid NAME PID``, and ``exit NAME CODE`` when that agent
+ends (CODE as ``subprocess`` gives it: negative for a signal). End of input: the fleet stops its
+agents (SIGTERM) and exits once they have. Agents die with the fleet, the fleet with its launcher.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import json
+import os
+import select
+import signal
+import sys
+
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent() -> None:
+    try:
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
+    except OSError:
+        pass
+
+
+def _child(argv: list[str]) -> None:
+    """In the forked agent: its own session of the terminal, no stdin/stdout, then the program."""
+    from agents.main import main as agent_main
+
+    code = 1
+    try:
+        os.setsid()
+        _die_with_parent()
+        devnull = os.open(os.devnull, os.O_RDWR)
+        os.dup2(devnull, 0)
+        os.dup2(devnull, 1)
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        code = agent_main(argv)
+    finally:
+        sys.stderr.flush()
+        os._exit(code)
+
+
+def _status(status: int) -> int:
+    return -os.WTERMSIG(status) if os.WIFSIGNALED(status) else os.WEXITSTATUS(status)
+
+
+def main() -> int:
+    import agents.free  # noqa: F401  (import the whole agent program once, before any fork)
+    import agents.main  # noqa: F401
+
+    _die_with_parent()
+    children: dict[int, str] = {}
+    out = sys.stdout
+    closing = False
+
+    def reap() -> None:
+        while children:
+            try:
+                pid, status = os.waitpid(-1, os.WNOHANG)
+            except ChildProcessError:
+                return
+            if pid == 0:
+                return
+            name = children.pop(pid, None)
+            if name is not None:
+                out.write(f"exit {name} {_status(status)}\n")
+                out.flush()
+
+    stopping: list[bool] = []
+    signal.signal(signal.SIGTERM, lambda *_: stopping.append(True))  # or end of input: stop the agents
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    stdin = sys.stdin.fileno()
+    buffer = b""
+    while not closing or children:
+        if stopping and not closing:
+            closing = True
+            for pid in children:
+                os.kill(pid, signal.SIGTERM)
+        try:
+            ready, _, _ = select.select([] if closing else [stdin], [], [], 0.1)
+        except InterruptedError:
+            continue
+        if ready:
+            chunk = os.read(stdin, 65536)
+            if not chunk:
+                stopping.append(True)
+            buffer += chunk
+            while b"\n" in buffer:
+                line, buffer = buffer.split(b"\n", 1)
+                verb, _, rest = line.decode().partition(" ")
+                if verb == "spawn":
+                    name, _, argv = rest.partition(" ")
+                    out.flush()
+                    pid = os.fork()
+                    if pid == 0:
+                        _child(json.loads(argv))
+                    children[pid] = name
+                    out.write(f"pid {name} {pid}\n")
+                    out.flush()
+        reap()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
