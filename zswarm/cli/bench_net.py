@@ -33,17 +33,24 @@ def field_spec(n_agents: int, run: str, duration: float, scenario: str = "bench-
                    faults=faults or FaultModel())
 
 
-def start_field(kids: Children, spec: RunSpec, summary_path: Path,
-                world_stdout: int = subprocess.DEVNULL) -> tuple[str, Child, list[Child]]:
-    """A router, the world (waiting up to 120 s for the agents) and the N agent processes of ``spec``,
-    forked from one fleet as ``zswarm run`` starts them. Returns the router's endpoint, the world and
-    the agents."""
-    endpoint = start_router(kids)
-    world = kids.spawn("world", world_argv(spec, endpoint, "--summary", str(summary_path), "--progress", "0",
+def start_routers(kids: Children, k: int) -> list[str]:
+    """K routers, the second and later joined to the first (as ``zswarm run --routers K``)."""
+    first = start_router(kids)
+    return [first, *(start_router(kids, extra=["--connect", first], name=f"router-{i}") for i in range(1, k))]
+
+
+def start_field(kids: Children, spec: RunSpec, summary_path: Path, world_stdout: int = subprocess.DEVNULL,
+                routers: int = 1) -> tuple[str, Child, list[Child]]:
+    """Routers, the world (waiting up to 120 s for the agents) and the N agent processes of ``spec``,
+    forked from one fleet as ``zswarm run`` starts them (agent i on router i mod K). Returns the first
+    router's endpoint, the world and the agents."""
+    endpoints = start_routers(kids, routers)
+    world = kids.spawn("world", world_argv(spec, endpoints[0], "--summary", str(summary_path), "--progress", "0",
                                            "--start-timeout", "120"), stdout=world_stdout)
     fleet = Fleet(kids)
-    agents = [fleet.spawn(f"agent-{i}", agent_argv(spec, i, endpoint)[2:]) for i in range(spec.scenario.n_agents)]
-    return endpoint, world, agents
+    agents = [fleet.spawn(f"agent-{i}", agent_argv(spec, i, endpoints[i % routers])[2:])
+              for i in range(spec.scenario.n_agents)]
+    return endpoints[0], world, agents
 
 
 def _world_started(world: Child) -> threading.Event:
@@ -58,7 +65,7 @@ def _world_started(world: Child) -> threading.Event:
     return started
 
 
-def run(n_agents: int, duration: float, scenario: str = "bench-field") -> dict[str, Any]:
+def run(n_agents: int, duration: float, scenario: str = "bench-field", routers: int = 1) -> dict[str, Any]:
     """One swarm run: the transport figures from the world's summary, and what each process cost
     over the middle of the run (from 30 % to 90 % of its duration)."""
     kids = Children()
@@ -66,7 +73,7 @@ def run(n_agents: int, duration: float, scenario: str = "bench-field") -> dict[s
         summary_path = Path(tmp) / "bench.json"
         try:
             spec = field_spec(n_agents, f"bench{n_agents}", duration, scenario)
-            _, world, agents = start_field(kids, spec, summary_path, world_stdout=subprocess.PIPE)
+            _, world, agents = start_field(kids, spec, summary_path, world_stdout=subprocess.PIPE, routers=routers)
             started = _world_started(world)
             names = {c.name: c.pid for c in kids.children}
             window = CpuWindow(names)
@@ -89,15 +96,16 @@ def run(n_agents: int, duration: float, scenario: str = "bench-field") -> dict[s
             kids.stop_all(grace=5.0)
     per_tick = [1000.0 * c * spec.period for c in window.share(a.name for a in agents)]
     poses = s.get("poses_received", 0)
+    router_names = [c for c in names if c.startswith("router")]
     return {
-        "n_agents": n_agents, "rate_hz": round(1.0 / spec.period, 3), "duration_s": duration,
+        "n_agents": n_agents, "routers": routers, "rate_hz": round(1.0 / spec.period, 3), "duration_s": duration,
         "latency_ms": s["pose_latency_ms"], "age_at_use_ms": s["pose_age_ms"],
         "on_time_ratio": s["on_time_ratio"],
         "received_per_agent_per_s": poses / n_agents / duration if duration else None,
         "startup_s": s["startup_s"],
         "cpu_ms_per_tick_agent": statistics.mean(per_tick) if per_tick else None,
         "cpu_ms_per_tick_agent_max": max(per_tick) if per_tick else None,
-        "cpu_share_world": _one(window.share(["world"])), "cpu_share_router": _one(window.share(["router"])),
+        "cpu_share_world": _one(window.share(["world"])), "cpu_share_router": sum(window.share(router_names)),
         "rss_mb_per_agent": statistics.median(memory["rss"]) if memory["rss"] else None,
         "pss_mb_per_agent": statistics.median(memory["pss"]) if memory["pss"] else None,
         "world_late_ticks": s.get("world_late_ticks"), "world_ticks": s.get("world_ticks"),
@@ -139,9 +147,9 @@ def _one(values: list[float]) -> float | None:
     return values[0] if values else None
 
 
-def measure(n_agents: int, duration: float, floor: bool) -> dict[str, Any]:
+def measure(n_agents: int, duration: float, floor: bool, routers: int = 1) -> dict[str, Any]:
     """The swarm at N and, with ``floor``, the bare middleware with the same traffic, right after."""
-    r = run(n_agents, duration)
+    r = run(n_agents, duration, routers=routers)
     if floor:
         r.update(run_floor(n_agents, duration))
         callback = run_floor(n_agents, duration, handler="callback")
@@ -186,9 +194,10 @@ def main_bench(args) -> int:
 
     if args.record is not None:
         check_writable(args.record)
-    results = [measure(n, args.duration, args.floor) for n in args.agents]
+    results = [measure(n, args.duration, args.floor, args.routers) for n in args.agents]
     if args.record is not None:
         record_curves(results, args.record, {"agents": args.agents, "duration_s": args.duration, "floor": args.floor,
+                                             "routers": args.routers,
                                              "machine": machine(), "versions": versions()})
     if args.json:
         print(json.dumps(results[0] if len(results) == 1 else {"runs": results, "machine": machine()}))
@@ -199,7 +208,7 @@ def main_bench(args) -> int:
               f"received/agent/s {figure(r['received_per_agent_per_s'], '.1f')}  startup {figure(r['startup_s'], '.2f')} s")
         print(f"        agent CPU {figure(r['cpu_ms_per_tick_agent'], '.2f')} ms/tick (max "
               f"{figure(r['cpu_ms_per_tick_agent_max'], '.2f')}), world {figure(r['cpu_share_world'], '.1%')} of a core, "
-              f"router {figure(r['cpu_share_router'], '.1%')}; agent RSS {figure(r['rss_mb_per_agent'], '.1f')} MB, "
+              f"routers ({r['routers']}) {figure(r['cpu_share_router'], '.1%')}; agent RSS {figure(r['rss_mb_per_agent'], '.1f')} MB, "
               f"PSS {figure(r['pss_mb_per_agent'], '.1f')} MB; world late ticks {r['world_late_ticks']}/{r['world_ticks']}")
         if "cpu_ms_per_tick_floor" in r:
             print(f"        floor CPU {figure(r['cpu_ms_per_tick_floor'], '.2f')} ms/tick with a ring channel "

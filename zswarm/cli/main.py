@@ -50,6 +50,8 @@ def build_parser() -> Parser:
                     default=[10], help="N, or a comma-separated list (default 10)")
     bn.add_argument("--duration", type=positive_float, default=15.0,
                     help="simulated = wall seconds per run (default 15)")
+    bn.add_argument("--routers", type=positive_int, default=1, metavar="K",
+                    help="K meshed routers, agent i on router i mod K (default 1)")
     bn.add_argument("--floor", action="store_true",
                     help="also run N bare Zenoh processes with the same traffic and report the agents' CPU "
                          "as a ratio to theirs")

@@ -87,11 +87,14 @@ LEAN_RUNTIME = ("(app: (worker_threads: 1), acc: (handover: app), tx: (handover:
                 "rx: (handover: app), net: (handover: app))")
 
 
-def open_session(conf: zenoh.Config, what: str = "zenoh", retry_for: float = 0.0) -> zenoh.Session:
+def open_session(conf: zenoh.Config, what: str = "zenoh", retry_for: float = 0.0,
+                 runtime: str | None = LEAN_RUNTIME) -> zenoh.Session:
     """Open a session, retrying for ``retry_for`` seconds (a router that is still starting); then an
-    unreachable router or a taken port is a one-line :class:`UsageError`. Zenoh's runtime is the
-    lean one (:data:`LEAN_RUNTIME`) unless ``ZENOH_RUNTIME`` says otherwise."""
-    os.environ.setdefault("ZENOH_RUNTIME", LEAN_RUNTIME)
+    unreachable router or a taken port is a one-line :class:`UsageError`. Zenoh's runtime is
+    ``runtime`` (default the lean one, :data:`LEAN_RUNTIME`; None: Zenoh's own pools) unless
+    ``ZENOH_RUNTIME`` says otherwise."""
+    if runtime is not None:
+        os.environ.setdefault("ZENOH_RUNTIME", runtime)
 
     deadline = time.monotonic() + retry_for
     while True:

@@ -211,12 +211,14 @@ def rss_mb(pid: int) -> float | None:
     return None
 
 
-def start_router(kids: Children, host: str = "127.0.0.1", proto: str = "tcp", extra: Sequence[str] = ()) -> str:
+def start_router(kids: Children, host: str = "127.0.0.1", proto: str = "tcp", extra: Sequence[str] = (),
+                 name: str = "router") -> str:
     """A router child listening on a free port of ``host`` (``extra``: more router arguments, e.g.
-    ``--config``); returns its endpoint once the port accepts connections."""
+    ``--config``, or ``--connect`` to join another router); returns its endpoint once the port accepts
+    connections."""
     port = free_port(host)
     endpoint = f"{proto}/{host}:{port}"
-    router = kids.spawn("router", ["-m", ROUTER_MODULE, "--listen", endpoint, *extra], stdout=subprocess.DEVNULL)
+    router = kids.spawn(name, ["-m", ROUTER_MODULE, "--listen", endpoint, *extra], stdout=subprocess.DEVNULL)
     if not wait_for_port(host, port, 10.0, router):
         raise RuntimeError(f"the router did not start on {endpoint}")
     return endpoint

@@ -14,6 +14,9 @@ from zswarm.args import Parser, run_main
 from zswarm.net.config import add_zenoh_args, config_from_args, open_session
 
 
+ROUTER_RUNTIME: str | None = None  # Zenoh's default pools
+
+
 def _main(argv: Sequence[str] | None) -> int:
     parser = Parser(prog="zswarm.net.router", description="Run a Zenoh router until SIGINT/SIGTERM.")
     add_zenoh_args(parser, default_mode="router")
@@ -23,7 +26,9 @@ def _main(argv: Sequence[str] | None) -> int:
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
-    session = open_session(config_from_args(args), what="router")
+    # the router is no agent: it carries every message of the swarm, so it keeps Zenoh's own
+    # multi-threaded runtime rather than the agents' single worker (measured: docs/benchmarks.md)
+    session = open_session(config_from_args(args), what="router", runtime=ROUTER_RUNTIME)
     try:
         print(f"router: listening on {', '.join(args.listen) or 'the config file endpoints'}", flush=True)
         stop.wait()
