@@ -22,7 +22,14 @@ from zswarm.cli.figures import figure
 from zswarm.cli.measure import CpuWindow, pss_mb, rss_mb
 from zswarm.files import check_writable
 from zswarm.model.faults import FaultModel
-from zswarm.net.procs import Child, Children, Fleet, agent_argv, start_router, world_argv
+from zswarm.net.procs import (
+    Child,
+    Children,
+    Fleet,
+    agent_argv,
+    start_router,
+    world_argv,
+)
 from zswarm.net.runspec import RunSpec
 
 

@@ -31,8 +31,9 @@ import numpy as np
 
 from zswarm.cli.bench_net import field_spec, start_field
 from zswarm.cli.figures import figure
+from zswarm.cli.measure import rss_mb
 from zswarm.model.faults import FaultModel
-from zswarm.net.procs import Children, rss_mb
+from zswarm.net.procs import Children
 
 FLAT_MB_PER_MIN = 1.0
 

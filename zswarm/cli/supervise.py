@@ -17,8 +17,17 @@ import numpy as np
 from zswarm.args import UsageError
 from zswarm.cli.chaos import Event, schedule
 from zswarm.cli.launch import Plan, endpoint_host_port
-from zswarm.net.procs import (ROUTER_MODULE, Child, Children, Fleet, agent_argv, free_port, port_in_use,
-                              wait_for_port, world_argv)
+from zswarm.net.procs import (
+    ROUTER_MODULE,
+    Child,
+    Children,
+    Fleet,
+    agent_argv,
+    free_port,
+    port_in_use,
+    wait_for_port,
+    world_argv,
+)
 
 
 def _say(text: str, err: bool = True) -> None:

@@ -17,7 +17,6 @@ import sys
 import threading
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import IO, TYPE_CHECKING, Sequence
 
 if TYPE_CHECKING:
@@ -199,16 +198,6 @@ def wait_for_port(host: str, port: int, timeout: float, child: Child | None = No
             return False
         time.sleep(0.05)
     return False
-
-
-def rss_mb(pid: int) -> float | None:
-    try:
-        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-            if line.startswith("VmRSS:"):
-                return int(line.split()[1]) / 1024.0
-    except OSError:
-        return None
-    return None
 
 
 def start_router(kids: Children, host: str = "127.0.0.1", proto: str = "tcp", extra: Sequence[str] = (),

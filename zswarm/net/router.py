@@ -13,7 +13,6 @@ from typing import Sequence
 from zswarm.args import Parser, run_main
 from zswarm.net.config import add_zenoh_args, config_from_args, open_session
 
-
 ROUTER_RUNTIME: str | None = None  # Zenoh's default pools
 
 
