@@ -55,6 +55,9 @@ def _status(status: int) -> int:
 
 
 def main() -> int:
+    # no BLAS thread pool to fork (an agent's control law is plain floats; numpy only draws spawns)
+    for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(name, "1")
     import agents.free  # noqa: F401  (import the whole agent program once, before any fork)
     import agents.main  # noqa: F401
 
