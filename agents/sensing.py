@@ -85,8 +85,8 @@ class Sensing:
             self.final_tick = self.final_tick or m.final
             self.ticks.put_nowait(m)
         elif tag == "obstacles" and isinstance(m, msg.Obstacles) and self.obstacle_query is not None:
-            self.obstacles = [(cx, cy, r) for (cx, cy), r in zip(m.centers, m.radii)]
-            self.obstacle_query_at, self.obstacle_query = self.obstacle_query[:2], None
+            self._know_obstacles(m, self.obstacle_query[:2])
+            self.obstacle_query = None
         else:
             self.counters.rejections.add("kind", f"{type(m).__name__} on {tag} key")
 
@@ -165,11 +165,15 @@ class Sensing:
                 self.counters.rejections.add(exc.reason, str(exc))
                 continue
             if isinstance(m, msg.Obstacles):
-                self.obstacles = [(cx, cy, r) for (cx, cy), r in zip(m.centers, m.radii)]
-                self.obstacle_query_at = (x, y)
+                self._know_obstacles(m, (x, y))
                 return True
         self.counters.obstacle_queries_failed += 1
         return False  # keep what it knew (world away)
+
+    def _know_obstacles(self, m: msg.Obstacles, asked_at: tuple[float, float]) -> None:
+        """The world's answer to a query made at ``asked_at``: the obstacles within 2R of there."""
+        self.obstacles = [(cx, cy, r) for (cx, cy), r in zip(m.centers, m.radii)]
+        self.obstacle_query_at = asked_at
 
     def request_obstacles(self, now: float, timeout: float = 2.0) -> None:
         """Without an event loop: ask the world for the obstacles within 2R when it has moved R from

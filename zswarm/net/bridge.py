@@ -47,7 +47,6 @@ class Bridge:
         self.batch = batch
         self.inbox: deque[Inbound] = deque()
         self.channels: list[tuple[str, Any]] | None = [] if channels else None  # (tag, subscriber)
-        self.in_flight = 0  # handed to the loop, not yet delivered (wake mode)
         self.reply_filter: Callable[[list[tuple[str, bytes]]], Any] | None = None
         self.closed = False
 
@@ -63,21 +62,16 @@ class Bridge:
             if self.closed:
                 return
             item = (tag, str(sample.key_expr), sample.payload.to_bytes(), sample.kind == delete, now())
-            self.in_flight += 1
             try:
-                self.loop.call_soon_threadsafe(self._deliver_one, item)
+                self.loop.call_soon_threadsafe(self.deliver, item)
             except RuntimeError:  # loop closed during shutdown
                 pass
         return to_inbox if self.batch else to_loop
 
-    def _deliver_one(self, item: Inbound) -> None:
-        self.in_flight -= 1
-        self.deliver(item)
-
     @property
     def pending(self) -> int:
-        """Samples received and not yet delivered: the inbound backlog."""
-        return len(self.inbox) + self.in_flight
+        """Samples in the inbox, not yet taken in: the inbound backlog (batch mode)."""
+        return len(self.inbox)
 
     def drain(self) -> int:
         """Deliver every sample waiting (inbox, then channels in the order subscribed); returns how many."""
