@@ -14,21 +14,13 @@ agents (SIGTERM) and exits once they have. Agents die with the fleet, the fleet 
 
 from __future__ import annotations
 
-import ctypes
 import json
 import os
 import select
 import signal
 import sys
 
-_PR_SET_PDEATHSIG = 1
-
-
-def _die_with_parent() -> None:
-    try:
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
-    except OSError:
-        pass
+from zswarm.net.procs import die_with_parent
 
 
 def _child(argv: list[str]) -> None:
@@ -38,7 +30,7 @@ def _child(argv: list[str]) -> None:
     code = 1
     try:
         os.setsid()
-        _die_with_parent()
+        die_with_parent()
         devnull = os.open(os.devnull, os.O_RDWR)
         os.dup2(devnull, 0)
         os.dup2(devnull, 1)
@@ -61,7 +53,7 @@ def main() -> int:
     import agents.free  # noqa: F401  (import the whole agent program once, before any fork)
     import agents.main  # noqa: F401
 
-    _die_with_parent()
+    die_with_parent()
     children: dict[int, str] = {}
     out = sys.stdout
     closing = False

@@ -25,7 +25,8 @@ if TYPE_CHECKING:
 _PR_SET_PDEATHSIG = 1
 
 
-def _die_with_parent() -> None:  # runs in the child between fork and exec
+def die_with_parent() -> None:
+    """SIGTERM this process when its parent dies (run in a child, between fork and exec or the program)."""
     try:
         ctypes.CDLL("libc.so.6", use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
     except OSError:
@@ -62,7 +63,7 @@ class Children:
               stderr: int | IO | None = None, stdin: int | IO | None = subprocess.DEVNULL) -> Child:
         proc = subprocess.Popen([sys.executable, *args], env=python_env(),
                                 stdout=stdout, stderr=stderr, stdin=stdin,
-                                preexec_fn=_die_with_parent, start_new_session=True)
+                                preexec_fn=die_with_parent, start_new_session=True)
         child = Child(name, proc)
         self.children.append(child)
         return child
