@@ -152,7 +152,7 @@ class Sensing:
     async def refresh_obstacles(self, timeout: float = 2.0) -> bool:
         """Ask the world for the obstacles within 2R; re-ask after moving R from the last question."""
         x, y = self.body.x, self.body.y
-        if self.obstacle_query_at is not None and math.dist((x, y), self.obstacle_query_at) < self.radius:
+        if self._obstacles_current():
             return True
         try:
             replies = await self.bridge.get(self.keys.obstacle_query(x, y, 2.0 * self.radius), timeout)
@@ -170,6 +170,11 @@ class Sensing:
         self.counters.obstacle_queries_failed += 1
         return False  # keep what it knew (world away)
 
+    def _obstacles_current(self) -> bool:
+        """It knows the obstacles around it: asked less than R from where it is now."""
+        at = self.obstacle_query_at
+        return at is not None and math.dist((self.body.x, self.body.y), at) < self.radius
+
     def _know_obstacles(self, m: msg.Obstacles, asked_at: tuple[float, float]) -> None:
         """The world's answer to a query made at ``asked_at``: the obstacles within 2R of there."""
         self.obstacles = [(cx, cy, r) for (cx, cy), r in zip(m.centers, m.radii)]
@@ -185,7 +190,7 @@ class Sensing:
                 return
             self.counters.obstacle_queries_failed += 1
             self.obstacle_query = None
-        if self.obstacle_query_at is not None and math.dist((x, y), self.obstacle_query_at) < self.radius:
+        if self._obstacles_current():
             return
         self.obstacle_query = (x, y, now)
         self.bridge.get_into_inbox(self.keys.obstacle_query(x, y, 2.0 * self.radius), "obstacles", timeout)
