@@ -2,6 +2,7 @@
 allowed), never up, and the two engines never import each other.
 
     cli            every command                                  may import anything
+    tune           searching parameter sets (zswarm tune)         sim, record, model, base
     agents, world  the two process programs                       net, record (world only), model, base
     sim | net      the engines: reference simulator | runtime     model, record (sim only), base
     record         Rerun recordings: write, read back, repair     model, base
@@ -28,7 +29,8 @@ ALLOWED: dict[str, set[str]] = {
     "net": {"base", "model", "net"},
     "agents": {"base", "model", "net", "agents"},
     "world": {"base", "model", "net", "record", "world"},
-    "cli": {"base", "model", "record", "sim", "net", "cli"},
+    "tune": {"base", "model", "record", "sim", "tune"},
+    "cli": {"base", "model", "record", "sim", "net", "tune", "cli"},
     "api": {"base", "model", "record", "sim"},  # zswarm/__init__: the notebook API
 }
 
@@ -110,6 +112,8 @@ def test_every_import_respects_the_layers():
     ("zswarm/record/replay.py", "from zswarm.cli.replay import run_replay"),
     ("agents/agent.py", "from zswarm.record import swarm_log"),
     ("zswarm/model/params.py", "from zswarm.cli import main"),
+    ("zswarm/tune/search.py", "from zswarm.net.runspec import RunSpec"),
+    ("zswarm/sim/batch.py", "from zswarm.tune.space import Space"),
 ])
 def test_the_check_catches_an_import_against_the_layers(tmp_path, where, line):
     """The same check on a copy of a module with one forbidden import added fails."""

@@ -36,9 +36,46 @@ def run_main(fn: Callable[[Sequence[str] | None], int], argv: Sequence[str] | No
 
 
 def add_param_args(parser: argparse.ArgumentParser) -> None:
-    """``--set NAME=VALUE`` (repeatable) for any field of :mod:`zswarm.model.params`."""
+    """``--params FILE.toml`` and ``--set NAME=VALUE`` (repeatable) for any field of
+    :mod:`zswarm.model.params`; ``--set`` wins over the file, whatever their order."""
     parser.add_argument("--set", dest="assignments", action="append", default=[], metavar="NAME=VALUE",
                         help="override a parameter (repeatable), e.g. --set c_o=3 --set l_a=1/2")
+    parser.add_argument("--params", dest="assignments", action=ParamsFile, metavar="FILE.toml",
+                        help="parameter values from a TOML file (NAME = VALUE, at the top or under [params]), "
+                             "e.g. the best.toml of zswarm tune; --set overrides them")
+
+
+def read_params_file(path: str) -> list[str]:
+    """A parameter file as ``NAME=VALUE`` strings (checked as --set values are, where they are used)."""
+    import tomllib
+
+    try:
+        with open(path, "rb") as f:
+            data = tomllib.load(f)
+    except FileNotFoundError:
+        raise UsageError(f"parameter file {path} does not exist") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UsageError(f"cannot read parameter file {path}: {exc}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise UsageError(f"parameter file {path} is not valid TOML: {exc}") from None
+    table = data.get("params", data) if isinstance(data.get("params"), dict) else data
+    out = []
+    for name, value in table.items():
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise UsageError(f"parameter file {path}: {name} must be a number (got {value!r})")
+        out.append(f"{name}={value!r}")
+    return out
+
+
+class ParamsFile(argparse.Action):
+    """``--params FILE``: the file's values go before every ``--set``, so a --set always wins."""
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        try:
+            items = read_params_file(str(values))
+        except UsageError as exc:
+            parser.error(str(exc))
+        setattr(namespace, self.dest, items + list(getattr(namespace, self.dest) or []))
 
 
 MAX_SEED = 2**63

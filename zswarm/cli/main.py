@@ -18,7 +18,7 @@ DELEGATED = {"run": "start a swarm: router, world and N agent processes (zswarm 
 
 
 def build_parser() -> Parser:
-    from zswarm.cli import bench_net, certs, design, replay, sim, soak
+    from zswarm.cli import bench_net, certs, design, replay, sim, soak, tune
 
     parser = Parser(prog="zswarm", description="Decentralized APF swarms (Kim, Wang & Shin 2006).")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
@@ -32,6 +32,11 @@ def build_parser() -> Parser:
                        description="Simulate a scenario with the vectorized reference simulator.")
     sim.add_sim_arguments(s)
     s.set_defaults(run=sim.run_sim)
+
+    t = sub.add_parser("tune", help="search the parameters that pass the guidelines and perform best",
+                       description=tune.DESCRIPTION)
+    tune.add_arguments(t)
+    t.set_defaults(run=tune.run)
 
     scen = sub.add_parser("scenarios", help="list the registered scenarios")
     scen.add_argument("--json", action="store_true")

@@ -66,10 +66,14 @@ def run_bench_sim(args: argparse.Namespace) -> int:
     from zswarm.provenance import machine
     from zswarm.sim.simulator import Simulator
 
+    if args.batch is not None:
+        from zswarm.cli.bench_batch import run_bench_batch
+
+        return run_bench_batch(args)
     runs = []
     for n in args.sizes:
         scenario = get_scenario("large-swarm", {"n_agents": n})
-        steps = args.steps if n <= 1000 else max(args.steps // 10, 20)
+        steps = (args.steps or 1000) if n <= 1000 else max((args.steps or 1000) // 10, 20)
         sim = Simulator(scenario, seed=0)
         start = time.perf_counter()
         for _ in range(steps):
@@ -93,7 +97,16 @@ def run_bench_sim(args: argparse.Namespace) -> int:
 def add_bench_sim_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sizes", type=lambda s: [positive_int(x) for x in s.split(",")],
                         default=[10, 100, 1000, 10000], help="comma-separated N (default 10,100,1000,10000)")
-    parser.add_argument("--steps", type=positive_int, default=1000,
-                        help="steps for N <= 1000 (a tenth of it, at least 20, above)")
+    parser.add_argument("--steps", type=positive_int, default=None,
+                        help="steps for N <= 1000 (default 1000; a tenth of it, at least 20, above); "
+                             "with --batch, steps of every run (default 200)")
+    parser.add_argument("--batch", type=positive_int, default=None, metavar="B",
+                        help="instead: B runs of --scenario (seeds 0..B-1, every second one through the "
+                             "faulty channel) stepped together by the batched simulator, against the same "
+                             "B runs one by one")
+    parser.add_argument("--scenario", default="moving-prey", help="with --batch (default moving-prey)")
+    parser.add_argument("--latency", default="100ms", help="with --batch: the faulty runs' delay (default 100ms)")
+    parser.add_argument("--dropout", type=float, default=0.3,
+                        help="with --batch: the faulty runs' loss probability (default 0.3)")
     parser.add_argument("--json", action="store_true")
 

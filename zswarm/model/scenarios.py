@@ -54,6 +54,18 @@ def static_goal() -> Scenario:
     )
 
 
+def moving_prey_blocked() -> Scenario:
+    """Fig 14's layout with the large blocking obstacle kept (the three obstacles of Fig 13)."""
+    return Scenario(
+        name="moving-prey-blocked",
+        description="Fig 14 with the blocker: the prey circles near (0.5, 0) behind a large obstacle on the "
+                    "swarm's way and two flank obstacles; 10 agents from left of x=-2 split, pass and regroup.",
+        params=DEFAULT_PARAMS.with_values({"sensing_radius": 1.0}),
+        obstacles=FIG13_OBSTACLES, spawn=(-4.0, -1.2, -2.6, 1.2),
+        prey=PreyMotion(kind="circle", speed=0.15, center=(0.5, 0.0), radius=0.5), duration=60.0,
+    )
+
+
 def moving_prey(kind: str = "circle") -> Callable[[], Scenario]:
     motions = {
         "circle": PreyMotion(kind="circle", speed=0.15, center=(0.5, 0.0), radius=0.5),
@@ -123,6 +135,7 @@ SCENARIOS: dict[str, Callable[[], Scenario]] = {
     "moving-prey": moving_prey("circle"),
     "moving-prey-straight": moving_prey("straight"),
     "moving-prey-evasive": moving_prey("evasive"),
+    "moving-prey-blocked": moving_prey_blocked,
     "narrow-passage": narrow_passage,
     "large-swarm": large_swarm,
     "bench-field": bench_field,

@@ -1,0 +1,66 @@
+"""The batched simulator: every run of a batch is the run simulate() makes alone."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from zswarm.model.faults import FaultModel
+from zswarm.model.scenarios import get_scenario
+from zswarm.sim.batch import Member, simulate_batch
+from zswarm.sim.simulator import simulate
+
+STEPS = 700  # 35 s: long enough for captures, a collision and every prey motion
+
+
+def _mixed_batch() -> list[Member]:
+    prey = get_scenario("moving-prey")
+    return [
+        Member(prey, 0),
+        Member(prey, 1),
+        Member(get_scenario("static-goal"), 2),  # three obstacles beside moving-prey's two (padding)
+        Member(get_scenario("moving-prey-evasive"), 3),
+        Member(prey, 4, FaultModel(latency=0.1, jitter=0.05, dropout=0.3, seed=4)),
+        Member(prey, 5, FaultModel(latency=0.05, dropout=0.3, burst=4, distance_loss=0.5, seed=9)),
+        Member(get_scenario("moving-prey", {"c_o": 5.0, "l_a": 2.0}), 6, combination="additive"),
+        Member(get_scenario("moving-prey-straight"), 7),
+        Member(prey, 8,
+               FaultModel(dropout=0.5, seed=8)),
+    ]
+
+
+def test_each_run_matches_its_run_alone_at_every_step() -> None:
+    members = _mixed_batch()
+    batch = simulate_batch(members, STEPS, keep_trajectory=True)
+    captured = collided = 0
+    for r, m in enumerate(members):
+        alone = simulate(m.scenario, m.seed, combination=m.combination, duration=STEPS * m.scenario.dt,
+                         keep_trajectory=True, faults=m.faults)
+        np.testing.assert_allclose(batch.trajectory[:, r], alone.trajectory, rtol=0, atol=1e-9,
+                                   err_msg=f"run {r} ({m.scenario.name}, seed {m.seed})")
+        np.testing.assert_allclose(batch.prey_trajectory[:, r], alone.prey_trajectory, rtol=0, atol=1e-9)
+        got, want = batch.outcomes[r], alone.summary
+        assert got.capture_time == want["capture_time"]
+        assert got.collisions == want["collisions"]
+        assert got.obstacle_collisions == want["obstacle_collisions"]
+        assert got.min_pair_distance == pytest.approx(want["min_pair_distance"], abs=1e-9)
+        if want["min_obstacle_clearance"] is None:
+            assert got.min_obstacle_clearance is None
+        else:
+            assert got.min_obstacle_clearance == pytest.approx(want["min_obstacle_clearance"], abs=1e-9)
+        assert got.final_centroid_goal_distance == pytest.approx(want["final_centroid_goal_distance"], abs=1e-9)
+        captured += got.capture_time is not None
+        collided += got.collisions > 0
+    assert captured >= 3 and collided >= 1  # the comparison covered captures and a collision
+
+
+def test_faulty_runs_differ_from_fault_free_ones() -> None:
+    prey = get_scenario("moving-prey")
+    out = simulate_batch([Member(prey, 0), Member(prey, 0, FaultModel(latency=0.2, dropout=0.3))], 100,
+                         keep_trajectory=True)
+    assert np.abs(out.trajectory[-1, 0] - out.trajectory[-1, 1]).max() > 1e-3
+
+
+def test_runs_of_different_sizes_cannot_share_a_batch() -> None:
+    with pytest.raises(ValueError, match="same N"):
+        simulate_batch([Member(get_scenario("moving-prey"), 0), Member(get_scenario("narrow-passage"), 0)], 5)

@@ -1,0 +1,87 @@
+"""The faulty channel of :mod:`zswarm.sim.channel` for many runs at once.
+
+Run r draws from its own generator, ``default_rng([faults_r.seed, 0x5EED])``, exactly the numbers
+:class:`zswarm.sim.channel.FaultyChannel` draws for it alone (three uniforms per link and step, drawn
+ahead in blocks of steps: a PCG64 stream gives the same doubles whether asked for one step or many),
+and applies the same rules: delay (latency + uniform jitter, whole steps), Bernoulli or Gilbert-Elliott
+loss, distance-dependent loss of poses, newest-message beliefs and the staleness limit. The state is
+the single channel's with a leading run axis.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from zswarm.model.faults import FaultModel
+
+BLOCK = 32  # steps of uniforms drawn per generator call
+
+
+class BatchChannel:
+    def __init__(self, n: int, models: list[FaultModel], dt: float, sensing_radius: np.ndarray,
+                 staleness: float = 0.5) -> None:
+        b = len(models)
+        self.n, self.dt = n, dt
+        self.rngs = [np.random.default_rng([m.seed, 0x5EED]) for m in models]
+        col = lambda name: np.array([getattr(m, name) for m in models], dtype=float)[:, None, None]  # noqa: E731
+        self.latency, self.jitter, self.dropout = col("latency"), col("jitter"), col("dropout")
+        self.distance_loss = col("distance_loss")
+        burst = col("burst")
+        self.gilbert = (burst > 0) & (self.dropout > 0)
+        self.r_bad = np.where(self.gilbert, 1.0 / np.where(burst > 0, burst, 1.0), 0.0)
+        self.p_bad = np.where(self.gilbert, self.dropout * self.r_bad / (1.0 - self.dropout), 0.0)
+        self.radius = np.asarray(sensing_radius, dtype=float)[:, None, None]
+        max_delay = max(int(math.ceil((m.latency + m.jitter) / dt)) + 1 for m in models)
+        self.slots = max_delay + 1  # a ring longer than any run's delay: the same arrivals as its own ring
+        s = n + 1  # column n is the prey
+        self.history = np.zeros((b, self.slots, s, 2))
+        self.incoming = np.full((b, self.slots, n, s), -1, dtype=np.int64)
+        self.belief_stamp = np.full((b, n, s), -1, dtype=np.int64)
+        self.belief_pos = np.zeros((b, n, s, 2))
+        self.bad = np.zeros((b, n, s), dtype=bool)
+        self.stale_steps = int(round(staleness / dt))
+        self.lost = np.zeros(b, dtype=np.int64)
+        self._uniforms: np.ndarray | None = None
+        self._block_start = 0
+
+    def _draws(self, k: int) -> np.ndarray:
+        """(B, 3, N, N + 1) uniforms of step k, from each run's generator in its own order."""
+        if self._uniforms is None or not self._block_start <= k < self._block_start + BLOCK:
+            shape = (BLOCK, 3, self.n, self.n + 1)
+            self._uniforms = np.stack([rng.random(shape) for rng in self.rngs], axis=1)
+            self._block_start = k
+        return self._uniforms[k - self._block_start]
+
+    def step(self, k: int, positions: np.ndarray, prey: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Publish step k and deliver what arrives at it; (positions (B, N, 2), prey (B, 2)) ->
+        (believed positions (B, N, N, 2), which of them agent i uses (B, N, N), goal per agent (B, N, 2),
+        NaN where no fresh prey position has reached it)."""
+        n = self.n
+        sources = np.concatenate([positions, prey[:, None, :]], axis=1)
+        self.history[:, k % self.slots] = sources
+        u = self._draws(k)
+        self.bad = np.where(self.bad, u[:, 0] >= self.r_bad, u[:, 0] < self.p_bad)
+        lost = np.where(self.gilbert, self.bad, u[:, 0] < self.dropout)
+        d = np.linalg.norm(positions[:, :, None, :] - sources[:, None, :, :], axis=-1)
+        ratio = np.minimum(d / self.radius, 1e3)
+        ratio[:, :, n] = 0.0  # the prey is not lost with distance
+        lost |= (self.distance_loss > 0) & (u[:, 1] < self.distance_loss * ratio**2)
+        lost[:, np.arange(n), np.arange(n)] = True  # nobody listens to itself
+        self.lost += lost.sum(axis=(1, 2)) - n
+        delay = np.maximum(np.rint((self.latency + self.jitter * (2.0 * u[:, 2] - 1.0)) / self.dt), 0).astype(np.int64)
+        rr, ii, jj = np.nonzero(~lost)
+        self.incoming[rr, (k + delay[rr, ii, jj]) % self.slots, ii, jj] = k  # k is the newest stamp yet
+        now = self.incoming[:, k % self.slots]
+        newer = now > self.belief_stamp
+        br, bi, bj = np.nonzero(newer)
+        stamp = now[br, bi, bj]
+        self.belief_stamp[br, bi, bj] = stamp
+        self.belief_pos[br, bi, bj] = self.history[br, stamp % self.slots, bj]
+        self.incoming[:, k % self.slots] = -1
+        fresh = (self.belief_stamp >= 0) & (k - self.belief_stamp <= self.stale_steps)
+        goal = np.where(fresh[:, :, n, None], self.belief_pos[:, :, n], np.nan)
+        believed = self.belief_pos[:, :, :n]
+        near = fresh[:, :, :n] & (np.linalg.norm(positions[:, :, None, :] - believed, axis=-1) <= self.radius)
+        return believed, near, goal

@@ -1,0 +1,100 @@
+"""What ``zswarm tune`` minimizes, and how a generation of candidates is simulated in one batch.
+
+Each candidate runs on K seeds (the spawn and, under faults, the channel), all candidates and seeds of
+a generation together in the batched simulator (:mod:`zswarm.sim.batch`). A run scores its capture
+time, or the duration plus ``miss_penalty`` when it never catches the prey. A candidate's objective is
+the mean score over its seeds, unless one of its runs is disqualified (two agents closer than 2 d^r,
+an agent touching an obstacle, or coming closer to one than d_m^ro): then it ranks after every
+qualified set, ordered by how many runs were disqualified. A set that fails the design checks is never
+simulated and ranks after all of those (:data:`INFEASIBLE` + its violation).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+from zswarm.model.faults import FaultModel
+from zswarm.model.params import Params
+from zswarm.model.potentials import Combination
+from zswarm.model.scenarios import Scenario
+from zswarm.sim.batch import BatchOutcome, Member, simulate_batch
+
+INFEASIBLE = 1e6
+
+
+@dataclass(frozen=True)
+class Task:
+    """The runs every candidate is judged on."""
+
+    scenario: Scenario
+    seeds: tuple[int, ...]
+    faults: FaultModel = FaultModel()
+    combination: Combination | None = None
+    miss_penalty: float = 30.0
+
+    @property
+    def steps(self) -> int:
+        return self.scenario.steps
+
+    @property
+    def duration(self) -> float:
+        return self.scenario.steps * self.scenario.dt
+
+    def members(self, params: Params, seeds: tuple[int, ...] | None = None) -> list[Member]:
+        scenario = self.scenario.with_params(params)
+        return [Member(scenario, s, dataclasses.replace(self.faults, seed=s) if self.faults.active else None,
+                       self.combination) for s in (seeds or self.seeds)]
+
+
+def disqualified(outcome: BatchOutcome, params: Params) -> str | None:
+    """Why a run does not count, or None."""
+    if outcome.collisions:
+        return f"{outcome.collisions} collision(s)"
+    if outcome.obstacle_collisions:
+        return f"{outcome.obstacle_collisions} obstacle contact(s)"
+    if outcome.min_obstacle_clearance is not None and outcome.min_obstacle_clearance < params.margins.d_m_ro:
+        return f"clearance {outcome.min_obstacle_clearance:.3g} < d_m^ro = {params.margins.d_m_ro:g}"
+    return None
+
+
+def run_score(outcome: BatchOutcome, task: Task) -> float:
+    """Capture time, or the duration plus the miss penalty."""
+    return outcome.capture_time if outcome.capture_time is not None else task.duration + task.miss_penalty
+
+
+def objective(outcomes: list[BatchOutcome], params: Params, task: Task) -> tuple[float, list[str | None]]:
+    """(objective, disqualification of each run); see the module doc."""
+    reasons = [disqualified(o, params) for o in outcomes]
+    bad = sum(r is not None for r in reasons)
+    if bad:
+        worst = task.duration + task.miss_penalty
+        return 10.0 * worst + bad / len(outcomes), reasons
+    return sum(run_score(o, task) for o in outcomes) / len(outcomes), reasons
+
+
+def evaluate(task: Task, candidates: list[Params], seeds: tuple[int, ...] | None = None
+             ) -> list[tuple[float, list[BatchOutcome], list[str | None]]]:
+    """Simulate every candidate on every seed in one batch; (objective, outcomes, reasons) each."""
+    if not candidates:
+        return []
+    seeds = seeds or task.seeds
+    members = [m for params in candidates for m in task.members(params, seeds)]
+    outcomes = simulate_batch(members, task.steps).outcomes
+    k = len(seeds)
+    out = []
+    for c, params in enumerate(candidates):
+        mine = outcomes[c * k:(c + 1) * k]
+        value, reasons = objective(mine, params, task)
+        out.append((value, mine, reasons))
+    return out
+
+
+def describe() -> dict[str, Any]:
+    """The objective in words, for the tune's result."""
+    return {"objective": {"definition": "mean over the tuning seeds of the capture time (duration + miss penalty when the prey "
+                         "is not caught)",
+            "disqualifies": "any collision (agents closer than 2 d^r), obstacle contact, or clearance below d_m^ro",
+            "rejects": "any set that fails zswarm design (Props 1-5, formation, contact, swarm squeeze) is "
+                        "never simulated"}}
