@@ -31,6 +31,17 @@ CASES = [
     (["-m", "zswarm", "sim", "--scenario", "{missing}.toml"], "does not exist"),
     (["-m", "zswarm", "sim", "--scenario", "{junk}.toml"], "scenario"),
     (["-m", "zswarm", "sim", "--record", "{dir}"], "is a directory"),
+    (["-m", "zswarm", "design", "--params", "{missing}.toml"], "does not exist"),
+    (["-m", "zswarm", "design", "--params", "{junk}.toml"], "not valid TOML"),
+    (["-m", "zswarm", "bench", "sim", "--batch", "4", "--dropout", "2"], "dropout must be in [0, 1)"),
+    # tune
+    (["-m", "zswarm", "tune", "--out", "{dir}/t", "--tune", "c_o,foo"], "cannot tune foo"),
+    (["-m", "zswarm", "tune", "--out", "{dir}/t", "--tune", "v_max"], "cannot tune v_max"),
+    (["-m", "zswarm", "tune", "--out", "{dir}/t", "--budget", "0"], "expected an integer >= 1"),
+    (["-m", "zswarm", "tune", "--out", "{dir}/t", "--scenario", "{junk}.toml"], "scenario"),
+    (["-m", "zswarm", "tune", "--out", "{dir}/t", "--waive", "prop9"], "invalid choice"),
+    (["-m", "zswarm", "tune", "--out", "{dir}/t", "--set", "c_a_prime=0"], "from 0 in log space"),
+    (["-m", "zswarm", "tune", "--out", "{junk}"], "cannot create --out"),
     # replay / compare
     (["-m", "zswarm", "replay", "{missing}.rrd"], "does not exist"),
     (["-m", "zswarm", "replay", "{junk}"], "cannot read"),

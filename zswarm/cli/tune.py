@@ -288,6 +288,7 @@ def run(args: argparse.Namespace) -> int:
     out: dict[str, Any] = {
         "scenario": plan.scenario_name, "tuned": plan.names, "budget": args.budget,
         "evaluated": result.progress.evaluated, "checked": result.progress.checked,
+        "replayed": result.progress.evaluated - result.progress.computed,
         "rejected": result.progress.rejected, "generations": result.progress.generation, "stop": result.stop,
         "seconds": time.monotonic() - started, "faults": faults.requested(), "waived": sorted(set(args.waive)),
         "seeds": list(plan.seeds), "holdout": list(plan.holdout), **describe(),
@@ -315,7 +316,7 @@ def run(args: argparse.Namespace) -> int:
     save_figure(plan.out / "tune.png", result.records, space.values(space.start), start_objective,
                 qualified_below, title)
     sets = {"tuned": best_params, "start": start_params}
-    comparison = {"faults": held_out(task, sets, plan.holdout)}
+    comparison = {"as_tuned": held_out(task, sets, plan.holdout)}
     if faults.active:
         comparison["fault_free"] = held_out(dataclasses.replace(task, faults=dataclasses.replace(faults, latency=0.0,
                                             jitter=0.0, dropout=0.0, distance_loss=0.0)), sets, plan.holdout)
@@ -363,7 +364,7 @@ def _print_result(out: dict[str, Any], plan: Plan, faults) -> None:
     print(f"best objective {b['objective']:.3f} s (start {_fmt(out['start']['objective'], '.3f')} s on the same "
           f"seeds); design: {'all checks hold' if not b['design_failures'] else 'fails ' + ', '.join(b['design_failures'])}")
     print("best set: " + "  ".join(f"{k}={v:.4g}" for k, v in b["values"].items()))
-    sections = [("faults", _faults_text(faults))] + ([("fault_free", "none")] if "fault_free" in out["comparison"] else [])
+    sections = [("as_tuned", _faults_text(faults))] + ([("fault_free", "none")] if "fault_free" in out["comparison"] else [])
     for key, text in sections:
         print(f"\nheld-out seeds {plan.holdout[0]}..{plan.holdout[-1]}, simulated, faults {text}:")
         _table(out["comparison"][key])

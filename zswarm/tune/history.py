@@ -31,6 +31,7 @@ class History:
         except OSError as exc:
             raise UsageError(f"cannot create --out {folder}: {exc.strerror or exc}") from None
         check_writable(config_path)
+        config = json.loads(json.dumps(config))  # as it reads back (tuples become lists)
         if config_path.exists():
             old = json.loads(config_path.read_text())
             differ = sorted(k for k in set(old) | set(config) if k not in MAY_CHANGE and old.get(k) != config.get(k))

@@ -1,0 +1,114 @@
+"""zswarm tune: the guidelines as hard constraints, a resumable and deterministic search, its files."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from conftest import ROOT, run_cli
+from zswarm.model.design import check
+from zswarm.model.scenarios import get_scenario
+from zswarm.tune.history import History
+from zswarm.tune.objective import Task
+from zswarm.tune.search import Settings, search
+from zswarm.tune.space import TUNABLE, Space
+
+# small and quick: 8 simulated seconds, two seeds, the swarm squeeze waived (it takes a second a check)
+QUICK = ["--scenario", "moving-prey", "--duration", "8", "--seeds", "2", "--holdout", "2", "--popsize", "5",
+         "--waive", "prop3", "--waive", "swarm", "--miss-penalty", "10"]
+
+
+def _history(folder: Path) -> list[dict]:
+    return [json.loads(line) for line in (folder / "history.jsonl").read_text().splitlines() if line.strip()]
+
+
+def test_only_sets_that_pass_the_design_checks_are_simulated(tmp_path):
+    scenario = dataclasses.replace(get_scenario("moving-prey"), duration=4.0)
+    space = Space.build(list(TUNABLE), scenario.params)
+    task = Task(scenario, (0,))
+    waived = frozenset({"prop3", "swarm"})
+    history = History(tmp_path, {"test": 1})
+    result = search(space, task, history, Settings(budget=8, popsize=6, sigma0=0.8, waived=waived))
+    history.close()
+    simulated = [r for r in result.records if "objective" in r]
+    rejected = [r for r in result.records if not r["feasible"]]
+    assert len(simulated) == 8 and rejected, "a wide first step must propose sets the guidelines reject"
+    for r in simulated:
+        failures = set(check(space.params(r["x"]), swarm=False).failures()) - waived
+        assert failures == set(), r
+    for r in rejected:
+        assert "objective" not in r and r["violation"] > 0
+        assert set(check(space.params(r["x"]), swarm=False).failures()) - waived, r
+
+
+def _tune(out: Path, budget: int, *extra: str) -> subprocess.CompletedProcess:
+    return run_cli("-m", "zswarm", "tune", *QUICK, "--budget", str(budget), "--out", str(out), "--json", *extra,
+                   timeout=300)
+
+
+def test_an_interrupted_tune_resumes_to_the_same_result_losing_no_evaluation(tmp_path):
+    whole = _tune(tmp_path / "whole", 20)
+    assert whole.returncode == 0, whole.stderr[-2000:]
+    want = json.loads(whole.stdout)
+
+    out = tmp_path / "cut"
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    proc = subprocess.Popen([sys.executable, "-m", "zswarm", "tune", *QUICK, "--budget", "20", "--out", str(out),
+                             "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and proc.poll() is None:
+            if (out / "history.jsonl").exists() and any("objective" in r for r in _history(out)):
+                break
+            time.sleep(0.02)
+        proc.send_signal(signal.SIGINT)
+        proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+        proc.wait()
+    assert proc.returncode == 130, "interrupted before the search ended"
+    before = [r for r in _history(out) if "objective" in r]
+    assert 0 < len(before) < 20
+
+    resumed = _tune(out, 20)
+    assert resumed.returncode == 0, resumed.stderr[-2000:]
+    got = json.loads(resumed.stdout)
+    assert got["replayed"] == len(before)  # every evaluation finished before the interruption was kept
+    assert got["best"] == want["best"]  # deterministic: the same search as the uninterrupted one
+    assert got["comparison"] == want["comparison"]
+    kept = {(r["gen"], r["slot"]): r for r in _history(out)}
+    assert all(kept[(r["gen"], r["slot"])] == r for r in before)
+
+
+def test_the_best_set_file_is_accepted_by_the_other_commands(tmp_path):
+    res = _tune(tmp_path / "t", 5)
+    assert res.returncode == 0, res.stderr[-2000:]
+    result = json.loads(res.stdout)
+    folder = tmp_path / "t"
+    for name in ("best.toml", "design.json", "design.txt", "comparison.json", "tune.rrd", "tune.png", "result.json"):
+        assert (folder / name).stat().st_size > 0, name
+    design = run_cli("-m", "zswarm", "design", "--params", str(folder / "best.toml"), "--json")
+    assert design.returncode in (0, 1), design.stderr
+    params = json.loads(design.stdout)["params"]
+    for name, value in result["best"]["values"].items():
+        assert params[name] == pytest.approx(value, rel=1e-12)
+    # the held-out comparison is the batched simulator's; simulate() alone agrees with it
+    sim = run_cli("-m", "zswarm", "sim", "--scenario", "moving-prey", "--duration", "8", "--json",
+                  "--params", str(folder / "best.toml"), "--seed", str(result["holdout"][0]))
+    assert sim.returncode == 0, sim.stderr
+    first = result["comparison"]["as_tuned"]["tuned"]["per_seed"][0]
+    assert json.loads(sim.stdout)["capture_time"] == first["capture_time"]
+
+
+def test_a_different_tune_in_the_same_folder_is_refused(tmp_path):
+    assert _tune(tmp_path / "t", 5).returncode == 0
+    res = _tune(tmp_path / "t", 5, "--seed", "3")
+    assert res.returncode == 2 and "holds a different tune" in res.stderr, res.stderr
