@@ -112,3 +112,25 @@ def test_a_different_tune_in_the_same_folder_is_refused(tmp_path):
     assert _tune(tmp_path / "t", 5).returncode == 0
     res = _tune(tmp_path / "t", 5, "--seed", "3")
     assert res.returncode == 2 and "holds a different tune" in res.stderr, res.stderr
+
+
+def test_finalists_are_the_best_distinct_qualified_candidates():
+    from zswarm.tune.finalists import finalists
+
+    records = [{"x": [1.0], "objective": 5.0}, {"x": [2.0], "objective": 3.0}, {"x": [2.0], "objective": 3.0},
+               {"x": [3.0], "objective": 900.0}, {"x": [4.0], "violation": 1.0}, {"x": [5.0], "objective": 4.0}]
+    got = finalists(records, 3, qualified_below=600.0)
+    assert [r["x"] for r in got] == [[2.0], [5.0], [1.0]]  # no duplicate, no disqualified, no unsimulated
+
+
+@pytest.mark.parametrize("order", ["file first", "set first"])
+def test_set_wins_over_a_params_file_in_either_order(tmp_path, order):
+    from zswarm.cli.main import build_parser
+    from zswarm.model.params import DEFAULT_PARAMS
+
+    f = tmp_path / "p.toml"
+    f.write_text("[params]\nc_o = 4.0\nl_a = 2.0\n")
+    argv = ["--params", str(f), "--set", "c_o=5"] if order == "file first" else ["--set", "c_o=5", "--params", str(f)]
+    args = build_parser().parse_args(["design", *argv])
+    params = DEFAULT_PARAMS.with_overrides(args.assignments)
+    assert (params.potential.c_o, params.potential.l_a) == (5.0, 2.0)

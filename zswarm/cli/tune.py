@@ -37,6 +37,7 @@ from zswarm.tune.feasibility import CHECKS
 from zswarm.tune.space import TUNABLE
 
 HOLDOUT_OFFSET = 10_000  # held-out seeds: seed + 10000 + i, far from the tuning seeds seed + i
+VALIDATION_OFFSET = 5_000  # validation seeds of the finalists: seed + 5000 + i
 
 DESCRIPTION = (
     "Search the potential parameters (CMA-ES, in log space) for the set that catches the prey fastest "
@@ -73,6 +74,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="runs per candidate, seeds SEED..SEED+K-1 (default 4)")
     parser.add_argument("--holdout", type=positive_int, default=8, metavar="H",
                         help=f"held-out seeds for the final comparison, SEED+{HOLDOUT_OFFSET}... (default 8)")
+    parser.add_argument("--finalists", type=positive_int, default=16, metavar="F",
+                        help="the F best candidates of the search are re-run on --validate seeds and the best "
+                             "there is chosen (default 16)")
+    parser.add_argument("--validate", type=positive_int, default=32, metavar="V",
+                        help=f"validation seeds for the finalists, SEED+{VALIDATION_OFFSET}... (default 32)")
     parser.add_argument("--budget", type=positive_int, default=300, metavar="EVALS",
                         help="simulated candidates (each K runs); rejected ones do not count (default 300)")
     parser.add_argument("--seed", type=seed_arg, default=0, help="seeds the search and the runs (default 0)")
@@ -106,12 +112,14 @@ class Plan:
     overrides: dict[str, float | int]
     names: list[str]
     seeds: tuple[int, ...]
+    validation: tuple[int, ...]
     holdout: tuple[int, ...]
     out: Path
 
     def config(self, args: argparse.Namespace, task, faults) -> dict[str, Any]:
         return {"scenario": self.scenario_name, "scenario_definition": task.scenario.to_dict(),
                 "overrides": self.overrides, "tune": self.names, "seeds": list(self.seeds),
+                "validation": list(self.validation), "finalists": args.finalists,
                 "holdout": list(self.holdout), "faults": faults.requested(), "potential": args.potential,
                 "miss_penalty": args.miss_penalty, "waive": sorted(set(args.waive)), "sigma": args.sigma,
                 "popsize": args.popsize, "seed": args.seed, "budget": args.budget}
@@ -133,9 +141,10 @@ def _plan(args: argparse.Namespace):
     space = Space.build(names, scenario.params)
     faults = faults_from_args(args)
     seeds = tuple(range(args.seed, args.seed + args.seeds))
+    validation = tuple(range(args.seed + VALIDATION_OFFSET, args.seed + VALIDATION_OFFSET + args.validate))
     holdout = tuple(range(args.seed + HOLDOUT_OFFSET, args.seed + HOLDOUT_OFFSET + args.holdout))
     task = Task(scenario, seeds, faults, args.potential, args.miss_penalty)
-    plan = Plan(args.scenario, overrides, names, seeds, holdout, args.out)
+    plan = Plan(args.scenario, overrides, names, seeds, validation, holdout, args.out)
     return plan, space, task, faults
 
 
@@ -196,8 +205,10 @@ def aggregate(runs: list[dict[str, Any]], seeds, reasons, scores, objective) -> 
 def write_best_toml(path: Path, params: Params, plan: Plan, objective: float, command: str) -> None:
     flat = params.flat()
     keep = [n for n in TUNABLE] + [n for n in plan.overrides if FIELDS[n].group != "potential"]
-    lines = [f"# zswarm tune: the best set found for {plan.scenario_name} (objective {objective:.4g} s)",
-             f"# command: {command}", "# use it with --params FILE (zswarm run, sim, design, launch.py)", "",
+    swarm = " ".join(f"--set {n}={flat[n]:g}" for n in ("n_agents", "sensing_radius", "v_max", "robot_radius"))
+    lines = [f"# zswarm tune: the best set found for {plan.scenario_name} (validation objective {objective:.4g} s)",
+             f"# command: {command}", "# use it with --params FILE (zswarm run, sim, design, launch.py);",
+             f"# its design report (design.txt) is: zswarm design --params FILE {swarm}", "",
              "[params]"]
     lines += [f"{n} = {flat[n]!r}" for n in keep]
     tmp = Path(f"{path}.tmp")
@@ -263,7 +274,7 @@ def run(args: argparse.Namespace) -> int:
     from zswarm.model.design import check
     from zswarm.provenance import versions
     from zswarm.record.tune_log import save_search
-    from zswarm.tune.feasibility import judge
+    from zswarm.tune.finalists import finalists, validate
     from zswarm.tune.history import History
     from zswarm.tune.objective import describe, evaluate
     from zswarm.tune.search import Settings, search
@@ -281,7 +292,7 @@ def run(args: argparse.Namespace) -> int:
         history.close()
         bar.done()
     start_params = space.base
-    start_verdict = judge(start_params, settings.waived)
+    start_failures = check(start_params).failures()  # the whole report, the squeeze included
     qualified_below = 10.0 * (task.duration + task.miss_penalty)
     start_objective = evaluate(task, [start_params])[0][0]
     command = "zswarm tune " + " ".join(sys.argv[2:] if sys.argv[1:2] == ["tune"] else sys.argv[1:])
@@ -292,46 +303,85 @@ def run(args: argparse.Namespace) -> int:
         "rejected": result.progress.rejected, "generations": result.progress.generation, "stop": result.stop,
         "seconds": time.monotonic() - started, "faults": faults.requested(), "waived": sorted(set(args.waive)),
         "seeds": list(plan.seeds), "holdout": list(plan.holdout), **describe(),
-        "start": {"values": space.values(space.start), "design_failures": list(start_verdict.failures),
+        "failed_checks": _failure_counts(result.records),
+        "start": {"values": space.values(space.start), "design_failures": start_failures,
                   "objective": start_objective},
         "versions": versions(), "command": command,
     }
     title = (f"zswarm tune {plan.scenario_name}: {result.progress.evaluated} simulated candidates x {len(plan.seeds)} "
              f"seeds, faults {_faults_text(faults)}")
-    save_search(plan.out / "tune.rrd", config, result.records, space.values(space.start), start_objective,
-                qualified_below)
-    best = result.best
-    if best is None or best["objective"] >= qualified_below:
+    chosen = finalists(result.records, args.finalists, qualified_below)
+    if not chosen:
         closest = result.closest
         out["best"] = None
         out["closest"] = None if closest is None else {k: closest[k] for k in ("values", "violation", "failures")}
+        save_search(plan.out / "tune.rrd", config, result.records, space.values(space.start), start_objective,
+                    qualified_below, "### no set found\n" + out["stop"])
         write_json(plan.out / "result.json", out)
         _print_failure(out, args)
         return 1
+    validation = validate(task, space, chosen, plan.validation)
+    best = validation[0]
     best_params = space.params(best["x"])
     report = check(best_params)  # the full report, waived checks included, for the reader
-    write_best_toml(plan.out / "best.toml", best_params, plan, best["objective"], command)
+    write_best_toml(plan.out / "best.toml", best_params, plan, best["validation_objective"], command)
     write_json(plan.out / "design.json", report.to_json())
     (plan.out / "design.txt").write_text(render(report) + "\n")
     save_figure(plan.out / "tune.png", result.records, space.values(space.start), start_objective,
-                qualified_below, title)
+                qualified_below, title, chosen=(best["gen"], best["slot"]))
     sets = {"tuned": best_params, "start": start_params}
     comparison = {"as_tuned": held_out(task, sets, plan.holdout)}
     if faults.active:
         comparison["fault_free"] = held_out(dataclasses.replace(task, faults=dataclasses.replace(faults, latency=0.0,
                                             jitter=0.0, dropout=0.0, distance_loss=0.0)), sets, plan.holdout)
     write_json(plan.out / "comparison.json", comparison)
-    out.update(best={"values": best["values"], "objective": best["objective"], "generation": best["gen"],
-                     "design_failures": list(report.failures())}, comparison=comparison)
+    out.update(best={"values": best["values"], "objective": best["search_objective"],
+                     "validation_objective": best["validation_objective"], "generation": best["gen"],
+                     "slot": best["slot"], "design_failures": list(report.failures())},
+               finalists=[{k: v for k, v in row.items() if k != "x"} for row in validation], comparison=comparison)
     if args.confirm:
         out["confirm"] = confirm(plan, args, sets, faults, quiet=args.json)
         write_json(plan.out / "confirm.json", out["confirm"])
+    save_search(plan.out / "tune.rrd", config, result.records, space.values(space.start), start_objective,
+                qualified_below, _report_md(out))
     write_json(plan.out / "result.json", out)
     if args.json:
         print(json.dumps(out, default=str))
     else:
         _print_result(out, plan, faults)
     return 0
+
+
+def _report_md(out: dict[str, Any]) -> str:
+    """The outcome as markdown, for the recording's text panel."""
+    b = out["best"]
+    lines = [f"### chosen set (validation objective {b['validation_objective']:.3f} s)", "",
+             "| parameter | start | chosen |", "|---|---|---|"]
+    lines += [f"| {k} | {out['start']['values'][k]:.4g} | {v:.4g} |" for k, v in b["values"].items()]
+    lines += ["", f"design: {'all checks hold' if not b['design_failures'] else 'fails ' + ', '.join(b['design_failures'])}"
+              + (f" (waived: {', '.join(out['waived'])})" if out["waived"] else ""), ""]
+    tables = [(f"held-out seeds, simulated, {key.replace('_', ' ')}", rows) for key, rows in out["comparison"].items()]
+    if "confirm" in out:
+        tables.append(("held-out seeds, distributed (zswarm run)", out["confirm"]))
+    for title, rows in tables:
+        lines += [f"### {title}", "",
+                  "| set | captured | mean capture (s) | collisions | contacts | min clearance | disqualified |",
+                  "|---|---|---|---|---|---|---|"]
+        lines += [f"| {label} | {r['captured']}/{r['runs']} | {_fmt(r['mean_capture_time'], '.2f')} | {r['collisions']} | "
+                  f"{r['obstacle_collisions']} | {_fmt(r['min_obstacle_clearance'])} | {r['disqualified']} |"
+                  for label, r in rows.items()]
+        lines.append("")
+    return "\n".join(lines)
+
+
+def _replayed(out: dict[str, Any]) -> str:
+    return f" ({out['replayed']} of them taken from the history of an earlier run)" if out["replayed"] else ""
+
+
+def _failure_counts(records: list[dict[str, Any]]) -> dict[str, int]:
+    """How many candidates failed each check (a candidate may fail several; the squeeze runs only for
+    one that passes every other check)."""
+    return {k: n for k in CHECKS if (n := sum(k in r["failures"] for r in records))}
 
 
 def _faults_text(faults) -> str:
@@ -349,6 +399,8 @@ def _print_failure(out: dict[str, Any], args: argparse.Namespace) -> None:
         print(json.dumps(out, default=str))
         return
     print(f"no set was found: {out['stop']} ({out['checked']} candidates checked, {out['evaluated']} simulated)")
+    print("candidates failing each check: " + ", ".join(f"{k} {n}" for k, n in out["failed_checks"].items())
+          + " (the swarm squeeze runs only for a set that passes every other check)")
     closest = out.get("closest")
     if closest:
         print(f"closest to passing: fails {', '.join(closest['failures']) or '-'} (violation {closest['violation']:.3g}): "
@@ -360,9 +412,15 @@ def _print_failure(out: dict[str, Any], args: argparse.Namespace) -> None:
 def _print_result(out: dict[str, Any], plan: Plan, faults) -> None:
     b = out["best"]
     print(f"{out['evaluated']} candidates simulated ({out['checked']} checked, {out['rejected']} rejected by the design "
-          f"checks) in {out['seconds']:.0f} s; stopped: {out['stop']}")
-    print(f"best objective {b['objective']:.3f} s (start {_fmt(out['start']['objective'], '.3f')} s on the same "
-          f"seeds); design: {'all checks hold' if not b['design_failures'] else 'fails ' + ', '.join(b['design_failures'])}")
+          f"checks) in {out['seconds']:.0f} s{_replayed(out)}; stopped: {out['stop']}")
+    print("candidates failing each check: " + (", ".join(f"{k} {n}" for k, n in out["failed_checks"].items()) or "none")
+          + (f" (waived: {', '.join(out['waived'])})" if out["waived"] else ""))
+    fin = out["finalists"]
+    print(f"the {len(fin)} best re-run on {len(plan.validation)} validation seeds: chosen the search's #{fin[0]['search_rank'] + 1} "
+          f"(validation {fin[0]['validation_objective']:.3f} s; "
+          f"{sum(r['validation_disqualified'] > 0 for r in fin)} of {len(fin)} finalists collided there)")
+    print(f"best objective {b['objective']:.3f} s on the tuning seeds (start {_fmt(out['start']['objective'], '.3f')} s); "
+          f"design: {'all checks hold' if not b['design_failures'] else 'fails ' + ', '.join(b['design_failures'])}")
     print("best set: " + "  ".join(f"{k}={v:.4g}" for k, v in b["values"].items()))
     sections = [("as_tuned", _faults_text(faults))] + ([("fault_free", "none")] if "fault_free" in out["comparison"] else [])
     for key, text in sections:

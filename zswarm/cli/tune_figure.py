@@ -2,7 +2,7 @@
 
 Left: the objective of every simulated candidate against its evaluation number, the best so far, and
 the starting set's objective on the same seeds. Right: each tuned parameter's path, ln(value / start),
-with the best set marked.
+with the chosen set (the finalists' validation winner) marked.
 """
 
 from __future__ import annotations
@@ -13,7 +13,9 @@ from typing import Any
 
 
 def save_figure(path: Path, records: list[dict[str, Any]], start_values: dict[str, float],
-                start_objective: float | None, qualified_below: float, title: str) -> None:
+                start_objective: float | None, qualified_below: float, title: str,
+                chosen: tuple[int, int] | None = None) -> None:
+    """``chosen``: (generation, slot) of the set the finalists' validation picked (marked)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -34,8 +36,12 @@ def save_figure(path: Path, records: list[dict[str, Any]], start_values: dict[st
         best = np.minimum.accumulate(np.where(ok, values, np.inf))
         shown = np.isfinite(best)
         left.step(n[shown], best[shown], where="post", color="black", label="best so far")
-        b = int(np.argmin(np.where(ok, values, np.inf)))
-        left.annotate(f"best {values[b]:.2f} s", (n[b], values[b]), textcoords="offset points", xytext=(6, 6))
+    keys = [(r["gen"], r["slot"]) for r in done]
+    best_i = keys.index(chosen) if chosen in keys else (int(np.argmin(np.where(ok, values, np.inf))) if ok.any() else None)
+    if best_i is not None:
+        left.plot(n[best_i], values[best_i], "o", markersize=9, markerfacecolor="none", color="tab:green")
+        left.annotate(f"chosen {values[best_i]:.2f} s", (n[best_i], values[best_i]), textcoords="offset points",
+                      xytext=(6, 6), color="tab:green")
     if start_objective is not None and start_objective < qualified_below:
         left.axhline(start_objective, color="tab:gray", linestyle="--", label=f"start set {start_objective:.2f} s")
     left.set_xlabel("simulated candidate (evaluation)")
@@ -43,7 +49,6 @@ def save_figure(path: Path, records: list[dict[str, Any]], start_values: dict[st
     left.set_title("objective")
     left.grid(alpha=0.3)
     left.legend(fontsize=8)
-    best_i = int(np.argmin(np.where(ok, values, np.inf))) if ok.any() else None
     for name, start in start_values.items():
         path_values = [math.log(r["values"][name] / start) for r in done]
         (line,) = right.plot(n, path_values, linewidth=1, label=name)
@@ -52,7 +57,7 @@ def save_figure(path: Path, records: list[dict[str, Any]], start_values: dict[st
     right.axhline(0.0, color="tab:gray", linewidth=0.8)
     right.set_xlabel("simulated candidate (evaluation)")
     right.set_ylabel("ln(value / start value)")
-    right.set_title("parameter paths (dots: the best set)")
+    right.set_title("parameter paths (dots: the chosen set)")
     right.grid(alpha=0.3)
     right.legend(fontsize=8, ncol=3)
     fig.suptitle(title, fontsize=10)

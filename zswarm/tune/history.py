@@ -17,7 +17,7 @@ from zswarm.errors import UsageError
 from zswarm.files import check_writable, write_json
 
 #: Fields of tune.json that may change between a tune and its resumption.
-MAY_CHANGE = ("budget",)
+MAY_CHANGE = ("budget", "finalists", "validation")  # the last two only choose among what was searched
 
 
 class History:
