@@ -42,6 +42,11 @@ CASES = [
     (["-m", "zswarm", "tune", "--out", "{dir}/t", "--waive", "prop9"], "invalid choice"),
     (["-m", "zswarm", "tune", "--out", "{dir}/t", "--set", "c_a_prime=0"], "from 0 in log space"),
     (["-m", "zswarm", "tune", "--out", "{junk}"], "cannot create --out"),
+    # live viewing
+    (["-m", "zswarm", "sim", "--connect", "rerun+http://127.0.0.1:1/proxy"], "no Rerun viewer answers there"),
+    (["-m", "zswarm", "sim", "--connect", "tcp/127.0.0.1:1"], "expected a viewer URL"),
+    ([LAUNCH, "--connect", "rerun+http://127.0.0.1:1/proxy"], "no Rerun viewer answers there"),
+    (["-m", "world", "--connect", "rerun+http://127.0.0.1:1/proxy"], "no Rerun viewer answers there"),
     # replay / compare
     (["-m", "zswarm", "replay", "{missing}.rrd"], "does not exist"),
     (["-m", "zswarm", "replay", "{junk}"], "cannot read"),

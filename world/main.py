@@ -19,6 +19,7 @@ from zswarm.net import messages as msg
 from zswarm.net.bridge import Bridge, teardown
 from zswarm.net.config import add_zenoh_args, config_from_args, open_session
 from zswarm.net.runspec import RunSpec, add_run_args, spec_from_args
+from zswarm.record.live import Viewer, add_viewer_args, viewer_from_args
 
 
 def build_parser() -> Parser:
@@ -37,17 +38,19 @@ def build_parser() -> Parser:
                              "recover the run so far from it and record the rest into the next segment "
                              "(RECORD.segN.rrd); free clock only")
     parser.add_argument("--progress", type=float, default=2.0, help="seconds between progress lines (0: none)")
-    add_zenoh_args(parser)
+    add_viewer_args(parser, zenoh_connect="connect")
+    add_zenoh_args(parser, viewer=True)
     return parser
 
 
-async def run_world(args: argparse.Namespace, spec: RunSpec) -> dict:
+async def run_world(args: argparse.Namespace, spec: RunSpec, viewer: Viewer | None = None) -> dict:
     loop = asyncio.get_running_loop()
     session = open_session(config_from_args(args), what="world", retry_for=args.connect_timeout)
     # free clock: what arrived waits in channels taken out at each world tick; lockstep: each pose wakes
     # the loop (the world waits for the poses of a step)
     bridge = Bridge(session, loop, deliver=lambda item: None, channels=spec.clock == "free")
-    recorder = WorldRecorder(args.record, args.summary, args.trajectory, spec.scenario.n_agents, spec.scenario.dt)
+    recorder = WorldRecorder(args.record, args.summary, args.trajectory, spec.scenario.n_agents, spec.scenario.dt,
+                             viewer)
     world = World(spec, bridge, recorder, list(sys.argv))
     bridge.deliver = world.handle
     for sig in (signal.SIGINT, signal.SIGTERM):
@@ -86,9 +89,10 @@ def _main(argv: Sequence[str] | None) -> int:
     for path in (args.record, args.summary, args.trajectory):
         if path is not None:
             check_writable(path)
+    viewer = viewer_from_args(args)  # an unreachable viewer is a usage error before anything starts
     if args.resume and spec.clock == "lockstep":
         raise UsageError("--resume works with the free clock only (a lockstep run cannot re-issue its ticks)")
-    result = asyncio.run(run_world(args, spec))
+    result = asyncio.run(run_world(args, spec, viewer))
     keys = ("capture_time", "collisions", "min_pair_distance", "final_components", "messages_rejected")
     print("world: done " + json.dumps({k: result.get(k) for k in keys}), flush=True)
     return 0

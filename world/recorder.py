@@ -41,8 +41,9 @@ class WorldRecorder:
     ``trajectory``) and the summary JSON (if ``summary``)."""
 
     def __init__(self, record: Path | None, summary: Path | None, trajectory: Path | None, n_agents: int,
-                 dt: float) -> None:
+                 dt: float, viewer=None) -> None:
         self.record_path, self.summary_path, self.trajectory_path = record, summary, trajectory
+        self.viewer = viewer  # a zswarm.record.live.Viewer: stream live as well (or instead of a file)
         self.n_agents, self.dt = n_agents, dt
         self.rec = None
         self.segment = 0
@@ -83,15 +84,16 @@ class WorldRecorder:
     def open(self, run: str, config: dict[str, Any], centers: np.ndarray, radii: np.ndarray) -> None:
         """Open this world's segment and write what never changes; flushed at once, so that a
         successor finds the run's identity even if this world dies at its first step."""
-        if self.record_path is None:
+        if self.record_path is None and not (self.viewer is not None and self.viewer.wanted):
             return
         from zswarm.record import swarm_log
         from zswarm.record.recording import open_recording
         from zswarm.record.replay import segment_path
 
         extra = (("agents alive", ("agents_alive",)),)
-        self.rec = open_recording(segment_path(self.record_path, self.segment), "zswarm-world",
-                                  swarm_log.blueprint(extra), recording_id=run)
+        path = None if self.record_path is None else segment_path(self.record_path, self.segment)
+        self.rec = open_recording(path, "zswarm-world", swarm_log.blueprint(extra), recording_id=run,
+                                  viewer=self.viewer)
         swarm_log.log_config(self.rec, config)
         swarm_log.log_obstacles(self.rec, centers, radii)
         self.rec.flush()

@@ -78,6 +78,32 @@ class ParamsFile(argparse.Action):
         setattr(namespace, self.dest, items + list(getattr(namespace, self.dest) or []))
 
 
+#: What ``rerun`` (the viewer) listens on for streamed recordings.
+DEFAULT_VIEWER_URL = "rerun+http://127.0.0.1:9876/proxy"
+
+
+def is_viewer_url(text: str) -> bool:
+    return text.startswith(("rerun+http://", "rerun+https://", "rerun://"))
+
+
+class ConnectAction(argparse.Action):
+    """``--connect [URL]`` after Rerun's conventions, in a program that may also speak Zenoh: a Rerun URL
+    (or no value) asks for a live viewer (``viewer_connect``); anything else (``tcp/...``, ``tls/...``) is
+    a Zenoh endpoint, appended to (or stored in) ``zenoh_dest`` as before. ``zenoh_dest=None``: viewer only."""
+
+    def __init__(self, option_strings, dest, zenoh_dest: str | None = None, append: bool = True, **kw) -> None:
+        self.zenoh_dest, self.append = zenoh_dest, append
+        super().__init__(option_strings, dest, nargs="?", const=None, **kw)
+
+    def __call__(self, parser, namespace, value, option_string=None) -> None:
+        if value is None or is_viewer_url(value) or self.zenoh_dest is None:
+            namespace.viewer_connect = value or DEFAULT_VIEWER_URL
+        elif self.append:
+            setattr(namespace, self.zenoh_dest, [*(getattr(namespace, self.zenoh_dest, None) or []), value])
+        else:
+            setattr(namespace, self.zenoh_dest, value)
+
+
 MAX_SEED = 2**63
 
 

@@ -20,10 +20,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
 
-from zswarm.args import Parser, UsageError, run_main
+from zswarm.args import DEFAULT_VIEWER_URL, ConnectAction, Parser, UsageError, run_main
 from zswarm.cli.chaos import parse_crash, parse_kill, parse_outage
 from zswarm.files import check_writable
 from zswarm.net.runspec import RunSpec, add_run_args, spec_from_args
+from zswarm.record.live import Viewer, add_viewer_args, viewer_from_args
 
 ROLES = ("router", "world", "agents")
 
@@ -59,8 +60,11 @@ def build_parser(prog: str = "zswarm run") -> Parser:
     p.add_argument("--trajectory", type=Path, default=None, help="observed positions per step (.npz)")
     p.add_argument("--role", type=parse_roles, default=list(ROLES),
                    help="what this machine runs: router,world,agents (default all three)")
-    p.add_argument("--connect", default=None, metavar="ENDPOINT",
-                   help="router to join when this machine runs no router, e.g. tcp/10.0.0.1:7447")
+    p.add_argument("--connect", action=ConnectAction, zenoh_dest="connect", append=False, default=None,
+                   metavar="ENDPOINT|URL",
+                   help="router to join when this machine runs no router, e.g. tcp/10.0.0.1:7447; or a Rerun "
+                        f"viewer URL (default {DEFAULT_VIEWER_URL} with no value) to watch the run live")
+    add_viewer_args(p, zenoh_connect="connect")
     p.add_argument("--listen", default=None, metavar="ENDPOINT",
                    help="router endpoint (default tcp/127.0.0.1:FREE_PORT)")
     p.add_argument("--routers", type=int, default=1, metavar="K",
@@ -124,6 +128,7 @@ class Plan:
     restart_after: float | None
     world_outage: tuple[float, float] | None
     world_crash: tuple[float, float | None] | None
+    viewer: Viewer = Viewer()
 
 
 def plan_from_args(args: argparse.Namespace) -> Plan:
@@ -161,13 +166,17 @@ def plan_from_args(args: argparse.Namespace) -> Plan:
     if args.restart_after is not None and not args.restart_after >= 0:
         raise UsageError(f"--restart-after must be >= 0 (got {args.restart_after})")
     ids = tuple(args.ids if args.ids is not None else range(n))
+    viewer = viewer_from_args(args) if "world" in args.role else Viewer()
+    if (viewer.spawn or viewer.serve) and args.world_crash is not None and args.world_crash[1] is not None:
+        raise UsageError("--world-crash T:S restarts the world; watch it with --connect to a viewer of your own "
+                         "(--spawn and --serve live in the world process)")
     if args.secure is not None:
         _check_secure_dir(args.secure, ids if "agents" in args.role else ())
     return Plan(spec=spec, roles=tuple(args.role), routers=args.routers, ids=ids, record=args.record,
                 summary=args.summary or args.record.with_suffix(".json"), trajectory=args.trajectory,
                 connect=args.connect, listen=args.listen, secure=args.secure, config=args.config,
                 router_config=args.router_config, quiet=args.quiet, fork=args.fork, kill=args.kill, restart_after=args.restart_after,
-                world_outage=args.world_outage, world_crash=args.world_crash)
+                world_outage=args.world_outage, world_crash=args.world_crash, viewer=viewer)
 
 
 def _check_secure_dir(directory: Path, ids: Sequence[int]) -> None:

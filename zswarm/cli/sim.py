@@ -26,6 +26,9 @@ def add_sim_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--record-every", type=positive_int, default=1, metavar="K",
                         help="log every K-th step to the recording (default 1)")
     parser.add_argument("--sensing-discs", action="store_true", help="draw each agent's sensing disc")
+    from zswarm.record.live import add_viewer_args
+
+    add_viewer_args(parser)
     parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     from zswarm.net.runspec import add_fault_args
 
@@ -34,12 +37,14 @@ def add_sim_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run_sim(args: argparse.Namespace) -> int:
     from zswarm.net.runspec import faults_from_args
+    from zswarm.record.live import viewer_from_args
     from zswarm.sim.simulator import simulate
 
     scenario = get_scenario(args.scenario, parse_assignments(args.assignments))
+    viewer = viewer_from_args(args)
     result = simulate(scenario, args.seed, combination=args.potential, duration=args.duration,
                       record=args.record, record_every=args.record_every,
-                      sensing_discs=args.sensing_discs, faults=faults_from_args(args))
+                      sensing_discs=args.sensing_discs, faults=faults_from_args(args), viewer=viewer)
     if args.json:
         print(json.dumps(result.summary, sort_keys=True))
     else:

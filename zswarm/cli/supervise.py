@@ -50,6 +50,7 @@ class Launch:
         self.rng = np.random.default_rng([self.spec.seed, 0xC0FFEE])
         self.killed: list[int] = []
         self.expected_exits: set[str] = set()  # children chaos killed on purpose
+        self.spawned_viewer: str | None = None  # the URL of the viewer --spawn started
         self.crashed: set[str] = set()
         self.world_crash_for_good = plan.world_crash is not None and plan.world_crash[1] is None
 
@@ -145,6 +146,17 @@ class Launch:
             self.fleet = Fleet(self.kids)
         self.fleet.spawn(f"agent-{agent}", argv[2:])  # without "-m agents"
 
+    def _viewer(self):
+        """The live viewer the world streams to; a --spawn'ed one is started here, once, so that a world
+        that is restarted finds the same viewer."""
+        from zswarm.record.live import Viewer, spawn_viewer
+
+        if not self.plan.viewer.spawn:
+            return self.plan.viewer
+        if self.spawned_viewer is None:
+            self.spawned_viewer = spawn_viewer()
+        return Viewer(connect=self.spawned_viewer, serve=self.plan.viewer.serve)
+
     def _spawn_world(self, resume: bool) -> None:
         """Start the world (``resume``: a replacement that records into the next segment)."""
         plan = self.plan
@@ -154,6 +166,7 @@ class Launch:
             extra += ["--trajectory", str(plan.trajectory)]
         if resume:
             extra.append("--resume")
+        extra += self._viewer().to_argv()
         self.world = self.kids.spawn("world", world_argv(self.spec, self.endpoint, *extra), stdout=subprocess.PIPE)
         self.world_started = threading.Event()
         threading.Thread(target=self._forward, args=(self.world, self.world_started), daemon=True).start()

@@ -12,16 +12,25 @@ from typing import Iterable
 
 import zenoh
 
+from zswarm.args import DEFAULT_VIEWER_URL, ConnectAction
 from zswarm.errors import UsageError
 
 
-def add_zenoh_args(parser: argparse.ArgumentParser, default_mode: str = "client") -> None:
-    """The standard Zenoh arguments of the zenoh-python examples."""
+def add_zenoh_args(parser: argparse.ArgumentParser, default_mode: str = "client", viewer: bool = False) -> None:
+    """The standard Zenoh arguments of the zenoh-python examples. ``viewer``: ``--connect`` also takes
+    a Rerun viewer URL (``rerun+http://...``, or no value), for a program that records."""
     group = parser.add_argument_group("zenoh")
     group.add_argument("--mode", choices=("peer", "client", "router"), default=None,
                        help=f"zenoh session mode (default: the --config file's, else {default_mode})")
-    group.add_argument("--connect", "-e", action="append", default=[], metavar="ENDPOINT",
-                       help="endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable)")
+    if viewer:
+        group.add_argument("--connect", "-e", action=ConnectAction, zenoh_dest="connect", default=[],
+                           metavar="ENDPOINT|URL",
+                           help="zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable); or a Rerun "
+                                f"viewer URL (default {DEFAULT_VIEWER_URL} with no value) to stream the recording to")
+        parser.set_defaults(viewer_connect=None)
+    else:
+        group.add_argument("--connect", "-e", action="append", default=[], metavar="ENDPOINT",
+                           help="endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable)")
     group.add_argument("--listen", "-l", action="append", default=[], metavar="ENDPOINT",
                        help="endpoint to listen on, e.g. tcp/0.0.0.0:7447 (repeatable)")
     group.add_argument("--config", "-c", type=Path, metavar="FILE",

@@ -91,8 +91,9 @@ class RunResult:
 def simulate(scenario: Scenario, seed: int, *, combination: Combination | None = None,
              duration: float | None = None, record: Path | None = None, record_every: int = 1,
              metrics_every: int = 1, keep_trajectory: bool = False, sensing_discs: bool = False,
-             argv: list[str] | None = None, faults: FaultModel | None = None) -> RunResult:
-    """Run a scenario to its end; optionally record it to Rerun and keep the trajectories.
+             argv: list[str] | None = None, faults: FaultModel | None = None, viewer=None) -> RunResult:
+    """Run a scenario to its end; optionally record it to Rerun (a file, and/or live to ``viewer``, a
+    :class:`zswarm.record.live.Viewer`) and keep the trajectories.
 
     ``faults``: pass neighbour and prey data through a seeded faulty channel (:mod:`zswarm.sim.channel`).
     """
@@ -106,12 +107,12 @@ def simulate(scenario: Scenario, seed: int, *, combination: Combination | None =
               "potential": sim.combination, "duration": steps * scenario.dt, "steps": steps,
               "dt": scenario.dt}
     rec = None
-    if record is not None:
+    if record is not None or (viewer is not None and viewer.wanted):
         from zswarm.record import swarm_log
         from zswarm.record.recording import open_recording
 
         rec = open_recording(record, "zswarm-sim", swarm_log.blueprint(),
-                             recording_id=f"sim-{scenario.name}-{seed}")
+                             recording_id=f"sim-{scenario.name}-{seed}", viewer=viewer)
         swarm_log.log_config(rec, {**header, "scenario_definition": scenario.to_dict(),
                                    "versions": versions(), "argv": argv or sys.argv})
         swarm_log.log_obstacles(rec, sim.obstacles.centers, sim.obstacles.radii)
@@ -138,7 +139,7 @@ def simulate(scenario: Scenario, seed: int, *, combination: Combination | None =
         from zswarm.record.recording import close_recording
 
         swarm_log.log_summary(rec, result)
-        close_recording(rec)
+        close_recording(rec, hold=viewer is not None and viewer.serve)
     return RunResult(result, observer.summary, traj, prey_traj)
 
 

@@ -1,0 +1,81 @@
+"""Live viewing: a run streamed to a Rerun gRPC server arrives complete, and the file is still written."""
+
+from __future__ import annotations
+
+import socket
+import subprocess
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import ROOT, run_cli
+from zswarm.record.replay import load_run
+
+RERUN = Path(__import__("sys").executable).with_name("rerun")
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture
+def viewer_server(tmp_path):
+    """``rerun --serve-grpc --save FILE``: a headless server that writes whatever is streamed to it."""
+    port, saved = _free_port(), tmp_path / "received.rrd"
+    proc = subprocess.Popen([str(RERUN), "--serve-grpc", "--port", str(port), "--save", str(saved)],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline:
+            try:
+                socket.create_connection(("127.0.0.1", port), timeout=0.2).close()
+                break
+            except OSError:
+                time.sleep(0.05)
+        yield f"rerun+http://127.0.0.1:{port}/proxy", saved, proc
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+
+
+def _stop(proc: subprocess.Popen) -> None:
+    proc.terminate()  # the server writes what it received, then exits
+    proc.wait(timeout=20)
+
+
+def _same_run(local: Path, received: Path) -> int:
+    a, b = load_run(local), load_run(received)
+    assert len(a.frames) == len(b.frames) > 0
+    assert [f.step for f in a.frames] == [f.step for f in b.frames]
+    for x, y in zip(a.frames, b.frames):
+        np.testing.assert_array_equal(x.positions, y.positions)
+    assert a.summary is not None and b.summary == a.summary
+    return len(a.frames)
+
+
+def test_a_simulation_streams_live_and_keeps_its_file(viewer_server, tmp_path):
+    url, saved, server = viewer_server
+    local = tmp_path / "sim.rrd"
+    res = run_cli("-m", "zswarm", "sim", "--scenario", "moving-prey", "--duration", "4", "--record", str(local),
+                  "--connect", url, "--json", cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    _stop(server)
+    assert _same_run(local, saved) == 81
+
+
+def test_a_distributed_run_streams_live_and_keeps_its_file(viewer_server, tmp_path):
+    url, saved, server = viewer_server
+    local = tmp_path / "run.rrd"
+    res = run_cli(str(ROOT / "launch.py"), "--agents", "4", "--duration", "4", "--record", str(local), "--connect",
+                  url, "--quiet", "--run", "live-test", timeout=120, cwd=tmp_path)
+    assert res.returncode == 0, res.stderr[-2000:]
+    _stop(server)
+    assert _same_run(local, saved) > 40
