@@ -79,7 +79,7 @@ class Agent:
                 if old is not None:
                     old.undeclare()
             self.queryable = self.bridge.queryable(key, self._answer)
-            self.publisher = self.bridge.session.declare_publisher(key)
+            self.publisher = self.bridge.session.declare_publisher(key, encoding=msg.ENCODING)
             self.pose_cell = cell
         self.publisher.put(payload)
         self.counters.sent += 1
@@ -101,7 +101,7 @@ class Agent:
 
     def publish_stats_now(self) -> None:
         """The stats message, and a new window for the per-period figures (queue, tick lag)."""
-        self.bridge.session.put(self.keys.stats(self.id), self.stats())
+        self.bridge.session.put(self.keys.stats(self.id), self.stats(), encoding=msg.ENCODING)
         self.counters.new_window()
 
     async def publish_stats(self) -> None:

@@ -13,6 +13,7 @@ import numpy as np
 from agents.agent import Agent
 from agents.free import run_free, wait_for_world
 from zswarm.args import Parser, UsageError, run_main
+from zswarm.net import messages as msg
 from zswarm.net.bridge import Bridge, teardown
 from zswarm.net.config import add_zenoh_args, config_from_args, open_session
 from zswarm.net.injector import FaultInjector
@@ -84,7 +85,7 @@ class Process:
 
     def close(self, final_stats: bool) -> None:
         if final_stats:
-            self.session.put(self.spec.keys.stats(self.id), self.agent.stats(final=True))
+            self.session.put(self.spec.keys.stats(self.id), self.agent.stats(final=True), encoding=msg.ENCODING)
         teardown(self.bridge, self.declared, self.session)
 
 

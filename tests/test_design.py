@@ -234,3 +234,24 @@ def test_cli_save_writes_a_valid_recording(cli, tmp_path):
     assert verify.returncode == 0, verify.stderr
     bad = cli("-m", "zswarm", "design", "--save", str(tmp_path / "missing" / "x.rrd"))
     assert bad.returncode == 2 and "cannot write" in bad.stderr
+
+
+def test_cli_figure_marks_the_exact_bounds_on_labelled_axes(cli, tmp_path):
+    import json
+
+    import numpy as np
+    from PIL import Image
+
+    report = json.loads(cli("-m", "zswarm", "design", "--set", "c_o=2.5", "--json").stdout)
+    svg, png = tmp_path / "design.svg", tmp_path / "design.png"
+    for path in (svg, png):
+        res = cli("-m", "zswarm", "design", "--set", "c_o=2.5", "--figure", str(path))
+        assert res.returncode == 1 and path.exists(), res.stderr  # Prop 2 fails at c_o = 2.5: exit 1, figure made
+    text = svg.read_text()
+    assert f"bound {report['prop1']['lower_bound']:.4g} at |psi_g| = {report['prop1']['argmax']:.4g}" in text
+    assert f"bound {report['prop2']['upper_bound']:.4g} (eq 22)" in text
+    for label in ("|psi_g|: distance to the goal", "|psi_o|: distance to the obstacle",
+                  "r = |psi_f|: distance between two agents", "c_g / c_o", "force (positive: repulsive)"):
+        assert label in text, label
+    pixels = np.asarray(Image.open(png).convert("L"), dtype=float)
+    assert pixels.shape[0] > 500 and pixels.std() > 20  # drawn, not blank

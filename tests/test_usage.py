@@ -19,6 +19,8 @@ CASES = [
     (["-m", "zswarm", "design", "--set", "n_agents=abc"], "n_agents must be an integer"),
     (["-m", "zswarm", "design", "--set", "zz=1"], "unknown parameter"),
     (["-m", "zswarm", "design", "--save", "{missing}/x.rrd"], "does not exist"),
+    (["-m", "zswarm", "design", "--figure", "{dir}/f.txt"], "give a file name ending in .png"),
+    (["-m", "zswarm", "design", "--figure", "{missing}/f.png"], "does not exist"),
     # sim
     (["-m", "zswarm", "sim", "--scenario", "nope"], "unknown scenario"),
     (["-m", "zswarm", "sim", "--seed", "x"], "invalid int value"),

@@ -159,7 +159,7 @@ class World:
         self.prey = prey_motion.step(self.scenario.prey, self.prey, dt, pos)
 
     def publish(self, key: str, message: msg.Message) -> None:
-        self.bridge.session.put(key, msg.encode(message))
+        self.bridge.session.put(key, msg.encode(message), encoding=msg.ENCODING)
         self.sent += 1
 
     # --- the clocks -----------------------------------------------------------------------------------

@@ -8,7 +8,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from zswarm.args import add_param_args
+from zswarm.args import UsageError, add_param_args
 from zswarm.model.design import DesignReport, check
 from zswarm.model.nearest import nearest_passing
 from zswarm.model.params import DEFAULT_PARAMS, PAPER_PARAMS
@@ -20,7 +20,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="start from the paper's printed values instead of zswarm's defaults")
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
     parser.add_argument("--save", metavar="FILE.rrd", type=Path,
-                        help="write the Fig 9 curves and the pair force to a Rerun recording")
+                        help="write the design view (the figure of --figure and the verdict table) to a Rerun "
+                             "recording")
+    parser.add_argument("--figure", metavar="FILE.png|svg|pdf", type=Path,
+                        help="write Fig 9 (Prop 1), the Prop 2 bound and the pair force as plots with labelled "
+                             "axes, each bound marked with its exact value, and the verdicts as a table")
     parser.add_argument("--nearest", action="store_true",
                         help="also search the closest passing set (changing one or two potential values)")
 
@@ -63,6 +67,14 @@ def render(report: DesignReport) -> str:
 def run(args: argparse.Namespace) -> int:
     base = PAPER_PARAMS if args.paper else DEFAULT_PARAMS
     params = base.with_overrides(args.assignments)
+    from zswarm.files import check_writable
+    from zswarm.record.design_figure import FORMATS
+
+    for path in (args.save, args.figure):
+        if path is not None:
+            check_writable(path)
+    if args.figure is not None and args.figure.suffix.lower() not in FORMATS:
+        raise UsageError(f"--figure {args.figure}: give a file name ending in {', '.join(FORMATS)}")
     report = check(params)
     out: dict[str, Any] = report.to_json()
     nearest = None
@@ -73,6 +85,10 @@ def run(args: argparse.Namespace) -> int:
         from zswarm.record.design_plots import save_design
 
         save_design(report, args.save)
+    if args.figure is not None:
+        from zswarm.record.design_figure import save_figure
+
+        save_figure(report, args.figure)
     if args.json:
         print(json.dumps(out, indent=2))
     else:
@@ -81,5 +97,7 @@ def run(args: argparse.Namespace) -> int:
             print("nearest passing set: " + ("none found" if nearest is None else
                   "  ".join(f"--set {k}={v:.4g}" for k, v in nearest[1].items())))
         if args.save is not None:
-            print(f"saved the curves to {args.save} (open with: rerun {args.save})")
+            print(f"saved the design view to {args.save} (open with: rerun {args.save})")
+        if args.figure is not None:
+            print(f"saved the figure to {args.figure}")
     return 0 if report.ok else 1

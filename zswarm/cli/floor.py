@@ -57,14 +57,14 @@ def run_floor(args: argparse.Namespace) -> int:
         return zenoh.handlers.Callback(append, indirect=args.handler == "callback")
     try:
         if args.prey:
-            declared = [session.declare_publisher(keys.prey)]
+            declared = [session.declare_publisher(keys.prey, encoding=msg.ENCODING)]
             message = lambda seq: msg.encode(msg.Prey(seq, time.time(), -1, 1000.0, 0.0))  # noqa: E731
         else:
             declared = [session.liveliness().declare_token(keys.alive(args.id)),
                         session.declare_subscriber(keys.prey, handler()),
                         *(session.declare_subscriber(keys.cell_poses(c), handler())
                           for c in cells_in_disc(keys, x, y, reach)),
-                        session.declare_publisher(keys.pose(keys.cell(x, y), args.id))]
+                        session.declare_publisher(keys.pose(keys.cell(x, y), args.id), encoding=msg.ENCODING)]
             message = lambda seq: msg.encode(msg.Pose(args.id, seq, time.time(), -1, x, y, 0.0, 0.0))  # noqa: E731
         subs = [d for d in declared if hasattr(d, "try_recv") and args.handler == "ring"]
         publisher = declared[-1] if not args.prey else declared[0]

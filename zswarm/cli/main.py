@@ -18,7 +18,7 @@ DELEGATED = {"run": "start a swarm: router, world and N agent processes (zswarm 
 
 
 def build_parser() -> Parser:
-    from zswarm.cli import bench_net, certs, design, replay, sim, soak, tune
+    from zswarm.cli import bench_net, certs, design, monitor, replay, sim, soak, tune
 
     parser = Parser(prog="zswarm", description="Decentralized APF swarms (Kim, Wang & Shin 2006).")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
@@ -37,6 +37,11 @@ def build_parser() -> Parser:
                        description=tune.DESCRIPTION)
     tune.add_arguments(t)
     t.set_defaults(run=tune.run)
+
+    mon = sub.add_parser("monitor", help="watch a running swarm live from any machine on its router",
+                         description=monitor.DESCRIPTION)
+    monitor.add_arguments(mon)
+    mon.set_defaults(run=monitor.run)
 
     scen = sub.add_parser("scenarios", help="list the registered scenarios")
     scen.add_argument("--json", action="store_true")

@@ -16,6 +16,9 @@ from typing import Any, Union
 import msgpack
 
 VERSION = 1
+#: The Zenoh encoding every zswarm payload is published with: generic Zenoh tools (z_sub, z_get) can
+#: tell it is msgpack, and of which zswarm schema version.
+ENCODING = f"application/msgpack;zswarm/{VERSION}"
 MAX_PAYLOAD = 256 * 1024
 MAX_OBSTACLES = 4096
 MAX_ID = 1_000_000

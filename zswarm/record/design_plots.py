@@ -1,4 +1,10 @@
-"""Rerun plots of the design checks: Fig 9 (alpha and the c_g/c_o bound) and the pair force."""
+"""The design view as a Rerun recording (``zswarm design --save``): the design figure and the verdicts.
+
+The figure is :mod:`zswarm.record.design_figure`'s (Fig 9, the Prop 2 bound and the pair force with
+labelled axes and the exact bounds marked), logged as an image: Rerun's own plots have no numeric
+x axis for a function of distance. Beside it the verdicts as a markdown table, and the whole report
+as JSON (``report/json``) for a program to read back.
+"""
 
 from __future__ import annotations
 
@@ -6,59 +12,42 @@ import json
 from pathlib import Path
 from typing import Final
 
-import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from zswarm.model.design import DesignReport, alpha, prop1_curve, prop2_curve
-from zswarm.model.formation import pair_gain
+from zswarm.model.design import DesignReport
+from zswarm.record.design_figure import render_png, verdict_rows
 from zswarm.record.recording import close_recording, open_recording
 
-FIG9: Final = "fig9"
-PROP2: Final = "prop2"
-PAIR: Final = "pair_force"
-REPORT: Final = "report"
-
-
-def _strip(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    keep = np.isfinite(y)
-    return np.column_stack([x[keep], y[keep]])
+FIGURE: Final = "design/figure"
+VERDICTS: Final = "design/verdicts"
+REPORT: Final = "report/json"
 
 
 def blueprint() -> rrb.Blueprint:
     return rrb.Blueprint(
         rrb.Horizontal(
-            rrb.Spatial2DView(origin=FIG9, name="Fig 9: alpha and c_g/c_o bound vs |psi_g|"),
-            rrb.Spatial2DView(origin=PROP2, name="Prop 2: c_g/c_o bound vs |psi_o|"),
-            rrb.Spatial2DView(origin=PAIR, name="pair force -g(r) r vs r"),
-            rrb.TextDocumentView(origin=REPORT, name="verdicts"),
+            rrb.Spatial2DView(origin=FIGURE, name="design: Fig 9, Prop 2, pair force"),
+            rrb.Vertical(rrb.TextDocumentView(origin=VERDICTS, name="verdicts"),
+                         rrb.TextDocumentView(origin=REPORT, name="report (JSON)"), row_shares=[2, 3]),
+            column_shares=[3, 1],
         ),
         collapse_panels=True,
     )
 
 
+def verdict_markdown(report: DesignReport) -> str:
+    lines = ["| check | verdict | bound |", "|---|---|---|"]
+    lines += [f"| {name} | **{verdict}** | {bound} |" for name, verdict, bound in verdict_rows(report)]
+    lines += ["", "all guidelines hold" if report.ok else "guidelines fail: " + ", ".join(report.failures())]
+    return "\n".join(lines)
+
+
 def save_design(report: DesignReport, path: Path) -> None:
-    """Write the curves as line strips (x = distance, y = value) plus the report as text."""
-    p, m = report.params.potential, report.params.margins
+    """Write the design view to ``path``."""
     rec = open_recording(path, "zswarm-design", blueprint())
-    x = np.linspace(1e-4, 0.6, 600)
-    ratio = p.c_g / p.c_o if p.c_o else np.nan
-    rec.log(f"{FIG9}/alpha", rr.LineStrips2D([_strip(x, alpha(x, m.d_m_go, p) / 100.0)],
-                                             labels=["alpha / 100 (eq 20)"], colors=[(80, 160, 255)]),
-            static=True)
-    rec.log(f"{FIG9}/bound", rr.LineStrips2D([_strip(x, prop1_curve(x, m.d_m_go, p))],
-                                             labels=["c_g/o bound (eq 18)"], colors=[(255, 120, 60)]),
-            static=True)
-    rec.log(f"{PROP2}/bound", rr.LineStrips2D([_strip(x, prop2_curve(x, m.d_m_go, p))],
-                                              labels=["c_g/o bound (eq 24)"], colors=[(255, 120, 60)]),
-            static=True)
-    for entity in (FIG9, PROP2):
-        rec.log(f"{entity}/ratio", rr.LineStrips2D([[[0.0, ratio], [0.6, ratio]]], labels=["c_g/c_o"],
-                                                   colors=[(120, 220, 120)]), static=True)
-    r = np.linspace(0.0, 4.0 * max(p.l_a, p.l_r), 800)
-    rec.log(f"{PAIR}/force", rr.LineStrips2D([_strip(r, -pair_gain(r * r, p) * r)],
-                                             labels=["repulsive > 0 (eq 28)"]), static=True)
-    rec.log(f"{PAIR}/zero", rr.LineStrips2D([[[0.0, 0.0], [float(r[-1]), 0.0]]]), static=True)
+    rec.log(FIGURE, rr.Image(render_png(report)), static=True)
+    rec.log(VERDICTS, rr.TextDocument(verdict_markdown(report), media_type=rr.MediaType.MARKDOWN), static=True)
     rec.log(REPORT, rr.TextDocument("```json\n" + json.dumps(report.to_json(), indent=2) + "\n```",
                                     media_type=rr.MediaType.MARKDOWN), static=True)
     close_recording(rec)

@@ -1,0 +1,95 @@
+"""zswarm monitor on a live run, and the payload encoding a stock Zenoh subscriber sees."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+
+import zenoh
+
+from conftest import ROOT, run_cli
+from zswarm.net.messages import ENCODING
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _wait_port(port: int, deadline: float) -> None:
+    while time.monotonic() < deadline:
+        try:
+            socket.create_connection(("127.0.0.1", port), timeout=0.2).close()
+            return
+        except OSError:
+            time.sleep(0.05)
+    raise AssertionError(f"no router on port {port}")
+
+
+def _stock_subscriber(endpoint: str, run: str, until: float) -> dict[str, set[str]]:
+    """What a plain zenoh-python subscriber (z_sub) sees: the encoding of each kind of key."""
+    conf = zenoh.Config.from_json5(json.dumps({"mode": "client", "connect": {"endpoints": [endpoint]},
+                                               "scouting": {"multicast": {"enabled": False}}}))
+    seen: dict[str, set[str]] = {}
+    lock = threading.Lock()
+
+    def on_sample(sample) -> None:
+        kind = str(sample.key_expr).split("/")[2]  # zswarm/RUN/<kind>/...
+        with lock:
+            seen.setdefault(kind, set()).add(str(sample.encoding))
+
+    with zenoh.open(conf) as session:
+        sub = session.declare_subscriber(f"zswarm/{run}/**", on_sample)
+        while time.monotonic() < until:
+            with lock:
+                if {"pose", "prey", "stats"} <= seen.keys():
+                    break
+            time.sleep(0.05)
+        sub.undeclare()
+    return seen
+
+
+def test_monitor_matches_the_runs_summary_and_payloads_name_their_encoding(tmp_path):
+    port, run = _free_port(), "monitor-test"
+    endpoint = f"tcp/127.0.0.1:{port}"
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    swarm = subprocess.Popen([sys.executable, str(ROOT / "launch.py"), "--agents", "10", "--duration", "12",
+                              "--record", str(tmp_path / "run.rrd"), "--listen", endpoint, "--run", run, "--quiet"],
+                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env,
+                             start_new_session=True)
+    try:
+        _wait_port(port, time.monotonic() + 30)
+        seen = _stock_subscriber(endpoint, run, time.monotonic() + 20)
+        mon = run_cli("-m", "zswarm", "monitor", "--run", run, "--connect", endpoint, "--duration", "4", "--json",
+                      timeout=60)
+        nobody = run_cli("-m", "zswarm", "monitor", "--run", "nobody-here", "--connect", endpoint, "--wait", "1",
+                         timeout=60)
+        _, err = swarm.communicate(timeout=90)
+        assert swarm.returncode == 0, err[-2000:]
+    finally:
+        if swarm.poll() is None:
+            os.killpg(swarm.pid, signal.SIGKILL)
+            swarm.wait()
+    assert {"pose", "prey", "stats"} <= seen.keys(), seen
+    assert all(encodings == {ENCODING} for encodings in seen.values()), seen
+
+    assert mon.returncode == 0, mon.stderr
+    snapshots = [json.loads(line) for line in mon.stdout.splitlines()]
+    assert len(snapshots) >= 3
+    last = snapshots[-1]
+    summary = json.loads((tmp_path / "run.json").read_text())
+    assert last["alive"] == summary["n_agents"] == 10
+    rate = summary["ticks"] / (summary["n_agents"] * summary["duration"])  # one pose per agent tick
+    assert abs(last["mean_pose_rate"] - rate) <= 0.1 * rate, (last["mean_pose_rate"], rate)
+    assert last["agents_reporting"] == 10 and last["prey"] is not None
+    assert last["rejected"] == {} and summary["messages_rejected"] == 0
+
+    assert nobody.returncode == 2 and "no agent of run 'nobody-here'" in nobody.stderr, nobody.stderr
+    assert "Traceback" not in nobody.stderr

@@ -1,0 +1,124 @@
+"""``zswarm monitor --run RUN``: a live terminal view of a running swarm, from any machine on its router.
+
+Like ``ros2 topic hz`` and ``ros2 topic echo`` together for a whole run: agents alive, each agent's
+pose rate, the pose latency and data age the agents measure, messages rejected by reason, late ticks
+and the prey, refreshed in place (``rich``) until Ctrl-C or ``--duration``. ``--json`` prints one JSON
+object per refresh instead, for scripts. It joins the run with the standard Zenoh arguments
+(``--connect``, ``--config`` for TLS), subscribes only, and never disturbs the swarm.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import signal
+import sys
+import time
+
+from zswarm.errors import UsageError
+from zswarm.net.keys import Keys, check_run_id
+
+DESCRIPTION = ("Watch a running swarm live: agents alive, pose rate per agent, latency and data age (p50/p99), "
+               "rejected messages by reason, late ticks and the prey. Join with --connect tcp/ROUTER:PORT (or "
+               "--config for TLS); Ctrl-C to stop. Exit 2 when no agent of the run is heard within --wait.")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from zswarm.net.config import add_zenoh_args
+
+    parser.add_argument("--run", dest="run_id", required=True, metavar="RUN",
+                        help="the run id (zswarm run prints it; its --run)")
+    parser.add_argument("--every", type=float, default=1.0, metavar="S", help="refresh period (default 1 s)")
+    parser.add_argument("--duration", type=float, default=None, metavar="S", help="stop after S seconds")
+    parser.add_argument("--wait", type=float, default=10.0, metavar="S",
+                        help="give up (exit 2) if no agent of the run is heard within S seconds (default 10)")
+    parser.add_argument("--json", action="store_true", help="one JSON object per refresh instead of the table")
+    add_zenoh_args(parser)
+
+
+def table(snap, run: str):
+    from rich.table import Table
+
+    t = Table(title=f"zswarm run {run!r}: {len(snap.alive)} agents alive, "
+                    f"{snap.agents_reporting} reporting stats", title_justify="left")
+    t.add_column("figure")
+    t.add_column("value", justify="right")
+    rate = snap.mean_pose_rate
+    rates = [snap.pose_rate.get(i, 0.0) for i in snap.alive]
+    fmt = lambda v, unit="": "-" if v is None else f"{v:.2f}{unit}"  # noqa: E731
+    t.add_row("pose rate per agent (mean, min-max)",
+              f"{fmt(rate, ' Hz')} ({min(rates):.1f}-{max(rates):.1f})" if rates else "-")
+    t.add_row("pose latency p50 / p99", f"{fmt(snap.latency_p50_ms)} / {fmt(snap.latency_p99_ms, ' ms')}")
+    t.add_row("data age at use p50 / p99", f"{fmt(snap.age_p50_ms)} / {fmt(snap.age_p99_ms, ' ms')}")
+    t.add_row("late ticks", f"{snap.late_ticks} of {snap.ticks}")
+    t.add_row("rejected messages", ", ".join(f"{k} {v}" for k, v in snap.rejected.items()) or "none")
+    t.add_row("prey", "-" if snap.prey is None else f"({snap.prey[0]:.2f}, {snap.prey[1]:.2f}) at {snap.prey_rate:.1f} Hz")
+    slow = [i for i in snap.alive if snap.pose_rate.get(i, 0.0) < 0.5 * (rate or 0.0)]
+    t.add_row("agents at under half the mean rate", ", ".join(map(str, slow)) or "none")
+    return t
+
+
+def run(args: argparse.Namespace) -> int:
+    from zswarm.net.config import config_from_args, open_session
+    from zswarm.net.watch import RunWatch
+
+    check_run_id(args.run_id)
+    if not args.every > 0:
+        raise UsageError(f"--every must be > 0 (got {args.every})")
+    session = open_session(config_from_args(args), what="monitor", retry_for=args.connect_timeout)
+    watch = RunWatch(Keys(args.run_id, cell_size=1.0))  # the wildcards it subscribes to span every cell
+    stop = False
+
+    def on_signal(*_):
+        nonlocal stop
+        stop = True
+
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
+    start = time.monotonic()
+    try:
+        watch.start(session)
+        while not stop:  # wait for the first agent
+            watch.poll()
+            if watch.alive or watch.poses:
+                break
+            if time.monotonic() - start > args.wait:
+                raise UsageError(f"no agent of run {args.run_id!r} heard within {args.wait:g} s; check --run (zswarm run "
+                                 "prints it) and that --connect reaches the run's router")
+            time.sleep(0.05)
+        if args.json:
+            _loop_json(watch, args, start, lambda: stop)
+        else:
+            _loop_live(watch, args, start, lambda: stop)
+    finally:
+        watch.stop(session)
+    return 0
+
+
+def _ended(args, start: float, stopped) -> bool:
+    return stopped() or (args.duration is not None and time.monotonic() - start >= args.duration)
+
+
+def _sleep(period: float, stopped) -> None:
+    end = time.monotonic() + period
+    while time.monotonic() < end and not stopped():
+        time.sleep(0.05)
+
+
+def _loop_json(watch, args, start: float, stopped) -> None:
+    while not _ended(args, start, stopped):
+        _sleep(args.every, stopped)
+        watch.poll()
+        print(json.dumps(watch.snapshot().to_dict()), flush=True)
+
+
+def _loop_live(watch, args, start: float, stopped) -> None:
+    from rich.console import Console
+    from rich.live import Live
+
+    watch.poll()
+    with Live(table(watch.snapshot(), args.run_id), console=Console(file=sys.stdout), auto_refresh=False) as live:
+        while not _ended(args, start, stopped):
+            _sleep(args.every, stopped)
+            watch.poll()
+            live.update(table(watch.snapshot(), args.run_id), refresh=True)

@@ -1,0 +1,128 @@
+"""What a bystander hears of a running swarm: the figures of ``zswarm monitor``.
+
+A :class:`RunWatch` subscribes, on any session that reaches the run's router, to the agents'
+liveliness tokens, their poses, their stats and the prey, through the one bridge (samples wait in ring
+channels; :meth:`RunWatch.poll` takes them in). It decodes and validates every message like an agent
+does, counting what it rejects by reason, and folds it into a :class:`Snapshot`: agents alive, pose
+rate per agent over the last window, the pose latency and data age the agents themselves measured
+(their cumulative histograms), rejected messages by reason, late ticks and the prey.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import Counter, deque
+from dataclasses import dataclass, field
+from typing import Any
+
+from zswarm.net import messages as msg
+from zswarm.net.bridge import Bridge, teardown
+from zswarm.net.keys import Keys
+
+WINDOW = 2.0  # seconds over which pose rates are counted
+
+
+@dataclass
+class Snapshot:
+    t: float
+    alive: list[int]
+    pose_rate: dict[int, float]  # poses per second per agent over the last window
+    latency_p50_ms: float | None
+    latency_p99_ms: float | None
+    age_p50_ms: float | None
+    age_p99_ms: float | None
+    rejected: dict[str, int]
+    late_ticks: int
+    ticks: int
+    prey: tuple[float, float] | None
+    prey_rate: float
+    agents_reporting: int
+
+    @property
+    def mean_pose_rate(self) -> float | None:
+        rates = [self.pose_rate.get(i, 0.0) for i in self.alive]
+        return sum(rates) / len(rates) if rates else None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"t": self.t, "alive": len(self.alive), "alive_ids": self.alive,
+                "mean_pose_rate": self.mean_pose_rate, "pose_rate": {str(k): v for k, v in self.pose_rate.items()},
+                "latency_p50_ms": self.latency_p50_ms, "latency_p99_ms": self.latency_p99_ms,
+                "age_p50_ms": self.age_p50_ms, "age_p99_ms": self.age_p99_ms, "rejected": self.rejected,
+                "late_ticks": self.late_ticks, "ticks": self.ticks, "prey": self.prey, "prey_rate": self.prey_rate,
+                "agents_reporting": self.agents_reporting}
+
+
+@dataclass
+class RunWatch:
+    keys: Keys
+    bridge: Bridge | None = None
+    alive: set[int] = field(default_factory=set)
+    poses: dict[int, deque] = field(default_factory=dict)  # arrival times within the window
+    prey_times: deque = field(default_factory=deque)
+    prey: tuple[float, float] | None = None
+    stats: dict[int, msg.Stats] = field(default_factory=dict)
+    own_rejections: Counter = field(default_factory=Counter)
+    declared: list = field(default_factory=list)
+    started: float = 0.0
+
+    def start(self, session) -> None:
+        self.started = time.time()
+        self.bridge = Bridge(session, None, deliver=self.handle, channels=True)
+        self.declared = [self.bridge.subscribe_liveliness(self.keys.all_alive, "alive"),
+                         self.bridge.subscribe(self.keys.all_poses, "pose"),
+                         self.bridge.subscribe(self.keys.all_stats, "stats"),
+                         self.bridge.subscribe(self.keys.prey, "prey")]
+
+    def stop(self, session) -> None:
+        if self.bridge is not None:
+            teardown(self.bridge, self.declared, session)
+
+    def poll(self) -> None:
+        if self.bridge is not None:
+            self.bridge.drain()
+
+    def handle(self, item) -> None:
+        tag, key, payload, deleted, received = item
+        if tag == "alive":
+            agent = Keys.agent_of(key)
+            if agent is not None:
+                (self.alive.discard if deleted else self.alive.add)(agent)
+            return
+        try:
+            message = msg.decode(payload)
+        except msg.DecodeError as exc:
+            self.own_rejections[exc.reason] += 1
+            return
+        if tag == "pose" and isinstance(message, msg.Pose):
+            self.poses.setdefault(message.id, deque()).append(received)
+        elif tag == "stats" and isinstance(message, msg.Stats):
+            self.stats[message.id] = message
+        elif tag == "prey" and isinstance(message, msg.Prey):
+            self.prey = (message.x, message.y)
+            self.prey_times.append(received)
+        else:
+            self.own_rejections["unexpected"] += 1
+
+    def snapshot(self, now: float | None = None) -> Snapshot:
+        now = time.time() if now is None else now
+        window = min(WINDOW, max(now - self.started, 1e-3))  # a watch younger than the window has heard less
+        for times in (*self.poses.values(), self.prey_times):
+            while times and times[0] < now - WINDOW:
+                times.popleft()
+        latency: Counter = Counter()
+        age: Counter = Counter()
+        rejected: Counter = Counter(self.own_rejections)
+        late = ticks = 0
+        for s in self.stats.values():
+            latency.update(s.latency_hist)
+            age.update(s.age_hist)
+            rejected.update(s.rejected)
+            late += s.late_ticks
+            ticks += s.ticks
+        return Snapshot(t=now, alive=sorted(self.alive),
+                        pose_rate={i: len(t) / window for i, t in sorted(self.poses.items())},
+                        latency_p50_ms=msg.percentile(latency, 0.5), latency_p99_ms=msg.percentile(latency, 0.99),
+                        age_p50_ms=msg.percentile(age, 0.5), age_p99_ms=msg.percentile(age, 0.99),
+                        rejected={k: v for k, v in sorted(rejected.items()) if v},
+                        late_ticks=late, ticks=ticks, prey=self.prey, prey_rate=len(self.prey_times) / window,
+                        agents_reporting=len(self.stats))
