@@ -50,6 +50,7 @@ def test_sweep_simulated_resumes_without_touching_finished_cells(tmp_path):
     table = (out / "results.md").read_text().splitlines()
     assert len([line for line in table if line.startswith("| simulated")]) == 2
     assert (out / "results.csv").exists() and (out / "sweep.rrd").stat().st_size > 0
+    assert (out / "sweep.png").stat().st_size > 10_000  # the figure, drawn
 
 
 def test_interrupted_distributed_sweep_resumes(tmp_path):

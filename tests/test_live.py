@@ -51,6 +51,16 @@ def _stop(proc: subprocess.Popen) -> None:
     proc.wait(timeout=20)
 
 
+def _entities(path: Path) -> set[str]:
+    from rerun.chunk import RrdReader
+
+    return {str(c.entity_path).lstrip("/") for c in RrdReader(str(path)).stream().to_chunks()}
+
+
+THRESHOLD_LINES = {"thresholds/capture_radius", "thresholds/collision_distance", "thresholds/d_m_ro",
+                   "thresholds/epsilon"}
+
+
 def _same_run(local: Path, received: Path) -> int:
     a, b = load_run(local), load_run(received)
     assert len(a.frames) == len(b.frames) > 0
@@ -69,6 +79,7 @@ def test_a_simulation_streams_live_and_keeps_its_file(viewer_server, tmp_path):
     assert res.returncode == 0, res.stderr
     _stop(server)
     assert _same_run(local, saved) == 81
+    assert THRESHOLD_LINES | {"map/sensing_graph"} <= _entities(local)  # the lines plots are read against
 
 
 def test_a_distributed_run_streams_live_and_keeps_its_file(viewer_server, tmp_path):
@@ -79,3 +90,4 @@ def test_a_distributed_run_streams_live_and_keeps_its_file(viewer_server, tmp_pa
     assert res.returncode == 0, res.stderr[-2000:]
     _stop(server)
     assert _same_run(local, saved) > 40
+    assert THRESHOLD_LINES | {"map/sensing_graph", "network/poses_per_s", "network/agents_alive"} <= _entities(local)

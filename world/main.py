@@ -38,6 +38,8 @@ def build_parser() -> Parser:
                              "recover the run so far from it and record the rest into the next segment "
                              "(RECORD.segN.rrd); free clock only")
     parser.add_argument("--progress", type=float, default=2.0, help="seconds between progress lines (0: none)")
+    parser.add_argument("--sensing-graph", choices=("auto", "on", "off"), default="auto",
+                        help="draw who senses whom in the recording's map (auto: for N <= 100)")
     add_viewer_args(parser, zenoh_connect="connect")
     add_zenoh_args(parser, viewer=True)
     return parser
@@ -50,7 +52,7 @@ async def run_world(args: argparse.Namespace, spec: RunSpec, viewer: Viewer | No
     # the loop (the world waits for the poses of a step)
     bridge = Bridge(session, loop, deliver=lambda item: None, channels=spec.clock == "free")
     recorder = WorldRecorder(args.record, args.summary, args.trajectory, spec.scenario.n_agents, spec.scenario.dt,
-                             viewer)
+                             viewer, {"auto": None, "on": True, "off": False}[args.sensing_graph])
     world = World(spec, bridge, recorder, list(sys.argv))
     bridge.deliver = world.handle
     for sig in (signal.SIGINT, signal.SIGTERM):

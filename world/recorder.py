@@ -20,6 +20,7 @@ from zswarm.files import write_json
 from zswarm.model.observer import SwarmObserver
 
 TRAIL = 400  # prey positions drawn behind it
+GRAPH_MAX_AGENTS = 100  # the sensing graph is drawn by default up to this N
 
 
 @dataclass(frozen=True)
@@ -41,9 +42,12 @@ class WorldRecorder:
     ``trajectory``) and the summary JSON (if ``summary``)."""
 
     def __init__(self, record: Path | None, summary: Path | None, trajectory: Path | None, n_agents: int,
-                 dt: float, viewer=None) -> None:
+                 dt: float, viewer=None, sensing_graph: bool | None = None) -> None:
         self.record_path, self.summary_path, self.trajectory_path = record, summary, trajectory
         self.viewer = viewer  # a zswarm.record.live.Viewer: stream live as well (or instead of a file)
+        self.sensing_graph = sensing_graph if sensing_graph is not None else n_agents <= GRAPH_MAX_AGENTS
+        self.thresholds: dict[str, float] = {}
+        self.graph_radius: float | None = None
         self.n_agents, self.dt = n_agents, dt
         self.rec = None
         self.segment = 0
@@ -81,7 +85,12 @@ class WorldRecorder:
         return Resumed(self.segment, last.step, last.t, None if last.prey is None else last.prey.copy(),
                        len(prior.frames))
 
-    def open(self, run: str, config: dict[str, Any], centers: np.ndarray, radii: np.ndarray) -> None:
+    @property
+    def recording(self) -> bool:
+        return self.rec is not None
+
+    def open(self, run: str, config: dict[str, Any], centers: np.ndarray, radii: np.ndarray,
+             thresholds: dict[str, float] | None = None, sensing_radius: float | None = None) -> None:
         """Open this world's segment and write what never changes; flushed at once, so that a
         successor finds the run's identity even if this world dies at its first step."""
         if self.record_path is None and not (self.viewer is not None and self.viewer.wanted):
@@ -90,12 +99,14 @@ class WorldRecorder:
         from zswarm.record.recording import open_recording
         from zswarm.record.replay import segment_path
 
-        extra = (("agents alive", ("agents_alive",)),)
         path = None if self.record_path is None else segment_path(self.record_path, self.segment)
-        self.rec = open_recording(path, "zswarm-world", swarm_log.blueprint(extra), recording_id=run,
+        self.rec = open_recording(path, "zswarm-world", swarm_log.blueprint(network=True), recording_id=run,
                                   viewer=self.viewer)
+        self.thresholds = thresholds or {}
+        self.graph_radius = sensing_radius if self.sensing_graph and sensing_radius else None
         swarm_log.log_config(self.rec, config)
         swarm_log.log_obstacles(self.rec, centers, radii)
+        swarm_log.log_threshold_styles(self.rec, self.thresholds)
         self.rec.flush()
 
     # --- every step -----------------------------------------------------------------------------------
@@ -111,7 +122,17 @@ class WorldRecorder:
         self.trail.append(prey.copy())
         swarm_log.log_swarm(self.rec, t, ids, pos, vel)
         swarm_log.log_prey(self.rec, prey, np.array(self.trail))
-        swarm_log.log_metrics(self.rec, metrics)
+        swarm_log.log_metrics(self.rec, metrics, self.thresholds)
+        if self.graph_radius is not None:
+            swarm_log.log_sensing_graph(self.rec, pos, self.graph_radius)
+
+    def log_network(self, step: int, t: float, figures: dict[str, float | None]) -> None:
+        if self.rec is None:
+            return
+        from zswarm.record import swarm_log
+
+        swarm_log.set_time(self.rec, step, t)
+        swarm_log.log_network(self.rec, figures)
 
     def log_event(self, step: int, t: float, text: str) -> None:
         if self.rec is None:

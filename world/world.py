@@ -68,6 +68,8 @@ class World:
         self.stats = StatsBook(self.keys.agent_of, self.rejected)
         self.prey = np.array(self.scenario.prey_start, dtype=float)
         self.received = self.sent = 0
+        self.network_logged = self.network_agents_logged = 0.0  # wall times the network panel was last logged
+        self.network_received = 0
         self.pose_arrived = asyncio.Event()
         self.stop = asyncio.Event()
         self.started_wall = time.time()
@@ -83,7 +85,8 @@ class World:
             self.clock.step, self.clock.t = self.resumed.step + 1, self.resumed.t
             if self.resumed.prey is not None:
                 self.prey = self.resumed.prey
-        self.recorder.open(self.spec.run, self.config(), self.obstacles.centers, self.obstacles.radii)
+        self.recorder.open(self.spec.run, self.config(), self.obstacles.centers, self.obstacles.radii,
+                           self.observer.thresholds(), self.scenario.params.swarm.sensing_radius)
         if self.resumed is not None:
             self._event(f"world restarted: segment {self.resumed.segment} continues after step "
                         f"{self.resumed.step} (t = {self.resumed.t:.2f} s)")
@@ -152,7 +155,27 @@ class World:
         metrics = self.observer.observe(self.clock.t, ids, pos, vel, self.prey)
         self.recorder.log_step(self.clock.step, self.clock.t, ids, pos, vel, self.prey,
                                {**metrics, "agents_alive": float(len(self.census.alive))})
+        self._log_network()
         return metrics
+
+    def _log_network(self, every: float = 1.0, agents_every: float = 5.0) -> None:
+        """The network panel: the world's own counters each second, and the latency and data age the
+        agents measured every few seconds (decoding every agent's stats costs, at N = 100)."""
+        now = time.time()
+        if now - self.network_logged < every or not self.recorder.recording:
+            return
+        span = now - self.network_logged if self.network_logged else every
+        figures = {"poses_per_s": (self.received - self.network_received) / span,
+                   "rejected": float(sum(self.rejected.counts.values())), "late_ticks": float(self.clock.late_ticks),
+                   "agents_alive": float(len(self.census.alive))}
+        if now - self.network_agents_logged >= agents_every:
+            stats = self.stats.all()
+            lat, ages = msg.merge([s.latency_hist for s in stats]), msg.merge([s.age_hist for s in stats])
+            figures.update(latency_p50_ms=msg.percentile(lat, 0.5), latency_p99_ms=msg.percentile(lat, 0.99),
+                           age_p50_ms=msg.percentile(ages, 0.5), age_p99_ms=msg.percentile(ages, 0.99))
+            self.network_agents_logged = now
+        self.recorder.log_network(self.clock.step, self.clock.t, figures)
+        self.network_logged, self.network_received = now, self.received
 
     def advance_prey(self, poses: dict[int, msg.Pose], dt: float) -> None:
         pos = np.array([[p.x, p.y] for _, p in sorted(poses.items())]).reshape(-1, 2)

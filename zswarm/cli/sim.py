@@ -26,6 +26,8 @@ def add_sim_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--record-every", type=positive_int, default=1, metavar="K",
                         help="log every K-th step to the recording (default 1)")
     parser.add_argument("--sensing-discs", action="store_true", help="draw each agent's sensing disc")
+    parser.add_argument("--sensing-graph", choices=("auto", "on", "off"), default="auto",
+                        help="draw who senses whom in the recording's map (auto: for N <= 100)")
     from zswarm.record.live import add_viewer_args
 
     add_viewer_args(parser)
@@ -44,7 +46,8 @@ def run_sim(args: argparse.Namespace) -> int:
     viewer = viewer_from_args(args)
     result = simulate(scenario, args.seed, combination=args.potential, duration=args.duration,
                       record=args.record, record_every=args.record_every,
-                      sensing_discs=args.sensing_discs, faults=faults_from_args(args), viewer=viewer)
+                      sensing_discs=args.sensing_discs, faults=faults_from_args(args), viewer=viewer,
+                      sensing_graph={"auto": None, "on": True, "off": False}[args.sensing_graph])
     if args.json:
         print(json.dumps(result.summary, sort_keys=True))
     else:

@@ -3,8 +3,9 @@
 Each cell keeps its own directory (``DIR/cells/<cell>/``): the distributed run's ``run.rrd`` and
 ``run.json`` and the reference simulator's ``sim.json`` under the same faults and seed. A cell whose
 summary exists is finished and is never run again, so an interrupted sweep resumes where it stopped.
-At the end the sweep writes ``results.csv``, ``results.md`` (mean and spread over repeats) and
-``sweep.rrd`` (the metric curves of every cell).
+At the end the sweep writes ``results.csv``, ``results.md`` (mean and spread over repeats),
+``sweep.png`` (capture time and clearance against latency x dropout) and ``sweep.rrd`` (the metric
+curves of every cell).
 """
 
 from __future__ import annotations
@@ -235,5 +236,10 @@ def main(argv: Sequence[str] | None, prog: str = "zswarm sweep") -> int:
     rows = aggregate(cells, args.out, sources)
     write_tables(rows, args.out)
     write_curves(cells, args, args.out, jitter)
-    print(f"sweep: wrote {args.out / 'results.md'}, {args.out / 'results.csv'} and {args.out / 'sweep.rrd'}")
+    from zswarm.cli.sweep_figure import save_figure
+
+    d_m_ro = cell_spec(cells[0], args, jitter).scenario.params.margins.d_m_ro if cells else None
+    save_figure(rows, args.out / "sweep.png", args.scenario, d_m_ro)
+    print(f"sweep: wrote {args.out / 'results.md'}, {args.out / 'results.csv'}, {args.out / 'sweep.png'} and "
+          f"{args.out / 'sweep.rrd'}")
     return 0

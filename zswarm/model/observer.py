@@ -64,6 +64,12 @@ class SwarmObserver:
         self.summary = Summary(capture_radius=scenario.capture_radius,
                                epsilon=epsilon(p.potential, scenario.n_agents))
 
+    def thresholds(self) -> dict[str, float]:
+        """The lines the metrics are read against: capture radius, 2 d^r, d_m^ro and Prop 3's epsilon."""
+        p = self.scenario.params
+        return {"capture_radius": self.scenario.capture_radius, "collision_distance": 2.0 * p.swarm.robot_radius,
+                "d_m_ro": p.margins.d_m_ro, "epsilon": self.summary.epsilon}
+
     def energy(self, positions: np.ndarray, goal: np.ndarray) -> float:
         """Sum of the agents' potentials U_i (eq 35), each from what it senses at ``positions``."""
         u, _ = swarm_field(self.controller, self.obstacles, positions, goal)

@@ -18,32 +18,54 @@ MAP: Final = "map"
 AGENTS: Final = "map/agents"
 VELOCITIES: Final = "map/velocities"
 SENSING: Final = "map/sensing"
+SENSING_GRAPH: Final = "map/sensing_graph"  # an edge between every two agents within the sensing radius
 OBSTACLES: Final = "map/obstacles"
 PREY: Final = "map/prey"
 PREY_TRAIL: Final = "map/prey_trail"
 STATE: Final = "state/agents"  # float64 x, y, vx, vy, id per agent
 PREY_STATE: Final = "state/prey"
 METRICS: Final = "metrics"
+THRESHOLDS: Final = "thresholds"
+NETWORK: Final = "network"
+EVENTS: Final = "run/events"
 CONFIG: Final = "run/config"
 SUMMARY: Final = "run/summary"
 TIMELINE: Final = "sim_time"
 
-PLOTS = (("distance to prey", ("mean_goal_distance", "centroid_goal_distance")),
-         ("safety", ("min_pair_distance", "min_obstacle_clearance")),
-         ("cohesion and components", ("cohesion", "components")),
+#: The lines a reader measures the metrics against (``SwarmObserver.thresholds``), by plot.
+THRESHOLD_NAMES = {"capture_radius": "capture radius", "collision_distance": "2 d^r (collision)",
+                   "d_m_ro": "d_m^ro (Prop 2)", "epsilon": "epsilon (Prop 3)"}
+PLOTS = (("distance to prey", ("mean_goal_distance", "centroid_goal_distance", "capture_radius")),
+         ("safety", ("min_pair_distance", "min_obstacle_clearance", "collision_distance", "d_m_ro")),
+         ("cohesion and components", ("cohesion", "components", "epsilon")),
          ("order and union", ("order", "union")),
          ("energy (Lyapunov trace)", ("energy",)))
 
 
-def blueprint(extra_plots: Iterable[tuple[str, tuple[str, ...]]] = ()) -> rrb.Blueprint:
-    plots = [rrb.TimeSeriesView(name=title, origin=METRICS,
-                                contents=[f"{METRICS}/{name}" for name in names])
+def blueprint(extra_plots: Iterable[tuple[str, tuple[str, ...]]] = (), network: bool = False) -> rrb.Blueprint:
+    """The map beside the metric plots (each with its threshold lines); ``network``: a third column with
+    the transport figures and the run's events (the world's recordings)."""
+    def path(name: str) -> str:
+        return f"{THRESHOLDS}/{name}" if name in THRESHOLD_NAMES else f"{METRICS}/{name}"
+
+    plots = [rrb.TimeSeriesView(name=title, origin="/", contents=[path(name) for name in names])
              for title, names in (*PLOTS, *extra_plots)]
+    side = [rrb.Vertical(*plots)]
+    if network:
+        side.append(rrb.Vertical(
+            rrb.TimeSeriesView(name="network: latency and data age p50/p99 (ms)", origin="/",
+                               contents=[f"{NETWORK}/latency_p50_ms", f"{NETWORK}/latency_p99_ms",
+                                         f"{NETWORK}/age_p50_ms", f"{NETWORK}/age_p99_ms"]),
+            rrb.TimeSeriesView(name="network: poses/s, rejected, late ticks, agents alive", origin="/",
+                               contents=[f"{NETWORK}/poses_per_s", f"{NETWORK}/rejected", f"{NETWORK}/late_ticks",
+                                         f"{NETWORK}/agents_alive"]),
+            rrb.TextLogView(origin=EVENTS, name="events"),
+            row_shares=[2, 2, 1]))
     return rrb.Blueprint(
         rrb.Horizontal(
             rrb.Spatial2DView(origin=MAP, name="swarm"),
-            rrb.Vertical(*plots),
-            column_shares=[3, 2],
+            *side,
+            column_shares=[3, 2, 2] if network else [3, 2],
         ),
         rrb.TimePanel(expanded=False),
         collapse_panels=True,
@@ -90,10 +112,44 @@ def log_prey(rec: rr.RecordingStream, prey: np.ndarray, trail: np.ndarray) -> No
     rec.log(PREY_STATE, rr.AnyValues(x=np.array([prey[0]], np.float64), y=np.array([prey[1]], np.float64)))
 
 
-def log_metrics(rec: rr.RecordingStream, metrics: dict[str, float]) -> None:
+def log_metrics(rec: rr.RecordingStream, metrics: dict[str, float],
+                thresholds: dict[str, float] | None = None) -> None:
+    """The step's metrics, and the threshold lines beside them (logged with every step, so they grow
+    with a live run)."""
     for name, value in metrics.items():
         if np.isfinite(value):
             rec.log(f"{METRICS}/{name}", rr.Scalars(value))
+    for name, value in (thresholds or {}).items():
+        if np.isfinite(value):
+            rec.log(f"{THRESHOLDS}/{name}", rr.Scalars(value))
+
+
+def log_threshold_styles(rec: rr.RecordingStream, thresholds: dict[str, float]) -> None:
+    """Thin grey lines, named for what they are."""
+    for name in thresholds:
+        rec.log(f"{THRESHOLDS}/{name}", rr.SeriesLines(names=THRESHOLD_NAMES.get(name, name), widths=1.0,
+                                                       colors=(160, 160, 160)), static=True)
+
+
+def log_sensing_graph(rec: rr.RecordingStream, positions: np.ndarray, radius: float) -> None:
+    """Who senses whom: a segment between every two agents within ``radius`` (a split swarm shows as
+    separate graphs)."""
+    from zswarm.model.neighbours import pairs_within
+
+    i, j = pairs_within(positions, radius)
+    keep = i < j
+    segments = np.stack([positions[i[keep]], positions[j[keep]]], axis=1)
+    rec.log(SENSING_GRAPH, rr.LineStrips2D(segments, colors=(110, 150, 220, 110), radii=0.006))
+
+
+def log_network(rec: rr.RecordingStream, figures: dict[str, float | None]) -> None:
+    for name, value in figures.items():
+        if value is not None and np.isfinite(value):
+            rec.log(f"{NETWORK}/{name}", rr.Scalars(value))
+
+
+def log_event(rec: rr.RecordingStream, text: str, level: str = "INFO") -> None:
+    rec.log(EVENTS, rr.TextLog(text, level=level))
 
 
 def log_summary(rec: rr.RecordingStream, summary: dict[str, Any]) -> None:

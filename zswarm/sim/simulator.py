@@ -91,10 +91,12 @@ class RunResult:
 def simulate(scenario: Scenario, seed: int, *, combination: Combination | None = None,
              duration: float | None = None, record: Path | None = None, record_every: int = 1,
              metrics_every: int = 1, keep_trajectory: bool = False, sensing_discs: bool = False,
-             argv: list[str] | None = None, faults: FaultModel | None = None, viewer=None) -> RunResult:
+             argv: list[str] | None = None, faults: FaultModel | None = None, viewer=None,
+             sensing_graph: bool | None = None) -> RunResult:
     """Run a scenario to its end; optionally record it to Rerun (a file, and/or live to ``viewer``, a
     :class:`zswarm.record.live.Viewer`) and keep the trajectories.
 
+    ``sensing_graph``: draw who senses whom in the recording (None: for N <= 100).
     ``faults``: pass neighbour and prey data through a seeded faulty channel (:mod:`zswarm.sim.channel`).
     """
     sim = Simulator(scenario, seed, combination, faults)
@@ -116,6 +118,8 @@ def simulate(scenario: Scenario, seed: int, *, combination: Combination | None =
         swarm_log.log_config(rec, {**header, "scenario_definition": scenario.to_dict(),
                                    "versions": versions(), "argv": argv or sys.argv})
         swarm_log.log_obstacles(rec, sim.obstacles.centers, sim.obstacles.radii)
+        swarm_log.log_threshold_styles(rec, observer.thresholds())
+    graph = sensing_graph if sensing_graph is not None else len(sim.positions) <= 100
     trail: list[np.ndarray] = []
     for k in range(steps + 1):
         u, v = sim.potential_and_velocity(sim.positions, sim.prey)
@@ -126,7 +130,8 @@ def simulate(scenario: Scenario, seed: int, *, combination: Combination | None =
             energy = float(u.sum()) if sim.channel is None else None
             metrics = observer.observe(sim.t, sim.ids, sim.positions, v, sim.prey, energy)
             if rec is not None and (k % record_every == 0 or k == steps):
-                _log_step(rec, sim, v, metrics, trail, p.swarm.sensing_radius if sensing_discs else None)
+                _log_step(rec, sim, v, metrics, trail, p.swarm.sensing_radius if sensing_discs else None,
+                          observer.thresholds(), p.swarm.sensing_radius if graph else None)
         if k < steps:
             sim.advance(v)
     result = {**header, **observer.summary.result()}
@@ -144,11 +149,13 @@ def simulate(scenario: Scenario, seed: int, *, combination: Combination | None =
 
 
 def _log_step(rec, sim: Simulator, v: np.ndarray, metrics: dict[str, float], trail: list[np.ndarray],
-              sensing_radius: float | None) -> None:
+              sensing_radius: float | None, thresholds: dict[str, float], graph_radius: float | None) -> None:
     from zswarm.record import swarm_log
 
     swarm_log.set_time(rec, sim.step_index, sim.t)
     trail.append(sim.prey.copy())
     swarm_log.log_swarm(rec, sim.t, sim.ids, sim.positions, v, sensing_radius)
     swarm_log.log_prey(rec, sim.prey, np.array(trail[-400:]))
-    swarm_log.log_metrics(rec, metrics)
+    swarm_log.log_metrics(rec, metrics, thresholds)
+    if graph_radius is not None:
+        swarm_log.log_sensing_graph(rec, sim.positions, graph_radius)

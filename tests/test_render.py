@@ -1,0 +1,57 @@
+"""The real Rerun viewer, rendered headless, opens our recordings in their default blueprints: not
+blank, and the map, plots and figure where the blueprint puts them. Needs xvfb-run and a software
+Vulkan driver (``.ci/run`` installs them when it runs as root); skipped, with the reason, without."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import run_cli
+
+RERUN = Path(sys.executable).with_name("rerun")
+pytestmark = pytest.mark.skipif(shutil.which("xvfb-run") is None,
+                                reason="xvfb-run is missing: apt-get install xvfb xauth mesa-vulkan-drivers")
+
+
+def _render(recording: Path, out: Path) -> np.ndarray:
+    from PIL import Image
+
+    res = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1280x800x24", str(RERUN), str(recording),
+                          "--screenshot-to", str(out), "--window-size", "1280x800"],
+                         capture_output=True, text=True, timeout=120)
+    if not out.exists():
+        pytest.skip(f"the viewer could not render headless here (exit {res.returncode}): {res.stderr[-300:]}")
+    return np.asarray(Image.open(out).convert("RGB")).astype(int)
+
+
+def _colored(region: np.ndarray) -> int:
+    """Pixels of a saturated colour (agents, series lines), not greys."""
+    return int(((region.max(-1) - region.min(-1)) > 80).sum())
+
+
+def test_a_run_opens_with_the_map_left_and_the_plots_right(tmp_path):
+    rec = tmp_path / "run.rrd"
+    assert run_cli("-m", "zswarm", "sim", "--scenario", "moving-prey", "--duration", "3", "--record", str(rec),
+                   cwd=tmp_path).returncode == 0
+    image = _render(rec, tmp_path / "run.png")
+    h, w, _ = image.shape
+    assert image.std() > 10, "blank screenshot"
+    band = image[int(0.08 * h):int(0.92 * h)]
+    assert _colored(band[:, :int(0.55 * w)]) > 500, "no agents in the map (left 3/5 of the window)"
+    assert _colored(band[:, int(0.62 * w):]) > 500, "no plotted series (right 2/5 of the window)"
+
+
+def test_the_design_view_opens_with_the_figure_left_and_the_verdicts_right(tmp_path):
+    rec = tmp_path / "design.rrd"
+    assert run_cli("-m", "zswarm", "design", "--save", str(rec), cwd=tmp_path).returncode == 0
+    gray = _render(rec, tmp_path / "design.png").mean(axis=-1)
+    h, w = gray.shape
+    rows = slice(int(0.1 * h), int(0.9 * h))
+    assert gray[rows, int(0.05 * w):int(0.7 * w)].mean() > 150, "the (white) design figure is not on the left"
+    assert gray[rows, int(0.8 * w):].mean() < 100, "the verdict and report panels are not on the right"
