@@ -22,3 +22,12 @@ def run_cli(*args: str, timeout: float = 120.0, cwd: Path | None = None) -> subp
 @pytest.fixture
 def cli():
     return run_cli
+
+
+def free_port() -> int:
+    """A TCP port nothing listens on now (for a router or a viewer a test starts)."""
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]

@@ -10,22 +10,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import ROOT, run_cli
+from conftest import ROOT, free_port, run_cli
 from zswarm.record.replay import load_run
 
 RERUN = Path(__import__("sys").executable).with_name("rerun")
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 @pytest.fixture
 def viewer_server(tmp_path):
     """``rerun --serve-grpc --save FILE``: a headless server that writes whatever is streamed to it."""
-    port, saved = _free_port(), tmp_path / "received.rrd"
+    port, saved = free_port(), tmp_path / "received.rrd"
     proc = subprocess.Popen([str(RERUN), "--serve-grpc", "--port", str(port), "--save", str(saved)],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:

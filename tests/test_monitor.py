@@ -13,14 +13,8 @@ import time
 
 import zenoh
 
-from conftest import ROOT, run_cli
+from conftest import ROOT, free_port, run_cli
 from zswarm.net.messages import ENCODING
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def _wait_port(port: int, deadline: float) -> None:
@@ -57,7 +51,7 @@ def _stock_subscriber(endpoint: str, run: str, until: float) -> dict[str, set[st
 
 
 def test_monitor_matches_the_runs_summary_and_payloads_name_their_encoding(tmp_path):
-    port, run = _free_port(), "monitor-test"
+    port, run = free_port(), "monitor-test"
     endpoint = f"tcp/127.0.0.1:{port}"
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     swarm = subprocess.Popen([sys.executable, str(ROOT / "launch.py"), "--agents", "10", "--duration", "12",

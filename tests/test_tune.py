@@ -54,10 +54,17 @@ def _tune(out: Path, budget: int, *extra: str) -> subprocess.CompletedProcess:
                    timeout=300)
 
 
-def test_an_interrupted_tune_resumes_to_the_same_result_losing_no_evaluation(tmp_path):
-    whole = _tune(tmp_path / "whole", 20)
-    assert whole.returncode == 0, whole.stderr[-2000:]
-    want = json.loads(whole.stdout)
+@pytest.fixture(scope="module")
+def whole(tmp_path_factory):
+    """One uninterrupted tune (budget 20), shared by the tests that read its results."""
+    out = tmp_path_factory.mktemp("tune") / "whole"
+    res = _tune(out, 20)
+    assert res.returncode == 0, res.stderr[-2000:]
+    return out, json.loads(res.stdout)
+
+
+def test_an_interrupted_tune_resumes_to_the_same_result_losing_no_evaluation(tmp_path, whole):
+    _, want = whole
 
     out = tmp_path / "cut"
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
@@ -88,11 +95,8 @@ def test_an_interrupted_tune_resumes_to_the_same_result_losing_no_evaluation(tmp
     assert all(kept[(r["gen"], r["slot"])] == r for r in before)
 
 
-def test_the_best_set_file_is_accepted_by_the_other_commands(tmp_path):
-    res = _tune(tmp_path / "t", 5)
-    assert res.returncode == 0, res.stderr[-2000:]
-    result = json.loads(res.stdout)
-    folder = tmp_path / "t"
+def test_the_best_set_file_is_accepted_by_the_other_commands(whole):
+    folder, result = whole
     for name in ("best.toml", "design.json", "design.txt", "comparison.json", "tune.rrd", "tune.png", "result.json"):
         assert (folder / name).stat().st_size > 0, name
     design = run_cli("-m", "zswarm", "design", "--params", str(folder / "best.toml"), "--json")
@@ -108,10 +112,12 @@ def test_the_best_set_file_is_accepted_by_the_other_commands(tmp_path):
     assert json.loads(sim.stdout)["capture_time"] == first["capture_time"]
 
 
-def test_a_different_tune_in_the_same_folder_is_refused(tmp_path):
-    assert _tune(tmp_path / "t", 5).returncode == 0
-    res = _tune(tmp_path / "t", 5, "--seed", "3")
+def test_a_different_tune_in_the_same_folder_is_refused(whole):
+    folder, _ = whole
+    before = (folder / "history.jsonl").read_text()
+    res = _tune(folder, 20, "--seed", "3")
     assert res.returncode == 2 and "holds a different tune" in res.stderr, res.stderr
+    assert (folder / "history.jsonl").read_text() == before  # and it touched nothing
 
 
 def test_finalists_are_the_best_distinct_qualified_candidates():

@@ -47,17 +47,9 @@ def add_param_args(parser: argparse.ArgumentParser) -> None:
 
 def read_params_file(path: str) -> list[str]:
     """A parameter file as ``NAME=VALUE`` strings (checked as --set values are, where they are used)."""
-    import tomllib
+    from zswarm.files import read_toml
 
-    try:
-        with open(path, "rb") as f:
-            data = tomllib.load(f)
-    except FileNotFoundError:
-        raise UsageError(f"parameter file {path} does not exist") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise UsageError(f"cannot read parameter file {path}: {exc}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise UsageError(f"parameter file {path} is not valid TOML: {exc}") from None
+    data = read_toml(path, "parameter file")
     table = data.get("params", data) if isinstance(data.get("params"), dict) else data
     out = []
     for name, value in table.items():

@@ -23,6 +23,20 @@ def check_writable(path: Path) -> Path:
     return path
 
 
+def read_toml(path: Path | str, what: str) -> dict[str, Any]:
+    """A TOML file as a dict; a missing, unreadable or malformed file is one line naming ``what`` it is."""
+    import tomllib
+
+    try:
+        return tomllib.loads(Path(path).read_text())
+    except FileNotFoundError:
+        raise UsageError(f"{what} {path} does not exist") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UsageError(f"cannot read {what} {path}: {exc}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise UsageError(f"{what} {path} is not valid TOML: {exc}") from None
+
+
 def write_json(path: Path, data: dict[str, Any]) -> None:
     """Write ``data`` whole or not at all (a reader never sees half a file)."""
     tmp = Path(f"{path}.tmp")

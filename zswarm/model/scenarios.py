@@ -5,13 +5,13 @@ either with parameter overrides. What a scenario is: :mod:`zswarm.model.scenario
 from __future__ import annotations
 
 import math
-import tomllib
 from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
 
 from zswarm.errors import UsageError
+from zswarm.files import read_toml
 from zswarm.model.params import DEFAULT_PARAMS, ParamError, validate
 from zswarm.model.prey import PreyMotion
 from zswarm.model.scenario import Box, Obstacle, Scenario, spawn_positions
@@ -174,14 +174,7 @@ _TOP_KEYS = {"name", "description", "params", "obstacles", "prey_start", "prey",
 
 def load_scenario_file(path: Path) -> Scenario:
     """Read a scenario from TOML (see README); every mistake is a one-line :class:`UsageError`."""
-    try:
-        data = tomllib.loads(Path(path).read_text())
-    except FileNotFoundError:
-        raise UsageError(f"scenario file {path} does not exist") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise UsageError(f"cannot read scenario file {path}: {exc}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise UsageError(f"scenario file {path} is not valid TOML: {exc}") from None
+    data = read_toml(path, "scenario file")
     unknown = set(data) - _TOP_KEYS
     if unknown:
         raise UsageError(f"scenario file {path}: unknown keys {sorted(unknown)}; allowed: {sorted(_TOP_KEYS)}")
