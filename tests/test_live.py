@@ -2,15 +2,13 @@
 
 from __future__ import annotations
 
-import socket
 import subprocess
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from conftest import ROOT, free_port, run_cli
+from conftest import ROOT, free_port, run_cli, wait_for_port
 from zswarm.record.replay import load_run
 
 RERUN = Path(__import__("sys").executable).with_name("rerun")
@@ -23,13 +21,7 @@ def viewer_server(tmp_path):
     proc = subprocess.Popen([str(RERUN), "--serve-grpc", "--port", str(port), "--save", str(saved)],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
-        deadline = time.monotonic() + 30
-        while time.monotonic() < deadline:
-            try:
-                socket.create_connection(("127.0.0.1", port), timeout=0.2).close()
-                break
-            except OSError:
-                time.sleep(0.05)
+        wait_for_port(port)
         yield f"rerun+http://127.0.0.1:{port}/proxy", saved, proc
     finally:
         proc.terminate()

@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import os
 import signal
-import socket
 import subprocess
 import sys
 import threading
@@ -13,18 +12,8 @@ import time
 
 import zenoh
 
-from conftest import ROOT, free_port, run_cli
+from conftest import ROOT, free_port, run_cli, wait_for_port
 from zswarm.net.messages import ENCODING
-
-
-def _wait_port(port: int, deadline: float) -> None:
-    while time.monotonic() < deadline:
-        try:
-            socket.create_connection(("127.0.0.1", port), timeout=0.2).close()
-            return
-        except OSError:
-            time.sleep(0.05)
-    raise AssertionError(f"no router on port {port}")
 
 
 def _stock_subscriber(endpoint: str, run: str, until: float) -> dict[str, set[str]]:
@@ -59,7 +48,7 @@ def test_monitor_matches_the_runs_summary_and_payloads_name_their_encoding(tmp_p
                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env,
                              start_new_session=True)
     try:
-        _wait_port(port, time.monotonic() + 30)
+        wait_for_port(port)
         seen = _stock_subscriber(endpoint, run, time.monotonic() + 20)
         mon = run_cli("-m", "zswarm", "monitor", "--run", run, "--connect", endpoint, "--duration", "4", "--json",
                       timeout=60)
