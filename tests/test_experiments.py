@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 from conftest import ROOT
 from swarm_procs import interrupt_when_exists
@@ -32,6 +33,23 @@ def test_kill_restart_and_world_outage(tmp_path):
     times = [f.t for f in load_run(tmp_path / "k.rrd").frames]
     gaps = [b - a for a, b in zip(times, times[1:])]
     assert max(gaps) > 1.0
+    # and the recording's event log says what happened, on the timeline
+    events = " | ".join(_events(tmp_path / "k.rrd"))
+    assert f"agent {victim} departed" in events and f"agent {victim} returned" in events, events
+    assert "world clock stalled" in events, events
+
+
+def _events(path: Path) -> list[str]:
+    from rerun.chunk import RrdReader
+
+    out = []
+    for chunk in RrdReader(str(path)).stream().to_chunks():
+        if str(chunk.entity_path).lstrip("/") == "run/events":
+            rb = chunk.to_record_batch()
+            text = [c for c in rb.schema.names if c.endswith("Text") or c.endswith(":text")]
+            for col in text:
+                out += [str(v[0]) for v in rb.column(col).to_pylist() if v]
+    return out
 
 
 def test_sweep_simulated_resumes_without_touching_finished_cells(tmp_path):

@@ -32,6 +32,8 @@ from zswarm.net.bridge import Bridge, Inbound
 from zswarm.net.poses import PoseTable, Rejections
 from zswarm.net.runspec import RunSpec
 
+STALL = 1.0  # seconds behind its clock at which the world logs a stall event
+
 
 @dataclass
 class Census:
@@ -70,6 +72,7 @@ class World:
         self.received = self.sent = 0
         self.network_logged = self.network_agents_logged = 0.0  # wall times the network panel was last logged
         self.network_received = 0
+        self.stalled = False  # the free clock is more than STALL behind
         self.pose_arrived = asyncio.Event()
         self.stop = asyncio.Event()
         self.started_wall = time.time()
@@ -135,6 +138,9 @@ class World:
             c.departures.append(event)
             self._event(f"agent {who} departed")
         else:
+            if self.clock.step > 0 and who not in c.alive:  # after the start: a restart, or a late joiner
+                returning = any(d["id"] == who for d in c.departures)
+                self._event(f"agent {who} {'returned' if returning else 'joined'}")
             c.alive.add(who)
             c.arrivals.append(event)
             if c.all_alive_after is None and len(c.alive) >= self.scenario.n_agents:
@@ -216,8 +222,12 @@ class World:
                 await asyncio.wait_for(self.stop.wait(), max(next_tick - loop.time(), 0.0))
             except asyncio.TimeoutError:
                 pass
-            if loop.time() - next_tick > 0.5 * period:
+            lag = loop.time() - next_tick
+            if lag > 0.5 * period:
                 clock.late_ticks += 1
+            if lag > STALL and not self.stalled:  # once per stall, not once per tick that catches up
+                self._event(f"world clock stalled {lag:.1f} s (the world was frozen or starved of CPU)")
+            self.stalled = lag > STALL
             t_new = min((loop.time() - start) * self.spec.time_scale, duration)
             self.advance_prey(live, t_new - clock.t)
             clock.t = t_new
