@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import os
+import signal
 import subprocess
+import time
 from pathlib import Path
 
 import numpy as np
@@ -18,23 +21,34 @@ RERUN = Path(__import__("sys").executable).with_name("rerun")
 def viewer_server(tmp_path):
     """``rerun --serve-grpc --save FILE``: a headless server that writes whatever is streamed to it."""
     port, saved = free_port(), tmp_path / "received.rrd"
+    # its own process group: .venv/bin/rerun is a wrapper that starts the real binary as its child
     proc = subprocess.Popen([str(RERUN), "--serve-grpc", "--port", str(port), "--save", str(saved)],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
     try:
         wait_for_port(port)
         yield f"rerun+http://127.0.0.1:{port}/proxy", saved, proc
     finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
+        _stop(proc)
 
 
 def _stop(proc: subprocess.Popen) -> None:
-    proc.terminate()  # the server writes what it received, then exits
-    proc.wait(timeout=20)
+    """Stop the server and everything it started (it writes what it received, then exits)."""
+    for sig, wait in ((signal.SIGTERM, 20), (signal.SIGKILL, 10)):
+        try:
+            os.killpg(proc.pid, sig)
+        except ProcessLookupError:
+            break
+        try:
+            proc.wait(timeout=wait)
+        except subprocess.TimeoutExpired:
+            continue
+        deadline = time.monotonic() + wait  # the wrapper is gone; wait for the rest of its group
+        while time.monotonic() < deadline:
+            try:
+                os.killpg(proc.pid, 0)
+            except ProcessLookupError:
+                return
+            time.sleep(0.05)
 
 
 def _entities(path: Path) -> set[str]:
