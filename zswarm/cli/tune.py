@@ -21,7 +21,6 @@ import dataclasses
 import json
 import math
 import os
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -175,33 +174,6 @@ def _clock(seconds: float) -> str:
     return f"{seconds // 60}m{seconds % 60:02d}s"
 
 
-def held_out(task, sets: dict[str, Params], seeds: tuple[int, ...]) -> dict[str, dict[str, Any]]:
-    """Each set on the held-out seeds: outcomes and their aggregate."""
-    from zswarm.tune.objective import evaluate, run_score
-
-    labels = list(sets)
-    results = evaluate(task, [sets[k] for k in labels], seeds)
-    out = {}
-    for label, (value, outcomes, reasons) in zip(labels, results):
-        out[label] = aggregate([o.to_dict() for o in outcomes], seeds, reasons,
-                               [run_score(o, task) for o in outcomes], value)
-    return out
-
-
-def aggregate(runs: list[dict[str, Any]], seeds, reasons, scores, objective) -> dict[str, Any]:
-    caught = [r["capture_time"] for r in runs if r["capture_time"] is not None]
-    clearances = [r["min_obstacle_clearance"] for r in runs if r["min_obstacle_clearance"] is not None]
-    return {"runs": len(runs), "captured": len(caught),
-            "mean_capture_time": sum(caught) / len(caught) if caught else None,
-            "mean_score": sum(scores) / len(scores) if scores else None, "objective": objective,
-            "collisions": sum(r["collisions"] for r in runs),
-            "obstacle_collisions": sum(r["obstacle_collisions"] for r in runs),
-            "min_obstacle_clearance": min(clearances) if clearances else None,
-            "min_pair_distance": min(r["min_pair_distance"] for r in runs),
-            "disqualified": sum(r is not None for r in reasons),
-            "per_seed": [{**r, "seed": s, "disqualified": why} for r, s, why in zip(runs, seeds, reasons)]}
-
-
 def write_best_toml(path: Path, params: Params, plan: Plan, objective: float, command: str) -> None:
     flat = params.flat()
     keep = [n for n in TUNABLE] + [n for n in plan.overrides if FIELDS[n].group != "potential"]
@@ -216,60 +188,9 @@ def write_best_toml(path: Path, params: Params, plan: Plan, objective: float, co
     os.replace(tmp, path)
 
 
-def confirm(plan: Plan, args: argparse.Namespace, sets: dict[str, Params], faults, quiet: bool
-            ) -> dict[str, dict[str, Any]]:
-    """The sets as distributed swarms (``zswarm run``) on the first held-out seeds."""
-    from zswarm.net.runspec import RunSpec
-
-    folder = plan.out / "confirm"
-    folder.mkdir(exist_ok=True)
-    seeds = plan.holdout[:args.confirm_seeds]
-    out: dict[str, dict[str, Any]] = {}
-    for label, params in sets.items():
-        flat = params.flat()
-        overrides = {**plan.overrides, **{n: flat[n] for n in TUNABLE}}
-        runs = []
-        for seed in seeds:
-            name = f"{label}-seed{seed}"
-            summary = folder / f"{name}.json"
-            if not summary.exists():  # a finished confirmation run is never run again
-                spec = RunSpec(run=f"tune-{name}", scenario_name=plan.scenario_name, overrides=tuple(overrides.items()),
-                               seed=seed, potential=args.potential, duration=args.duration,
-                               faults=dataclasses.replace(faults, seed=seed))
-                if not quiet:
-                    print(f"confirm: {label} set, seed {seed}, distributed ({spec.scenario.duration:g} s) ...",
-                          file=sys.stderr, flush=True)
-                cmd = [sys.executable, "-m", "zswarm", "run", *spec.to_argv(), "--record", str(folder / f"{name}.rrd"),
-                       "--summary", str(folder / f"{name}.json.part"), "--quiet"]
-                res = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-                if res.returncode != 0:
-                    raise RuntimeError(f"confirmation run {name}: zswarm run exited {res.returncode}: "
-                                       f"{res.stderr.strip()[-300:]}")
-                os.replace(folder / f"{name}.json.part", summary)
-            runs.append(json.loads(summary.read_text()))
-        d_m_ro = params.margins.d_m_ro
-        reasons = [_run_reason(r, d_m_ro) for r in runs]
-        scores = [r["capture_time"] if r["capture_time"] is not None
-                  else r["duration"] + args.miss_penalty for r in runs]
-        slim = [{k: r.get(k) for k in ("capture_time", "collisions", "obstacle_collisions", "min_obstacle_clearance",
-                                       "min_pair_distance", "max_components")} for r in runs]
-        out[label] = aggregate(slim, seeds, reasons, scores, None)
-    return out
-
-
-def _run_reason(summary: dict[str, Any], d_m_ro: float) -> str | None:
-    if summary.get("collisions"):
-        return f"{summary['collisions']} collision(s)"
-    if summary.get("obstacle_collisions"):
-        return f"{summary['obstacle_collisions']} obstacle contact(s)"
-    c = summary.get("min_obstacle_clearance")
-    if c is not None and c < d_m_ro:
-        return f"clearance {c:.3g} < d_m^ro = {d_m_ro:g}"
-    return None
-
-
 def run(args: argparse.Namespace) -> int:
     from zswarm.cli.design import render
+    from zswarm.cli.tune_compare import confirm, held_out
     from zswarm.cli.tune_figure import save_figure
     from zswarm.model.design import check
     from zswarm.provenance import versions
@@ -340,7 +261,12 @@ def run(args: argparse.Namespace) -> int:
                      "slot": best["slot"], "design_failures": list(report.failures())},
                finalists=[{k: v for k, v in row.items() if k != "x"} for row in validation], comparison=comparison)
     if args.confirm:
-        out["confirm"] = confirm(plan, args, sets, faults, quiet=args.json)
+        try:
+            out["confirm"] = confirm(plan, args, sets, faults, quiet=args.json)
+        except RuntimeError as exc:  # a distributed run failed: say which, keep what was written
+            write_json(plan.out / "result.json", out)
+            print(f"zswarm tune: {exc}", file=sys.stderr)
+            return 1
         write_json(plan.out / "confirm.json", out["confirm"])
     save_search(plan.out / "tune.rrd", config, result.records, space.values(space.start), start_objective,
                 qualified_below, _report_md(out))

@@ -48,14 +48,14 @@ class Task:
                        self.combination) for s in (seeds or self.seeds)]
 
 
-def disqualified(outcome: BatchOutcome, params: Params) -> str | None:
-    """Why a run does not count, or None."""
-    if outcome.collisions:
-        return f"{outcome.collisions} collision(s)"
-    if outcome.obstacle_collisions:
-        return f"{outcome.obstacle_collisions} obstacle contact(s)"
-    if outcome.min_obstacle_clearance is not None and outcome.min_obstacle_clearance < params.margins.d_m_ro:
-        return f"clearance {outcome.min_obstacle_clearance:.3g} < d_m^ro = {params.margins.d_m_ro:g}"
+def disqualified(collisions: int, contacts: int, clearance: float | None, params: Params) -> str | None:
+    """Why a run does not count (a simulated or a distributed one), or None."""
+    if collisions:
+        return f"{collisions} collision(s)"
+    if contacts:
+        return f"{contacts} obstacle contact(s)"
+    if clearance is not None and clearance < params.margins.d_m_ro:
+        return f"clearance {clearance:.3g} < d_m^ro = {params.margins.d_m_ro:g}"
     return None
 
 
@@ -66,7 +66,7 @@ def run_score(outcome: BatchOutcome, task: Task) -> float:
 
 def objective(outcomes: list[BatchOutcome], params: Params, task: Task) -> tuple[float, list[str | None]]:
     """(objective, disqualification of each run); see the module doc."""
-    reasons = [disqualified(o, params) for o in outcomes]
+    reasons = [disqualified(o.collisions, o.obstacle_collisions, o.min_obstacle_clearance, params) for o in outcomes]
     bad = sum(r is not None for r in reasons)
     if bad:
         worst = task.duration + task.miss_penalty
