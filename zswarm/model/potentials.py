@@ -29,15 +29,19 @@ COMBINATIONS: tuple[Combination, ...] = ("additive", "multiplicative")
 
 
 def goal_terms(psi_g: np.ndarray, p: PotentialParams) -> tuple[np.ndarray, np.ndarray]:
-    """U^g = c_g (1 - exp(-|psi|^2/l_g^2)) (eq 7) and F^g = -2 c_g psi/l_g^2 exp(...) (eq 8)."""
-    e = np.exp(-np.einsum("ij,ij->i", psi_g, psi_g) / p.l_g**2)
-    return p.c_g * (1.0 - e), (-2.0 * p.c_g / p.l_g**2 * e)[:, None] * psi_g
+    """U^g = c_g (1 - exp(-|psi|^2/l_g^2)) (eq 7) and F^g = -2 c_g psi/l_g^2 exp(...) (eq 8).
+
+    ``psi_g``: (..., 2); the parameters may be arrays that broadcast against (...) (one set per run of
+    a batch, :mod:`zswarm.sim.batch`)."""
+    e = np.exp(-np.einsum("...j,...j->...", psi_g, psi_g) / p.l_g**2)
+    return p.c_g * (1.0 - e), (-2.0 * p.c_g / p.l_g**2 * e)[..., None] * psi_g
 
 
 def obstacle_terms(psi_o: np.ndarray, p: PotentialParams) -> tuple[np.ndarray, np.ndarray]:
-    """Per obstacle pair: c_o exp(-|psi|^2/l_o^2) (eq 10) and 2 c_o psi/l_o^2 exp(...) (eq 11)."""
-    e = p.c_o * np.exp(-np.einsum("ij,ij->i", psi_o, psi_o) / p.l_o**2)
-    return e, (2.0 / p.l_o**2 * e)[:, None] * psi_o
+    """Per obstacle pair: c_o exp(-|psi|^2/l_o^2) (eq 10) and 2 c_o psi/l_o^2 exp(...) (eq 11).
+    Leading axes and parameters broadcast as in :func:`goal_terms`."""
+    e = p.c_o * np.exp(-np.einsum("...j,...j->...", psi_o, psi_o) / p.l_o**2)
+    return e, (2.0 / p.l_o**2 * e)[..., None] * psi_o
 
 
 def formation_terms(
@@ -103,17 +107,18 @@ def obstacle_offsets(points: np.ndarray, centers: np.ndarray, radii: np.ndarray)
     psi^o = (P - C)(1 - rho/|P - C|); since |psi^o| = |P - C| - rho, eq 10 becomes
     c_o exp(-(|P - C| - rho)^2/l_o^2), whose gradient is again eq 11 with this psi^o.
     """
-    d = points - centers
-    dist = np.sqrt(np.einsum("ij,ij->i", d, d))
+    d = points - centers  # (..., 2), radii (...): any leading axes
+    dist = np.sqrt(np.einsum("...j,...j->...", d, d))
     scale = np.where(dist > 0.0, 1.0 - radii / np.where(dist > 0.0, dist, 1.0), 0.0)
-    return d * scale[:, None]
+    return d * scale[..., None]
 
 
 def saturate(velocity: np.ndarray, v_max: float) -> np.ndarray:
-    """Speed limit: scale each row of ``velocity`` down to norm ``v_max`` where it is faster."""
-    speed = np.sqrt(np.einsum("ij,ij->i", velocity, velocity))
+    """Speed limit: scale each row of ``velocity`` (..., 2) down to norm ``v_max`` (a number, or an array
+    that broadcasts against (...)) where it is faster."""
+    speed = np.sqrt(np.einsum("...j,...j->...", velocity, velocity))
     scale = np.where(speed > v_max, v_max / np.where(speed > 0, speed, 1.0), 1.0)
-    return velocity * scale[:, None]
+    return velocity * scale[..., None]
 
 
 @dataclass(frozen=True)

@@ -27,8 +27,15 @@ from typing import Any
 import numpy as np
 
 from zswarm.model.faults import FaultModel
+from zswarm.model.formation import pair_gain
 from zswarm.model.params import PotentialParams
-from zswarm.model.potentials import Combination
+from zswarm.model.potentials import (
+    Combination,
+    goal_terms,
+    obstacle_offsets,
+    obstacle_terms,
+    saturate,
+)
 from zswarm.model.prey import PreyMotion
 from zswarm.model.scenarios import Scenario
 from zswarm.sim.batch_channel import BatchChannel
@@ -72,20 +79,18 @@ def _column(values: list[float], dims: int) -> np.ndarray:
 
 
 class _Potentials:
-    """Each run's potential parameters as (B, 1, 1) columns (the attributes of PotentialParams)."""
+    """Each run's potential parameters as columns (B, 1, ...) that broadcast against (B, ...) arrays of
+    ``dims`` axes: what the functions of :mod:`zswarm.model.potentials` take in place of one set."""
 
-    def __init__(self, params: list[PotentialParams], c_f: list[float]) -> None:
+    def __init__(self, params: list[PotentialParams], dims: int) -> None:
         for name in ("l_o", "l_g", "l_a", "l_r", "c_o", "c_g", "c_a", "c_r", "c_a_prime"):
-            setattr(self, name, _column([getattr(p, name) for p in params], 3))
-        self.c_f = _column(c_f, 3)
+            setattr(self, name, _column([getattr(p, name) for p in params], dims))
 
 
 class BatchSimulator:
     """State of B runs and their common step (see the module doc)."""
 
     def __init__(self, members: list[Member]) -> None:
-        from zswarm.model.formation import formation_offset
-
         if not members:
             raise ValueError("a batch needs at least one run")
         first = members[0].scenario
@@ -100,7 +105,7 @@ class BatchSimulator:
         b = len(members)
         scen = [m.scenario for m in members]
         pots = [s.params.potential for s in scen]
-        self.pot = _Potentials(pots, [formation_offset(p) for p in pots])
+        self.per_agent, self.per_pair = _Potentials(pots, 2), _Potentials(pots, 3)  # (B, N) and (B, N, N|M)
         self.multiplicative = np.array([(m.combination or m.scenario.combination) == "multiplicative"
                                         for m in members])[:, None]
         self.formation = _column([float(s.formation) for s in scen], 3)
@@ -129,7 +134,7 @@ class BatchSimulator:
 
     def velocities(self) -> np.ndarray:
         """Every agent's commanded velocity (B, N, 2) from what it senses now (eqs 12-15, 25-28, 36)."""
-        x, p = self.positions, self.pot
+        x, pa, pp = self.positions, self.per_agent, self.per_pair
         goal = np.broadcast_to(self.prey[:, None, :], x.shape)
         psi_f = x[:, :, None, :] - x[:, None, :, :]  # (B, N, N, 2): P_i - P_j
         r2 = np.einsum("bijk,bijk->bij", psi_f, psi_f)
@@ -149,34 +154,21 @@ class BatchSimulator:
             near = near.copy()
             near[f_idx] = sensed
         near &= self.formation > 0
-        # goal (eqs 7-8)
-        psi_g = x - goal
-        e_g = np.exp(-np.einsum("bij,bij->bi", psi_g, psi_g) / p.l_g[..., 0] ** 2)
-        u_g = p.c_g[..., 0] * (1.0 - e_g)
-        f_g = (-2.0 * p.c_g[..., 0] / p.l_g[..., 0] ** 2 * e_g)[..., None] * psi_g
-        # obstacles (eqs 9-11), circles as in potentials.obstacle_offsets
+        u_g, f_g = goal_terms(x - goal, pa)  # eqs 7-8
+        # obstacles (eqs 9-11): the sensed ones, |P - C| - rho within the sensing radius
         d = x[:, :, None, :] - self.centers[:, None, :, :]
         dist = np.sqrt(np.einsum("bimk,bimk->bim", d, d))
-        rho = self.radii[:, None, :]
-        scale = np.where(dist > 0.0, 1.0 - rho / np.where(dist > 0.0, dist, 1.0), 0.0)
-        psi_o = d * scale[..., None]
-        sensed_o = self.has_obstacle[:, None, :] & (dist - rho <= self.radius[:, None, None])
-        e_o = np.where(sensed_o, p.c_o * np.exp(-np.einsum("bimk,bimk->bim", psi_o, psi_o) / p.l_o**2), 0.0)
-        u_o = e_o.sum(axis=2)
-        f_o = ((2.0 / p.l_o**2 * e_o)[..., None] * psi_o).sum(axis=2)
-        # combination (eqs 12-15)
-        mult = self.multiplicative
-        u = np.where(mult, u_o * u_g / p.c_g[..., 0] + u_g, u_o + u_g)
-        f = np.where(mult[..., None], (u_g / p.c_g[..., 0])[..., None] * f_o
-                     + (1.0 + u_o / p.c_g[..., 0])[..., None] * f_g, f_o + f_g)
+        sensed_o = self.has_obstacle[:, None, :] & (dist - self.radii[:, None, :] <= self.radius[:, None, None])
+        psi_o = obstacle_offsets(x[:, :, None, :], self.centers[:, None, :, :], self.radii[:, None, :])
+        e_o, f_o = obstacle_terms(psi_o, pp)
+        u_o = np.where(sensed_o, e_o, 0.0).sum(axis=2)
+        f_o = np.where(sensed_o[..., None], f_o, 0.0).sum(axis=2)
+        # combination (eqs 13 and 15), each run its own
+        mult = self.multiplicative[..., None]
+        f = np.where(mult, (u_g / pa.c_g)[..., None] * f_o + (1.0 + u_o / pa.c_g)[..., None] * f_g, f_o + f_g)
         # formation (eqs 26-28): F = -g(|psi|) psi per sensed pair
-        gain = (-2.0 * p.c_r / p.l_r**2 * np.exp(-r2 / p.l_r**2)
-                + 2.0 * p.c_a / p.l_a**2 * np.exp(-r2 / p.l_a**2) + 2.0 * p.c_a_prime)
-        f = f + np.where(near[..., None], -gain[..., None] * psi_f, 0.0).sum(axis=2)
-        self.energy = u  # without the pair terms; kept for inspection only
-        speed = np.sqrt(np.einsum("bij,bij->bi", f, f))
-        vmax = self.v_max[:, None]
-        v = f * np.where(speed > vmax, vmax / np.where(speed > 0, speed, 1.0), 1.0)[..., None]
+        f = f + np.where(near[..., None], -pair_gain(r2, pp)[..., None] * psi_f, 0.0).sum(axis=2)
+        v = saturate(f, self.v_max[:, None])
         if blind is not None:
             v[blind] = 0.0
         return v
