@@ -1,11 +1,11 @@
-"""The faulty channel of :mod:`zswarm.sim.channel` for many runs at once.
+"""Network faults inside the reference simulator, for one run or many at once: delayed, lossy
+neighbour and prey data (:mod:`zswarm.sim.channel` is this with a batch of one).
 
-Run r draws from its own generator, ``default_rng([faults_r.seed, 0x5EED])``, exactly the numbers
-:class:`zswarm.sim.channel.FaultyChannel` draws for it alone (three uniforms per link and step, drawn
-ahead in blocks of steps: a PCG64 stream gives the same doubles whether asked for one step or many),
-and applies the same rules: delay (latency + uniform jitter, whole steps), Bernoulli or Gilbert-Elliott
-loss, distance-dependent loss of poses, newest-message beliefs and the staleness limit. The state is
-the single channel's with a leading run axis.
+Run r draws from its own generator, ``default_rng([faults_r.seed, 0x5EED])``, three uniforms per link
+and step (drawn ahead in blocks of steps: a PCG64 stream gives the same doubles whether asked for one
+step or many), so a run's faults do not depend on the other runs of its batch. The rules: delay
+(latency + uniform jitter, whole steps), Bernoulli or Gilbert-Elliott loss, distance-dependent loss of
+poses, newest-message beliefs and the staleness limit.
 """
 
 from __future__ import annotations
@@ -16,7 +16,8 @@ import numpy as np
 
 from zswarm.model.faults import FaultModel
 
-BLOCK = 32  # steps of uniforms drawn per generator call
+BLOCK = 32  # steps of uniforms drawn per generator call, at most
+BLOCK_BYTES = 64 * 2**20  # and at most this much memory for them (N = 2000 draws 96 MB a step: one at a time)
 
 
 class BatchChannel:
@@ -43,13 +44,15 @@ class BatchChannel:
         self.bad = np.zeros((b, n, s), dtype=bool)
         self.stale_steps = int(round(staleness / dt))
         self.lost = np.zeros(b, dtype=np.int64)
+        self.delay_counts = np.zeros((b, max_delay + 1), dtype=np.int64)  # delivered messages by delay (steps)
+        self.block = max(1, min(BLOCK, BLOCK_BYTES // (b * 3 * n * (n + 1) * 8)))
         self._uniforms: np.ndarray | None = None
         self._block_start = 0
 
     def _draws(self, k: int) -> np.ndarray:
         """(B, 3, N, N + 1) uniforms of step k, from each run's generator in its own order."""
-        if self._uniforms is None or not self._block_start <= k < self._block_start + BLOCK:
-            shape = (BLOCK, 3, self.n, self.n + 1)
+        if self._uniforms is None or not self._block_start <= k < self._block_start + self.block:
+            shape = (self.block, 3, self.n, self.n + 1)
             self._uniforms = np.stack([rng.random(shape) for rng in self.rngs], axis=1)
             self._block_start = k
         return self._uniforms[k - self._block_start]
@@ -72,7 +75,11 @@ class BatchChannel:
         self.lost += lost.sum(axis=(1, 2)) - n
         delay = np.maximum(np.rint((self.latency + self.jitter * (2.0 * u[:, 2] - 1.0)) / self.dt), 0).astype(np.int64)
         rr, ii, jj = np.nonzero(~lost)
-        self.incoming[rr, (k + delay[rr, ii, jj]) % self.slots, ii, jj] = k  # k is the newest stamp yet
+        delivered = delay[rr, ii, jj]
+        self.incoming[rr, (k + delivered) % self.slots, ii, jj] = k  # k is the newest stamp yet
+        width = self.delay_counts.shape[1]
+        self.delay_counts += np.bincount(rr * width + np.minimum(delivered, width - 1),
+                                         minlength=self.delay_counts.size).reshape(self.delay_counts.shape)
         now = self.incoming[:, k % self.slots]
         newer = now > self.belief_stamp
         br, bi, bj = np.nonzero(newer)
