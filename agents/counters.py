@@ -13,6 +13,7 @@ class Counters:
     rejections: Rejections
     sent: int = 0
     received: int = 0
+    poses: int = 0  # other agents' poses taken in
     ticks: int = 0
     late_ticks: int = 0
     ages: dict[int, int] = field(default_factory=dict)  # histogram: age of neighbour data when used
@@ -36,7 +37,8 @@ class Counters:
         """The stats message (``injected``: messages the fault injector dropped and passed)."""
         health = msg.Health(obstacle_queries_failed=self.obstacle_queries_failed, seq_received=self.seq_received,
                             seq_lost=self.seq_lost, injected_drops=injected[0], injected_passed=injected[1],
-                            queue_max=self.window_queue_max, tick_lag_max_ms=float(self.window_lag_ms))
+                            queue_max=self.window_queue_max, tick_lag_max_ms=float(self.window_lag_ms),
+                            poses=self.poses)
         return msg.Stats(agent, self.sent, self.received, dict(self.rejections.counts), self.late_ticks, self.ticks,
                          dict(self.ages), dict(self.latency), final, health, tuple(sorted(self.heard))[:msg.MAX_HEARD],
                          dict(self.departed), dict(self.returned))

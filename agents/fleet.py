@@ -20,7 +20,7 @@ import select
 import signal
 import sys
 
-from zswarm.net.procs import die_with_parent
+from zswarm.net.procs import die_with_parent, one_blas_thread
 
 
 def _child(argv: list[str]) -> None:
@@ -48,8 +48,7 @@ def _status(status: int) -> int:
 
 def main() -> int:
     # no BLAS thread pool to fork (an agent's control law is plain floats; numpy only draws spawns)
-    for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ.setdefault(name, "1")
+    one_blas_thread(os.environ)
     import agents.free  # noqa: F401  (import the whole agent program once, before any fork)
     import agents.main  # noqa: F401
 

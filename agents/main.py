@@ -61,9 +61,12 @@ class Process:
         start = start_position(spec, args.id, args.start)
         self.spec, self.id = spec, args.id
         self.session = open_session(config_from_args(args), what=f"agent {args.id}", retry_for=args.connect_timeout)
-        # free clock: samples wait in an inbox taken in once per tick; lockstep: each one wakes the loop
-        self.bridge = Bridge(self.session, loop, deliver=lambda item: None, batch=loop is None)
+        # free clock: samples wait in ring channels (in an inbox, stamped on arrival, when a delay is
+        # injected from the arrival time) and are taken in once per tick; lockstep: each one wakes the loop
+        rings = loop is None and not (spec.faults.latency or spec.faults.jitter)
+        self.bridge = Bridge(self.session, loop, deliver=lambda item: None, batch=loop is None, channels=rings)
         self.agent = Agent(spec, args.id, self.bridge, start, args.staleness, args.lockstep_wait)
+        self.agent.sensing.latency_from_echo = rings
         self.bridge.deliver = self.agent.sensing.handle
         self.injector: FaultInjector | None = None
         if spec.faults.active:
@@ -74,6 +77,8 @@ class Process:
         keys = spec.keys
         self.declared = [self.bridge.subscribe_liveliness(keys.all_alive, "alive"),
                          self.bridge.subscribe(keys.prey, "prey"), self.bridge.subscribe(keys.tick, "tick")]
+        if rings:
+            self.declared.append(self.bridge.subscribe(keys.any_cell_pose(args.id), "echo", stamped=True))
 
     def no_world(self, waited: float) -> UsageError:
         return UsageError(f"agent {self.id}: the world of run {self.spec.run!r} did not answer for {waited:g} s "

@@ -54,6 +54,9 @@ class Sensing:
         self.final_tick = False
         self.cells: dict[tuple[int, int], object] = {}
         self.cell_since: dict[tuple[int, int], int] = {}  # step at which each cell was subscribed
+        # True when poses are taken from ring channels (no arrival time): the transport latency is then
+        # measured on the agent's own pose, which the router hands back through a stamped subscription
+        self.latency_from_echo = False
 
     # --- inbound ---------------------------------------------------------------------------------------
 
@@ -71,7 +74,12 @@ class Sensing:
                 self.counters.departed.setdefault(who, received)
             self.last_seq.pop(who, None)
             return
+        if tag == "echo":
+            self._on_echo(key, payload, received)
+            return
         self.counters.received += 1
+        if tag == "pose" and self.keys.agent_of(key) == self.id:
+            return  # its own pose, back from its own cell
         try:
             m = msg.decode(payload)
         except msg.DecodeError as exc:
@@ -89,6 +97,18 @@ class Sensing:
             self.obstacle_query = None
         else:
             self.counters.rejections.add("kind", f"{type(m).__name__} on {tag} key")
+
+    def _on_echo(self, key: str, payload: bytes, received: float) -> None:
+        """Its own pose, handed back by the router with its arrival time: one publish -> router ->
+        subscriber trip, the path every neighbour's pose takes (ring-channel inbox only)."""
+        if self.keys.agent_of(key) != self.id:
+            return
+        try:
+            m = msg.decode(payload)
+        except msg.DecodeError:
+            return
+        if isinstance(m, msg.Pose) and m.id == self.id:
+            self.counters.add(self.counters.latency, (received - m.stamp) * 1000.0)
 
     def fault_source(self, tag: str, key: str, payload: bytes) -> tuple[int, float | None] | None:
         """The link a message arrives on, and (poses) its sender's distance over the sensing radius."""
@@ -137,7 +157,9 @@ class Sensing:
             return
         self._count_sequence(pose)
         self.counters.heard.add(pose.id)
-        self.counters.add(self.counters.latency, (now - pose.stamp) * 1000.0)
+        self.counters.poses += 1
+        if not self.latency_from_echo:
+            self.counters.add(self.counters.latency, (now - pose.stamp) * 1000.0)
         known = pose.id in self.neighbours.entries
         reason = self.neighbours.accept(pose.id, pose, now)
         if reason is not None:
@@ -205,7 +227,7 @@ class Sensing:
         x, y = self.body.x, self.body.y
         wanted = cells_in_disc(self.keys, x, y, self.subscription_radius)
         for cell in [c for c in self.cells if c not in wanted]:
-            self.cells.pop(cell).undeclare()
+            self.bridge.unsubscribe(self.cells.pop(cell))
             self.cell_since.pop(cell, None)
         new = [c for c in wanted if c not in self.cells]
         for cell in new:

@@ -30,6 +30,26 @@ def test_algebraic_connectivity_of_a_path_graph():
     assert algebraic_connectivity(3, np.array([0, 1]), np.array([1, 0])) == pytest.approx(0.0, abs=1e-12)
 
 
+def test_fiedler_value_of_random_graphs_with_and_without_the_components_shortcut():
+    """Knowing the graph is disconnected gives exactly 0 without an eigensolve; the full solve agrees,
+    and a connected graph is still solved."""
+    rng = np.random.default_rng(3)
+    seen = set()
+    for _ in range(40):
+        n = int(rng.integers(2, 30))
+        pos = rng.uniform(0, 3, size=(n, 2))
+        d = np.linalg.norm(pos[:, None] - pos[None], axis=-1)
+        i, j = np.nonzero((d <= 1.2) & ~np.eye(n, dtype=bool))
+        k = len(np.unique(components(n, i, j)))
+        full, fast = algebraic_connectivity(n, i, j), algebraic_connectivity(n, i, j, k)
+        seen.add(k > 1)
+        if k > 1:
+            assert fast == 0.0 and full == pytest.approx(0.0, abs=1e-9)
+        else:
+            assert fast == full > 1e-9
+    assert seen == {True, False}
+
+
 def test_step_metrics_hand_computed():
     pos = np.array([[0.0, 0.0], [0.06, 0.0], [3.0, 0.0], [4.3, 5.0]])
     vel = np.array([[1.0, 0.0], [1.0, 0.0], [1.0, 0.0], [-1.0, 0.0]])

@@ -1,5 +1,10 @@
+import os
 import sys
 
-from world.main import main
+from zswarm.net.procs import one_blas_thread
+
+one_blas_thread(os.environ)  # before numpy is imported: its pool would spin on every core
+
+from world.main import main  # noqa: E402
 
 sys.exit(main())

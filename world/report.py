@@ -32,7 +32,7 @@ def transport_summary(stats: list[msg.Stats], world_rejected: dict[str, int]) ->
         "messages_rejected": sum(rejected.values()), "rejected_by_reason": rejected,
         "pose_age_ms": {"p50": msg.percentile(ages, 0.5), "p99": msg.percentile(ages, 0.99)},
         "pose_latency_ms": {"p50": msg.percentile(lat, 0.5), "p99": msg.percentile(lat, 0.99)},
-        "poses_received": sum(lat.values()),
+        "poses_received": sum(s.health.poses for s in stats),
         "ticks": ticks, "late_ticks": late, "on_time_ratio": (1 - late / ticks) if ticks else None,
         "observed_dropout": _ratio(float(lost), float(counted)),
         "observed_latency_ms": msg.percentile(lat, 0.5),

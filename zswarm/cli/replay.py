@@ -13,8 +13,6 @@ import math
 from pathlib import Path
 from typing import Any
 
-from zswarm.record.replay import load_run, recompute
-
 COMPARED = ("capture_time", "collisions", "min_pair_distance", "min_obstacle_clearance",
             "obstacle_collisions", "max_components", "final_components", "max_cohesion",
             "final_centroid_goal_distance", "final_mean_goal_distance", "epsilon")
@@ -27,6 +25,8 @@ def _same(a: Any, b: Any) -> bool:
 
 
 def run_replay(args: argparse.Namespace) -> int:
+    from zswarm.record.replay import load_run, recompute
+
     run = load_run(args.recording)
     metrics = recompute(run)
     stored = run.summary or {}
@@ -47,6 +47,8 @@ def run_replay(args: argparse.Namespace) -> int:
 
 
 def run_compare(args: argparse.Namespace) -> int:
+    from zswarm.record.replay import load_run, recompute
+
     runs = [(Path(p), load_run(p)) for p in (args.a, args.b)]
     cols = [(p, {**(r.summary or {}), **recompute(r)}) for p, r in runs]
     if args.json:

@@ -24,14 +24,16 @@ Deliver = Callable[[Inbound], None]
 class Bridge:
     """Zenoh callbacks -> ``deliver`` on the event loop's thread; blocking calls -> the executor.
 
-    Two ways in, chosen per bridge:
+    Three ways in, chosen per bridge:
 
     - ``batch=False`` (the world, a lockstep agent): each sample is handed to the loop at once with
       ``loop.call_soon_threadsafe``, which wakes it;
     - ``batch=True`` (a free-running agent): the callback only appends the sample to an inbox, and the
       owner empties it with :meth:`drain` once per control tick. The loop is not woken per sample.
-    - ``channels=True`` (the free-running world, which hears every pose): no Python callback at all;
-      samples wait in a ring channel per subscription, and :meth:`drain` takes them out.
+    - ``channels=True`` (the free-running world, which hears every pose, and a free-running agent
+      when no delay is injected): no Python callback at all; samples wait in a ring channel per
+      subscription, and :meth:`drain` takes them out. A subscription made with ``stamped=True`` still
+      goes through a callback into the inbox (``batch=True``), for the arrival times it carries.
 
     Every sample carries the wall time it arrived (the latency figures stay transport latency), or,
     from a channel, the time it was taken out. ``deliver`` may be replaced (the fault injector delays
@@ -48,6 +50,9 @@ class Bridge:
         self.batch = batch
         self.inbox: deque[Inbound] = deque()
         self.channels: list[tuple[str, Any]] | None = [] if channels else None  # (tag, subscriber)
+        # liveliness channels, taken out after the others: a pose sent just before its sender died
+        # must not be taken in after the token's deletion, as if the sender had come back
+        self.tokens: list[tuple[str, Any]] = []
         self.reply_filter: Callable[[list[tuple[str, bytes]]], Any] | None = None
         self.closed = False
 
@@ -82,28 +87,47 @@ class Bridge:
             deliver(inbox.popleft())
             n += 1
         if self.channels:
-            now, delete = time.time(), zenoh.SampleKind.DELETE
+            now = time.time()
             for tag, sub in self.channels:
-                while (sample := sub.try_recv()) is not None:
-                    deliver((tag, str(sample.key_expr), sample.payload.to_bytes(), sample.kind == delete, now))
-                    n += 1
+                n += self._empty(tag, sub, now)
+            for tag, sub in self.tokens:
+                n += self._empty(tag, sub, now)
         return n
 
-    def _handler(self, tag: str) -> Any:
+    def _empty(self, tag: str, sub: Any, now: float) -> int:
+        n, deliver, delete = 0, self.deliver, zenoh.SampleKind.DELETE
+        while (sample := sub.try_recv()) is not None:
+            deliver((tag, str(sample.key_expr), sample.payload.to_bytes(), sample.kind == delete, now))
+            n += 1
+        return n
+
+    def unsubscribe(self, sub: Any) -> None:
+        """Undeclare ``sub``; what waits in its channel is delivered first."""
         if self.channels is not None:
+            for i, (tag, s) in enumerate(self.channels):
+                if s is sub:
+                    del self.channels[i]
+                    self._empty(tag, s, time.time())
+                    break
+        sub.undeclare()
+
+    def _handler(self, tag: str, stamped: bool = False) -> Any:
+        if self.channels is not None and not stamped:
             return zenoh.handlers.RingChannel(self.CHANNEL_CAPACITY)
         return self._hand_over(tag)
 
-    def _declared(self, tag: str, sub: Any) -> Any:
-        if self.channels is not None:
-            self.channels.append((tag, sub))
+    def _declared(self, tag: str, sub: Any, stamped: bool = False, token: bool = False) -> Any:
+        if self.channels is not None and not stamped:
+            (self.tokens if token else self.channels).append((tag, sub))
         return sub
 
-    def subscribe(self, key: str, tag: str) -> Any:
-        return self._declared(tag, self.session.declare_subscriber(key, self._handler(tag)))
+    def subscribe(self, key: str, tag: str, stamped: bool = False) -> Any:
+        """``stamped``: through a callback, with its arrival time, even when the others use channels."""
+        return self._declared(tag, self.session.declare_subscriber(key, self._handler(tag, stamped)), stamped)
 
     def subscribe_liveliness(self, key: str, tag: str) -> Any:
-        return self._declared(tag, self.session.liveliness().declare_subscriber(key, self._handler(tag), history=True))
+        return self._declared(tag, self.session.liveliness().declare_subscriber(key, self._handler(tag), history=True),
+                              token=True)
 
     def queryable(self, key: str, answer: Callable[[dict[str, str]], list[tuple[str, bytes]]]) -> Any:
         """``answer`` runs on a Zenoh thread: it must only read immutable data it was given."""

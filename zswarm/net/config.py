@@ -67,6 +67,11 @@ def zenoh_config(mode: str | None = "client", connect: Iterable[str] = (), liste
         conf.insert_json5("listen/endpoints", json.dumps(listen))
     if config is None or scout:
         conf.insert_json5("scouting/multicast/enabled", json.dumps(bool(scout)))
+    # No shared-memory transport: a swarm's messages are under 100 bytes, far below the 3 KB from
+    # which Zenoh would use it, and with it on (the default) a router on the same host as its clients
+    # accepted only about 350 of them: 351-353 of 400 connected on a 16-core machine, the router
+    # logging "No available SHM counters" for each refused handshake (docs/benchmarks.md).
+    conf.insert_json5("transport/shared_memory/enabled", "false")
     return conf
 
 
@@ -104,6 +109,8 @@ def open_session(conf: zenoh.Config, what: str = "zenoh", retry_for: float = 0.0
     ``ZENOH_RUNTIME`` says otherwise."""
     if runtime is not None:
         os.environ.setdefault("ZENOH_RUNTIME", runtime)
+    if os.environ.get("RUST_LOG"):  # Zenoh's own log on stderr, e.g. RUST_LOG=zenoh=debug
+        zenoh.init_log_from_env_or("error")
 
     deadline = time.monotonic() + retry_for
     while True:

@@ -88,10 +88,11 @@ class Health:
     injected_passed: int = 0
     queue_max: int = 0
     tick_lag_max_ms: float = 0.0
+    poses: int = 0  # other agents' poses taken in (however they arrived)
 
 
 HEALTH_INTS = ("obstacle_queries_failed", "seq_received", "seq_lost", "injected_drops", "injected_passed",
-               "queue_max")
+               "queue_max", "poses")
 
 
 @dataclass(frozen=True)

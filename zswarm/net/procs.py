@@ -17,7 +17,7 @@ import sys
 import threading
 import time
 from dataclasses import dataclass, field
-from typing import IO, TYPE_CHECKING, Sequence
+from typing import IO, TYPE_CHECKING, MutableMapping, Sequence
 
 if TYPE_CHECKING:
     from zswarm.net.runspec import RunSpec
@@ -33,10 +33,23 @@ def die_with_parent() -> None:
         pass
 
 
+BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+def one_blas_thread(env: MutableMapping[str, str]) -> None:
+    """One BLAS thread unless the user set otherwise; call it before numpy is imported. A swarm
+    process does its linear algebra on small arrays, and an idle BLAS pool of one thread per core
+    spins between calls: on a 16-core machine the world burned 2.2 cores at N = 100 and 9.5 at
+    N = 400 that way (docs/benchmarks.md), cores its agents needed."""
+    for name in BLAS_THREADS:
+        env.setdefault(name, "1")
+
+
 def python_env() -> dict[str, str]:
     """The children run the installed modules (``python -m world``, ``-m agents``) with this Python."""
     env = dict(os.environ)
     env.setdefault("PYTHONUNBUFFERED", "1")
+    one_blas_thread(env)
     return env
 
 
