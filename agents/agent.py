@@ -69,7 +69,10 @@ class Agent:
         cell = self.keys.cell(b.x, b.y)
         key = self.keys.pose(cell, self.id)
         self.seq += 1
-        payload = msg.encode(msg.Pose(self.id, self.seq, time.time(), step, b.x, b.y, b.vx, b.vy))
+        stamp = time.time()
+        payload = msg.encode(msg.Pose(self.id, self.seq, stamp, step, b.x, b.y, b.vx, b.vy))
+        if self.sensing.latency_from_echo:
+            self.sensing.sent(payload, stamp)
         self.latest_reply = (key, payload)
         if step >= 0:
             self.replies_by_step = {s: r for s, r in self.replies_by_step.items() if s > step - 3}

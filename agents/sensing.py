@@ -57,6 +57,7 @@ class Sensing:
         # True when poses are taken from ring channels (no arrival time): the transport latency is then
         # measured on the agent's own pose, which the router hands back through a stamped subscription
         self.latency_from_echo = False
+        self.published: dict[bytes, float] = {}  # its latest pose payloads and when each was sent
 
     # --- inbound ---------------------------------------------------------------------------------------
 
@@ -98,17 +99,20 @@ class Sensing:
         else:
             self.counters.rejections.add("kind", f"{type(m).__name__} on {tag} key")
 
+    def sent(self, payload: bytes, stamp: float) -> None:
+        """It published ``payload`` at ``stamp``: the echo is recognised by its bytes, not decoded."""
+        published = self.published
+        published[payload] = stamp
+        if len(published) > 8:
+            del published[next(iter(published))]
+
     def _on_echo(self, key: str, payload: bytes, received: float) -> None:
         """Its own pose, handed back by the router with its arrival time: one publish -> router ->
-        subscriber trip, the path every neighbour's pose takes (ring-channel inbox only)."""
-        if self.keys.agent_of(key) != self.id:
-            return
-        try:
-            m = msg.decode(payload)
-        except msg.DecodeError:
-            return
-        if isinstance(m, msg.Pose) and m.id == self.id:
-            self.counters.add(self.counters.latency, (received - m.stamp) * 1000.0)
+        subscriber trip, the path every neighbour's pose takes (ring-channel inbox only). Anything
+        but a payload it sent itself is ignored."""
+        stamp = self.published.pop(payload, None)
+        if stamp is not None:
+            self.counters.add(self.counters.latency, (received - stamp) * 1000.0)
 
     def fault_source(self, tag: str, key: str, payload: bytes) -> tuple[int, float | None] | None:
         """The link a message arrives on, and (poses) its sender's distance over the sensing radius."""

@@ -154,7 +154,37 @@ def _one(values: list[float]) -> float | None:
     return values[0] if values else None
 
 
-def measure(n_agents: int, duration: float, floor: bool, routers: int = 1) -> dict[str, Any]:
+def measure(n_agents: int, duration: float, floor: bool, routers: int = 1, repeat: int = 1) -> dict[str, Any]:
+    """:func:`measure_once` ``repeat`` times in turn (swarm, floors, swarm, floors, ...): each figure is
+    the median over the repeats, and each ratio the median of the repeats' ratios, with every
+    repeat's ratios beside it (``*_runs``)."""
+    runs = [measure_once(n_agents, duration, floor, routers) for _ in range(repeat)]
+    if repeat == 1:
+        return runs[0]
+    out = _medians(runs)
+    out["repeats"] = repeat
+    for key in ("cpu_ratio_agent_to_floor", "cpu_ratio_agent_to_floor_callback"):
+        if key in out:
+            out[f"{key}_runs"] = [r[key] for r in runs]
+    return out
+
+
+def _medians(runs: list[dict[str, Any]]) -> dict[str, Any]:
+    """Key by key: the median of the numbers (of each number, for a dict of them), else the last value."""
+    out: dict[str, Any] = {}
+    for key, last in runs[-1].items():
+        values = [r.get(key) for r in runs]
+        numbers = [v for v in values if isinstance(v, (int, float)) and not isinstance(v, bool)]
+        if isinstance(last, dict):
+            out[key] = _medians(values) if all(isinstance(v, dict) for v in values) else last
+        elif numbers and not isinstance(last, bool):
+            out[key] = statistics.median(numbers)
+        else:
+            out[key] = last
+    return out
+
+
+def measure_once(n_agents: int, duration: float, floor: bool, routers: int = 1) -> dict[str, Any]:
     """The swarm at N and, with ``floor``, the bare middleware with the same traffic, right after."""
     r = run(n_agents, duration, routers=routers)
     if floor:
@@ -201,10 +231,10 @@ def main_bench(args) -> int:
 
     if args.record is not None:
         check_writable(args.record)
-    results = [measure(n, args.duration, args.floor, args.routers) for n in args.agents]
+    results = [measure(n, args.duration, args.floor, args.routers, args.repeat) for n in args.agents]
     if args.record is not None:
         record_curves(results, args.record, {"agents": args.agents, "duration_s": args.duration, "floor": args.floor,
-                                             "routers": args.routers,
+                                             "routers": args.routers, "repeat": args.repeat,
                                              "machine": machine(), "versions": versions()})
     if args.json:
         print(json.dumps(results[0] if len(results) == 1 else {"runs": results, "machine": machine()}))
@@ -224,5 +254,8 @@ def main_bench(args) -> int:
                   f"(agent/floor {figure(r['cpu_ratio_agent_to_floor_callback'], '.2f')}x); router "
                   f"{figure(r['cpu_share_router_floor'], '.1%')}; floor PSS {figure(r['pss_mb_per_floor'], '.1f')} MB, "
                   f"RSS {figure(r['rss_mb_per_floor'], '.1f')} MB; {r['floor_alive']}/{r['n_agents']} alive")
+        if r.get("repeats"):
+            runs = ", ".join(f"{x:.2f}x" for x in r.get("cpu_ratio_agent_to_floor_runs", []) if x is not None)
+            print(f"        medians of {r['repeats']} repeats" + (f"; agent/ring floor in each: {runs}" if runs else ""))
     print(f"machine: {machine()}")
     return 0

@@ -65,6 +65,8 @@ def build_parser() -> Parser:
     bn.add_argument("--floor", action="store_true",
                     help="also run N bare Zenoh processes with the same traffic and report the agents' CPU "
                          "as a ratio to theirs")
+    bn.add_argument("--repeat", type=positive_int, default=1, metavar="K",
+                    help="measure each N K times in turn (swarm, floors, swarm, ...) and report medians (default 1)")
     bn.add_argument("--record", type=Path, default=None, metavar="FILE.rrd",
                     help="also write the curves (cost and latency against N) as a Rerun recording")
     bn.add_argument("--json", action="store_true")

@@ -146,6 +146,8 @@ def encode(msg: Message) -> bytes:
 
 def _int(d: dict, key: str, lo: int = 0, hi: int = 2**62) -> int:
     v = d.get(key)
+    if type(v) is int and lo <= v <= hi:  # the common case, at once (an agent decodes every pose it hears)
+        return v
     if not isinstance(v, int) or isinstance(v, bool):
         raise DecodeError("schema", f"{key} must be an integer")
     if not lo <= v <= hi:
@@ -154,6 +156,8 @@ def _int(d: dict, key: str, lo: int = 0, hi: int = 2**62) -> int:
 
 
 def _float(v: Any, key: str, bound: float = MAX_COORD) -> float:
+    if type(v) is float and -bound <= v <= bound:  # finite and in range (NaN fails both comparisons)
+        return v
     if isinstance(v, bool) or not isinstance(v, (int, float)):
         raise DecodeError("schema", f"{key} must be a number")
     v = float(v)
