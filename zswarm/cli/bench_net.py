@@ -198,6 +198,7 @@ def measure_once(n_agents: int, duration: float, floor: bool, routers: int = 1) 
     return r
 
 
+CURVE_COLOURS = ((230, 85, 13), (49, 130, 189), (116, 196, 118))  # orange, blue, green
 CURVES = {"cpu ms per tick": ("cpu_ms_per_tick_agent", "cpu_ms_per_tick_floor", "cpu_ms_per_tick_floor_callback"),
           "latency ms": ("latency_p50", "latency_p99", "age_at_use_p99"),
           "ticks on time": ("on_time_ratio",),
@@ -215,6 +216,10 @@ def record_curves(results: list[dict[str, Any]], path: Path, settings: dict[str,
                                   for title in CURVES)), collapse_panels=True)
     rec = open_recording(path, "zswarm-bench-net", bp)
     rec.log("bench/settings", rr.TextDocument(json.dumps(settings, indent=2)), static=True)
+    for title, names in CURVES.items():  # a distinct colour per line within a plot
+        for name, colour in zip(names, CURVE_COLOURS):
+            rec.log(f"bench/{title.replace(' ', '_')}/{name}", rr.SeriesLines(names=name, colors=colour, widths=2.0),
+                    static=True)
     for r in results:
         flat = {**r, "latency_p50": r["latency_ms"]["p50"], "latency_p99": r["latency_ms"]["p99"],
                 "age_at_use_p99": r["age_at_use_ms"]["p99"]}
