@@ -53,7 +53,14 @@ def test_flood_of_hostile_messages_changes_nothing(tmp_path):
             i = 0
             while time.monotonic() < end:
                 for key, payload in garbage(rng, keys, cells[i % len(cells)], i):
-                    peer.put(key, payload, congestion_control=zenoh.CongestionControl.BLOCK)  # none dropped on the way
+                    if len(payload) <= msg.MAX_PAYLOAD:
+                        peer.put(key, payload)
+                    elif i % 10 == 0:  # a huge one now and then, never dropped on the way (Zenoh drops
+                        # what a congested link cannot take within 1 ms; a 256 KB message often is,
+                        # and then never reaches the size check this test is about)
+                        peer.put(key, payload, congestion_control=zenoh.CongestionControl.BLOCK)
+                    else:
+                        continue
                     sent += 1
                 i += 1
                 time.sleep(0.02)
