@@ -53,6 +53,9 @@ def test_flood_of_hostile_messages_changes_nothing(tmp_path):
             i = 0
             while time.monotonic() < end:
                 for key, payload in garbage(rng, keys, cells[i % len(cells)], i):
+                    if len(payload) > msg.MAX_PAYLOAD and i % 10:
+                        continue  # a 256 KiB one every tenth round: fifty a second filled the peer's own
+                        # queues faster than loopback drains them, and its close then timed out
                     peer.put(key, payload)
                     sent += 1
                 i += 1
