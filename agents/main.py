@@ -66,7 +66,6 @@ class Process:
         rings = loop is None and not (spec.faults.latency or spec.faults.jitter)
         self.bridge = Bridge(self.session, loop, deliver=lambda item: None, batch=loop is None, channels=rings)
         self.agent = Agent(spec, args.id, self.bridge, start, args.staleness, args.lockstep_wait)
-        self.agent.sensing.latency_from_echo = rings
         self.bridge.deliver = self.agent.sensing.handle
         self.injector: FaultInjector | None = None
         if spec.faults.active:

@@ -54,10 +54,13 @@ class Sensing:
         self.final_tick = False
         self.cells: dict[tuple[int, int], object] = {}
         self.cell_since: dict[tuple[int, int], int] = {}  # step at which each cell was subscribed
-        # True when poses are taken from ring channels (no arrival time): the transport latency is then
-        # measured on the agent's own pose, which the router hands back through a stamped subscription
-        self.latency_from_echo = False
         self.published: dict[bytes, float] = {}  # its latest pose payloads and when each was sent
+
+    @property
+    def latency_from_echo(self) -> bool:
+        """Poses come from ring channels (no arrival time): the transport latency is then measured on
+        the agent's own pose, which the router hands back through a stamped subscription."""
+        return self.bridge.channels is not None
 
     # --- inbound ---------------------------------------------------------------------------------------
 
@@ -76,7 +79,7 @@ class Sensing:
             self.last_seq.pop(who, None)
             return
         if tag == "echo":
-            self._on_echo(key, payload, received)
+            self._on_echo(payload, received)
             return
         self.counters.received += 1
         if tag == "pose" and self.keys.agent_of(key) == self.id:
@@ -106,7 +109,7 @@ class Sensing:
         if len(published) > 8:
             del published[next(iter(published))]
 
-    def _on_echo(self, key: str, payload: bytes, received: float) -> None:
+    def _on_echo(self, payload: bytes, received: float) -> None:
         """Its own pose, handed back by the router with its arrival time: one publish -> router ->
         subscriber trip, the path every neighbour's pose takes (ring-channel inbox only). Anything
         but a payload it sent itself is ignored."""

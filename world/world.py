@@ -36,6 +36,9 @@ from zswarm.net.runspec import RunSpec
 STALL = 1.0  # seconds behind its clock at which the world logs a stall event
 
 
+TICK_QOS = {"congestion_control": zenoh.CongestionControl.BLOCK, "priority": zenoh.Priority.INTERACTIVE_HIGH,
+            "express": True}
+
 @dataclass
 class Census:
     """Who is alive (holds a liveliness token), and when agents came and went."""
@@ -190,14 +193,10 @@ class World:
 
     def publish(self, key: str, message: msg.Message) -> None:
         """A tick is the clock every agent follows, and the final one is how they learn the run is
-        over: ticks go ahead of data (a higher priority) and wait for room rather than being dropped
-        when a link is congested (a peer flooding an agent's cells must not make it miss the end)."""
-        if isinstance(message, msg.Tick):
-            self.bridge.session.put(key, msg.encode(message), encoding=msg.ENCODING,
-                                    congestion_control=zenoh.CongestionControl.BLOCK,
-                                    priority=zenoh.Priority.INTERACTIVE_HIGH, express=True)
-        else:
-            self.bridge.session.put(key, msg.encode(message), encoding=msg.ENCODING)
+        over: ticks go ahead of data (a higher priority) and wait for room on a congested link rather
+        than being dropped there."""
+        qos = TICK_QOS if isinstance(message, msg.Tick) else {}
+        self.bridge.session.put(key, msg.encode(message), encoding=msg.ENCODING, **qos)
         self.sent += 1
 
     # --- the clocks -----------------------------------------------------------------------------------
