@@ -71,8 +71,6 @@ class Agent:
         self.seq += 1
         stamp = time.time()
         payload = msg.encode(msg.Pose(self.id, self.seq, stamp, step, b.x, b.y, b.vx, b.vy))
-        if self.sensing.latency_from_echo:
-            self.sensing.sent(payload, stamp)
         self.latest_reply = (key, payload)
         if step >= 0:
             self.replies_by_step = {s: r for s, r in self.replies_by_step.items() if s > step - 3}

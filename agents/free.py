@@ -4,8 +4,9 @@ Every tick it takes in what arrived since the last one (samples wait in Zenoh's 
 under an injected delay, in the bridge's inbox stamped with the time they arrived; both pass the fault
 injector), asks for what it lacks without waiting for the answer (obstacles, the poses of cells it
 just entered: the replies join the inbox), steps its control law and publishes its pose. No Python
-code runs between ticks but the one stamped subscription of its own pose (the latency figure): this
-is what keeps an agent close to the middleware's own cost.
+code runs between ticks but the one stamped subscription to a neighbour's poses (the latency figure,
+:meth:`~agents.sensing.Sensing.follow_probe`): this is what keeps an agent close to the middleware's
+own cost.
 
 A late tick is counted and the schedule moves on (never a backlog of ticks). The run ends on the
 world's final tick or when ``stopped()`` says so (SIGINT, SIGTERM).
@@ -63,6 +64,7 @@ def run_free(agent: Agent, injector: FaultInjector | None, stopped: Callable[[],
             agent.move(s.prey, s.neighbour_positions(None, agent.staleness))
         agent.body.step += 1
         s.follow_cells()
+        s.follow_probe()
         agent.publish_pose(-1)
         if c.ticks % stats_every == 0:
             agent.publish_stats_now()

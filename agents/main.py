@@ -76,8 +76,6 @@ class Process:
         keys = spec.keys
         self.declared = [self.bridge.subscribe_liveliness(keys.all_alive, "alive"),
                          self.bridge.subscribe(keys.prey, "prey"), self.bridge.subscribe(keys.tick, "tick")]
-        if rings:
-            self.declared.append(self.bridge.subscribe(keys.any_cell_pose(args.id), "echo", stamped=True))
 
     def no_world(self, waited: float) -> UsageError:
         return UsageError(f"agent {self.id}: the world of run {self.spec.run!r} did not answer for {waited:g} s "

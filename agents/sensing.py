@@ -54,12 +54,13 @@ class Sensing:
         self.final_tick = False
         self.cells: dict[tuple[int, int], object] = {}
         self.cell_since: dict[tuple[int, int], int] = {}  # step at which each cell was subscribed
-        self.published: dict[bytes, float] = {}  # its latest pose payloads and when each was sent
+        self.probe: tuple[int, object] | None = None  # the neighbour whose poses are stamped on arrival
 
     @property
-    def latency_from_echo(self) -> bool:
-        """Poses come from ring channels (no arrival time): the transport latency is then measured on
-        the agent's own pose, which the router hands back through a stamped subscription."""
+    def latency_from_probe(self) -> bool:
+        """Poses come from ring channels, which carry no arrival time: the transport latency is then
+        measured on one neighbour's poses, heard a second time through a subscription stamped on
+        arrival (:meth:`follow_probe`)."""
         return self.bridge.channels is not None
 
     # --- inbound ---------------------------------------------------------------------------------------
@@ -78,8 +79,8 @@ class Sensing:
                 self.counters.departed.setdefault(who, received)
             self.last_seq.pop(who, None)
             return
-        if tag == "echo":
-            self._on_echo(payload, received)
+        if tag == "probe":
+            self._on_probe(payload, received)
             return
         self.counters.received += 1
         if tag == "pose" and self.keys.agent_of(key) == self.id:
@@ -102,20 +103,42 @@ class Sensing:
         else:
             self.counters.rejections.add("kind", f"{type(m).__name__} on {tag} key")
 
-    def sent(self, payload: bytes, stamp: float) -> None:
-        """It published ``payload`` at ``stamp``: the echo is recognised by its bytes, not decoded."""
-        published = self.published
-        published[payload] = stamp
-        if len(published) > 8:
-            del published[next(iter(published))]
+    def _on_probe(self, payload: bytes, received: float) -> None:
+        """A pose of the probed neighbour with its arrival time: one publish -> router -> subscriber
+        trip, the path every neighbour's pose takes (ring-channel inbox only). The same bytes reach
+        the agent through its cells too, where they are taken in, and rejected and counted if bad."""
+        try:
+            m = msg.decode(payload)
+        except msg.DecodeError:
+            return
+        if isinstance(m, msg.Pose):
+            self.counters.add(self.counters.latency, (received - m.stamp) * 1000.0)
 
-    def _on_echo(self, payload: bytes, received: float) -> None:
-        """Its own pose, handed back by the router with its arrival time: one publish -> router ->
-        subscriber trip, the path every neighbour's pose takes (ring-channel inbox only). Anything
-        but a payload it sent itself is ignored."""
-        stamp = self.published.pop(payload, None)
-        if stamp is not None:
-            self.counters.add(self.counters.latency, (received - stamp) * 1000.0)
+    def follow_probe(self) -> None:
+        """Ring-channel inbox: keep a stamped subscription to one neighbour's poses, the nearest one
+        heard within the subscription radius, for as long as it stays there and alive.
+
+        Its poses reach this session for the cells anyway, so the router sends nothing more. Not the
+        agent's own pose: Zenoh hands a publication to a subscriber of the same session directly,
+        without the router, so an echo would time the session, not the transport.
+        """
+        if not self.latency_from_probe:
+            return
+        reach = self.subscription_radius
+        if self.probe is not None:
+            who, sub = self.probe
+            nb = self.neighbours.get(who)
+            if who in self.alive and nb is not None and self._distance(nb.latest.x, nb.latest.y) <= reach:
+                return
+            self.bridge.unsubscribe(sub)
+            self.probe = None
+        best: tuple[float, int] | None = None
+        for who, nb in self.neighbours.entries.items():
+            d = self._distance(nb.latest.x, nb.latest.y)
+            if d <= reach and who in self.alive and (best is None or d < best[0]):
+                best = (d, who)
+        if best is not None:
+            self.probe = (best[1], self.bridge.subscribe(self.keys.any_cell_pose(best[1]), "probe", stamped=True))
 
     def fault_source(self, tag: str, key: str, payload: bytes) -> tuple[int, float | None] | None:
         """The link a message arrives on, and (poses) its sender's distance over the sensing radius."""
@@ -165,7 +188,7 @@ class Sensing:
         self._count_sequence(pose)
         self.counters.heard.add(pose.id)
         self.counters.poses += 1
-        if not self.latency_from_echo:
+        if not self.latency_from_probe:
             self.counters.add(self.counters.latency, (now - pose.stamp) * 1000.0)
         known = pose.id in self.neighbours.entries
         reason = self.neighbours.accept(pose.id, pose, now)

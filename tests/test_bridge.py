@@ -27,27 +27,27 @@ def test_ring_inbox_keeps_a_senders_last_pose_before_its_departure_and_stamps_on
         bridge = Bridge(receiver, None, deliver=got.append, batch=True, channels=True)
         declared = [bridge.subscribe_liveliness("t/alive/*", "alive"),  # subscribed first, taken out last
                     bridge.subscribe("t/pose/*", "pose"),
-                    bridge.subscribe("t/echo", "echo", stamped=True)]
+                    bridge.subscribe("t/probe", "probe", stamped=True)]
         token = sender.liveliness().declare_token("t/alive/1")
         wait_until(lambda: bridge.drain() or any(g[0] == "alive" for g in got), 10.0, "the token")
         got.clear()
 
         sender.put("t/pose/1", b"last words")
         token.undeclare()  # the sender departs right after its last pose
-        sender.put("t/echo", b"marker")  # published after both: once it is in, so are they
+        sender.put("t/probe", b"marker")  # published after both: once it is in, so are they
         wait_until(lambda: bridge.pending > 0, 10.0, "the stamped marker")
         seen = time.time()
         time.sleep(0.05)
         taken_at = time.time()
         assert bridge.drain() == 3
-        assert [(tag, deleted) for tag, _, _, deleted, _ in got] == [("echo", False), ("pose", False), ("alive", True)]
+        assert [(tag, deleted) for tag, _, _, deleted, _ in got] == [("probe", False), ("pose", False), ("alive", True)]
         stamps = {tag: received for tag, _, _, _, received in got}
-        assert stamps["echo"] <= seen  # the time it arrived
+        assert stamps["probe"] <= seen  # the time it arrived
         assert stamps["pose"] >= taken_at and stamps["alive"] >= taken_at  # the time it was taken out
 
         pose_sub = declared[1]
         sender.put("t/pose/2", b"in flight")
-        sender.put("t/echo", b"marker")
+        sender.put("t/probe", b"marker")
         got.clear()
         wait_until(lambda: bridge.pending > 0, 10.0, "the second marker")
         bridge.unsubscribe(pose_sub)  # what waited in its channel is still delivered

@@ -81,7 +81,7 @@ def test_free_running_swarm_agrees_with_the_reference_on_the_outcome(tmp_path):
     assert s["final_components"] == ref["final_components"]
     assert set(s["vs_reference"]) >= {"capture_time", "min_pair_distance", "final_centroid_goal_distance"}
     assert s["pose_age_ms"]["p50"] is not None and s["ticks"] > 0 and s["messages_rejected"] == 0
-    # the ring-channel inbox: latency from each agent's own pose echoed back, poses counted apart
+    # the ring-channel inbox: latency from one neighbour's poses stamped on arrival, poses counted apart
     assert s["pose_latency_ms"]["p50"] is not None and s["poses_received"] > 0
     rerun_verify(record)
 

@@ -1,0 +1,80 @@
+"""A free-running agent's transport latency is timed on poses that crossed the router, never on its own.
+
+Zenoh hands a publication to a subscriber of the same session without the router, so an agent that
+timed its own pose would report the session's own hand-over as transport latency. Two agent
+processes' worth of state (:class:`agents.main.Process`, as ``python -m agents`` builds it) run here
+over a real router, ticking by hand.
+"""
+
+from __future__ import annotations
+
+import time
+
+import zenoh
+
+from agents.free import take_in
+from agents.main import Process, build_parser
+from conftest import free_port
+from zswarm.net.config import zenoh_config
+from zswarm.net.runspec import spec_from_args
+
+
+def agent(endpoint: str, agent_id: int, x: float) -> Process:
+    args = build_parser().parse_args(["--id", str(agent_id), "--start", f"{x},0.5", "--run", "latency",
+                                      "--scenario", "bench-field", "--set", "n_agents=2", "--connect", endpoint])
+    proc = Process(spec_from_args(args), args, loop=None)
+    proc.announce()
+    proc.agent.sensing.follow_cells()
+    return proc
+
+
+def tick(*procs: Process) -> None:
+    """One free-clock tick of each (as :func:`agents.free.run_free`, without the control law)."""
+    for p in procs:
+        take_in(p.agent, None)
+        p.agent.sensing.follow_cells()
+        p.agent.sensing.follow_probe()
+        p.agent.publish_pose(-1)
+
+
+def samples(p: Process) -> int:
+    return sum(p.agent.counters.latency.values())
+
+
+def test_a_ring_agent_times_a_neighbours_poses_and_not_its_own_echo():
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    with zenoh.open(zenoh_config("router", listen=[endpoint])):
+        alone = agent(endpoint, 0, 0.5)
+        try:
+            assert alone.bridge.channels is not None and alone.agent.sensing.latency_from_probe
+            for _ in range(40):  # its own poses come back to it through its cell, without the router
+                tick(alone)
+                time.sleep(0.01)
+            assert alone.agent.sensing.probe is None
+            assert samples(alone) == 0, "an agent alone timed its own pose"
+
+            neighbour = agent(endpoint, 1, 0.9)
+            try:
+                deadline = time.monotonic() + 15.0
+                while samples(alone) < 20:
+                    assert time.monotonic() < deadline, "no latency samples from the neighbour's poses"
+                    tick(alone, neighbour)
+                    time.sleep(0.01)
+                assert alone.agent.sensing.probe is not None and alone.agent.sensing.probe[0] == 1
+                assert neighbour.agent.sensing.probe is not None and neighbour.agent.sensing.probe[0] == 0
+                assert alone.agent.counters.poses > 0
+            finally:
+                neighbour.close(final_stats=False)
+
+            deadline = time.monotonic() + 15.0
+            while alone.agent.sensing.probe is not None:  # the neighbour's token went: the probe with it
+                assert time.monotonic() < deadline, "the probe outlived its neighbour"
+                tick(alone)
+                time.sleep(0.01)
+            before = samples(alone)
+            for _ in range(40):
+                tick(alone)
+                time.sleep(0.01)
+            assert samples(alone) == before
+        finally:
+            alone.close(final_stats=False)
