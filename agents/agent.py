@@ -43,6 +43,7 @@ class Agent:
         self.staleness, self.lockstep_wait = staleness, lockstep_wait
         self.seq = 0
         self.pose_cell: tuple[int, int] | None = None
+        self.pose_key = ""  # the key of its pose in that cell
         self.queryable: Any = None
         self.publisher: Any = None
         self.latest_reply: tuple[str, bytes] | None = None
@@ -67,15 +68,17 @@ class Agent:
         with the latest pose (and, in lockstep, the pose of a step)."""
         b = self.body
         cell = self.keys.cell(b.x, b.y)
-        key = self.keys.pose(cell, self.id)
+        moved = cell != self.pose_cell
+        if moved:
+            self.pose_key = self.keys.pose(cell, self.id)
+        key = self.pose_key
         self.seq += 1
-        stamp = time.time()
-        payload = msg.encode(msg.Pose(self.id, self.seq, stamp, step, b.x, b.y, b.vx, b.vy))
+        payload = msg.encode_pose(self.id, self.seq, time.time(), step, b.x, b.y, b.vx, b.vy)
         self.latest_reply = (key, payload)
         if step >= 0:
             self.replies_by_step = {s: r for s, r in self.replies_by_step.items() if s > step - 3}
             self.replies_by_step[step] = (key, payload)
-        if cell != self.pose_cell:
+        if moved:
             for old in (self.queryable, self.publisher):
                 if old is not None:
                     old.undeclare()

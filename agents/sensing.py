@@ -17,7 +17,7 @@ from agents.counters import Counters
 from zswarm.model.faults import OBSTACLE_SOURCE, PREY_SOURCE
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Bridge, Inbound
-from zswarm.net.keys import cells_in_disc
+from zswarm.net.keys import cells_in_disc, cells_in_disc_margin
 from zswarm.net.poses import PoseTable, Rejections
 from zswarm.net.runspec import RunSpec
 
@@ -54,6 +54,7 @@ class Sensing:
         self.final_tick = False
         self.cells: dict[tuple[int, int], object] = {}
         self.cell_since: dict[tuple[int, int], int] = {}  # step at which each cell was subscribed
+        self.cells_at: tuple[float, float, float] | None = None  # where they were chosen, and the margin
         self.probe: tuple[int, object] | None = None  # the neighbour whose poses are stamped on arrival
 
     @property
@@ -83,16 +84,26 @@ class Sensing:
             self._on_probe(payload, received)
             return
         self.counters.received += 1
-        if tag == "pose" and self.keys.agent_of(key) == self.id:
-            return  # its own pose, back from its own cell
+        if tag == "pose":
+            who = self.keys.agent_of(key)
+            if who == self.id:
+                return  # its own pose, back from its own cell
+            try:
+                m = msg.decode(payload)
+            except msg.DecodeError as exc:
+                self.counters.rejections.add(exc.reason, str(exc))
+                return
+            if type(m) is msg.Pose:
+                self._on_pose(who, key, m, received)
+            else:
+                self.counters.rejections.add("kind", f"{type(m).__name__} on {tag} key")
+            return
         try:
             m = msg.decode(payload)
         except msg.DecodeError as exc:
             self.counters.rejections.add(exc.reason, str(exc))
             return
-        if tag == "pose" and isinstance(m, msg.Pose):
-            self._on_pose(key, m, received)
-        elif tag == "prey" and isinstance(m, msg.Prey):
+        if tag == "prey" and isinstance(m, msg.Prey):
             self.prey = (m.x, m.y)
         elif tag == "tick" and isinstance(m, msg.Tick):
             self.final_tick = self.final_tick or m.final
@@ -167,7 +178,9 @@ class Sensing:
         last = self.last_seq.get(pose.id)
         c = self.counters
         nb = self.neighbours.get(pose.id)
-        within = nb is not None and all(self._distance(p.x, p.y) <= self.radius for p in (nb.latest, pose))
+        r = self.radius
+        within = (nb is not None and self._distance(nb.latest.x, nb.latest.y) <= r
+                  and self._distance(pose.x, pose.y) <= r)
         if last is not None and within:
             if pose.seq > last:
                 gap = pose.seq - last - 1
@@ -179,8 +192,9 @@ class Sensing:
                 c.seq_received += 1
         self.last_seq[pose.id] = max(pose.seq, last or 0)
 
-    def _on_pose(self, key: str, pose: msg.Pose, now: float) -> None:
-        if self.keys.agent_of(key) != pose.id:
+    def _on_pose(self, who: int | None, key: str, pose: msg.Pose, now: float) -> None:
+        """``pose`` arrived under ``key``, which names agent ``who``."""
+        if who != pose.id:
             self.counters.rejections.add("schema", f"pose of {pose.id} under key {key}")
             return
         if pose.id == self.id:
@@ -255,13 +269,18 @@ class Sensing:
     def _move_cells(self) -> list[tuple[int, int]]:
         """Subscribe to the cells the sensing disc overlaps, leave the others; returns the new ones."""
         x, y = self.body.x, self.body.y
-        wanted = cells_in_disc(self.keys, x, y, self.subscription_radius)
+        at = self.cells_at
+        if at is not None and math.hypot(x - at[0], y - at[1]) < at[2]:
+            return []  # not yet moved far enough to change which cells its disc meets
+        wanted, margin = cells_in_disc_margin(self.keys, x, y, self.subscription_radius)
+        self.cells_at = (x, y, margin)
         for cell in [c for c in self.cells if c not in wanted]:
             self.bridge.unsubscribe(self.cells.pop(cell))
             self.cell_since.pop(cell, None)
         new = [c for c in wanted if c not in self.cells]
         for cell in new:
-            self.cells[cell] = self.bridge.subscribe(self.keys.cell_poses(cell), "pose")
+            # its own pose is published into one of them: not handed back to it
+            self.cells[cell] = self.bridge.subscribe(self.keys.cell_poses(cell), "pose", remote=True)
             self.cell_since[cell] = self.body.step
         return new
 

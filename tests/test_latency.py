@@ -52,6 +52,7 @@ def test_a_ring_agent_times_a_neighbours_poses_and_not_its_own_echo():
                 time.sleep(0.01)
             assert alone.agent.sensing.probe is None
             assert samples(alone) == 0, "an agent alone timed its own pose"
+            assert alone.agent.counters.received == 0, "its own poses came back through its cell"
 
             neighbour = agent(endpoint, 1, 0.9)
             try:

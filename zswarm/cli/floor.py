@@ -2,7 +2,8 @@
 
 The floor of ``zswarm bench net --floor``: what the middleware alone costs for one agent's traffic.
 Like agent ``--id`` of the same run, it holds a liveliness token, subscribes to the cells within
-R + 2 v_max dt of the agent's spawn position and to the prey, and publishes a real pose message
+R + 2 v_max dt of the agent's spawn position (its own publications not handed back, as an agent's)
+and to the prey, and publishes a real pose message
 (msgpack, about 76 bytes) into its cell at the agent's rate through a declared publisher. It decodes
 nothing, runs no control law and no event loop: samples wait in a ring channel emptied once per tick
 (``--handler callback``: a Python callback appends each to a list, as an agent's inbox does).
@@ -62,7 +63,8 @@ def run_floor(args: argparse.Namespace) -> int:
         else:
             declared = [session.liveliness().declare_token(keys.alive(args.id)),
                         session.declare_subscriber(keys.prey, handler()),
-                        *(session.declare_subscriber(keys.cell_poses(c), handler())
+                        *(session.declare_subscriber(keys.cell_poses(c), handler(),
+                                                     allowed_origin=zenoh.Locality.REMOTE)
                           for c in cells_in_disc(keys, x, y, reach)),
                         session.declare_publisher(keys.pose(keys.cell(x, y), args.id), encoding=msg.ENCODING)]
             message = lambda seq: msg.encode(msg.Pose(args.id, seq, time.time(), -1, x, y, 0.0, 0.0))  # noqa: E731

@@ -121,9 +121,12 @@ class Bridge:
             (self.tokens if token else self.channels).append((tag, sub))
         return sub
 
-    def subscribe(self, key: str, tag: str, stamped: bool = False) -> Any:
-        """``stamped``: through a callback, with its arrival time, even when the others use channels."""
-        return self._declared(tag, self.session.declare_subscriber(key, self._handler(tag, stamped)), stamped)
+    def subscribe(self, key: str, tag: str, stamped: bool = False, remote: bool = False) -> Any:
+        """``stamped``: through a callback, with its arrival time, even when the others use channels.
+        ``remote``: only what other sessions publish (not this session's own publications)."""
+        origin = zenoh.Locality.REMOTE if remote else None
+        return self._declared(tag, self.session.declare_subscriber(key, self._handler(tag, stamped),
+                                                                   allowed_origin=origin), stamped)
 
     def subscribe_liveliness(self, key: str, tag: str) -> Any:
         return self._declared(tag, self.session.liveliness().declare_subscriber(key, self._handler(tag), history=True),

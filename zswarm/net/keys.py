@@ -111,6 +111,31 @@ def cells_in_disc(keys: Keys, x: float, y: float, r: float) -> set[tuple[int, in
     return out
 
 
+def cells_in_disc_margin(keys: Keys, x: float, y: float, r: float) -> tuple[set[tuple[int, int]], float]:
+    """:func:`cells_in_disc` and how far (x, y) may move, in any direction, before that set changes.
+
+    A cell is in the set when its signed distance from (x, y) (negative inside it: minus the distance
+    to its nearest edge) is at most r. A signed distance changes no faster than the point moves, so
+    the set stays the same while the point is closer to where it was than every cell's
+    |distance - r|. Cells farther than r + one cell size are not looked at, so the margin is at most
+    one cell size.
+    """
+    s = keys.cell_size
+    lo_x, hi_x = math.floor((x - r) / s), math.floor((x + r) / s)  # the range cells_in_disc looks at
+    lo_y, hi_y = math.floor((y - r) / s), math.floor((y + r) / s)
+    cells, margin = set(), s
+    for cx in range(lo_x - 1, hi_x + 2):
+        for cy in range(lo_y - 1, hi_y + 2):
+            x0, y0 = cx * s, cy * s
+            nx, ny = min(max(x, x0), x0 + s), min(max(y, y0), y0 + s)
+            d2 = (nx - x) ** 2 + (ny - y) ** 2
+            if d2 <= r * r and lo_x <= cx <= hi_x and lo_y <= cy <= hi_y:
+                cells.add((cx, cy))
+            signed = math.sqrt(d2) if d2 > 0.0 else -min(x - x0, x0 + s - x, y - y0, y0 + s - y)
+            margin = min(margin, abs(signed - r))
+    return cells, margin
+
+
 def parse_parameters(text: str) -> dict[str, str]:
     """``x=1.0;y=2.0;r=1.5`` -> {'x': '1.0', ...}."""
     out = {}

@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Any, Union
+from typing import Any, NamedTuple, Union
 
 import msgpack
 
@@ -35,9 +35,11 @@ class DecodeError(ValueError):
         self.reason = reason
 
 
-@dataclass(frozen=True)
-class Pose:
-    """An agent's state: id, sequence number, sender wall time, lockstep step (-1 if free), x, y, vx, vy."""
+class Pose(NamedTuple):
+    """An agent's state: id, sequence number, sender wall time, lockstep step (-1 if free), x, y, vx, vy.
+
+    Immutable like the other messages, but a named tuple rather than a frozen dataclass: an agent
+    builds one for every pose it hears, and a tuple is built in a sixth of the time."""
 
     id: int
     seq: int
@@ -49,8 +51,9 @@ class Pose:
     vy: float
 
 
-@dataclass(frozen=True)
-class Prey:
+class Prey(NamedTuple):
+    """The prey as the world publishes it (a named tuple, as :class:`Pose`: every agent decodes one a tick)."""
+
     seq: int
     stamp: float
     step: int
@@ -122,10 +125,15 @@ def _pack(obj: dict[str, Any]) -> bytes:
     return msgpack.packb({"v": VERSION, **obj}, use_bin_type=True)
 
 
+def encode_pose(agent: int, seq: int, stamp: float, step: int, x: float, y: float, vx: float, vy: float) -> bytes:
+    """``encode(Pose(...))`` without building the Pose: an agent publishes one every tick."""
+    return msgpack.packb({"v": VERSION, "k": "pose", "id": agent, "seq": seq, "t": stamp, "s": step,
+                          "p": [x, y], "u": [vx, vy]}, use_bin_type=True)
+
+
 def encode(msg: Message) -> bytes:
     if isinstance(msg, Pose):
-        return _pack({"k": "pose", "id": msg.id, "seq": msg.seq, "t": msg.stamp, "s": msg.step,
-                      "p": [msg.x, msg.y], "u": [msg.vx, msg.vy]})
+        return encode_pose(*msg)
     if isinstance(msg, Prey):
         return _pack({"k": "prey", "seq": msg.seq, "t": msg.stamp, "s": msg.step, "p": [msg.x, msg.y]})
     if isinstance(msg, Tick):
@@ -256,13 +264,45 @@ def decode(data: bytes) -> Message:
         raise DecodeError("version", f"version {obj.get('v')!r}, expected {VERSION}")
     kind = obj.get("k")
     if kind == "pose":
-        x, y = _vec(obj, "p")
-        vx, vy = _vec(obj, "u")
-        return Pose(_int(obj, "id", 0, MAX_ID), _int(obj, "seq"), _float(obj.get("t"), "t", 1e12),
-                    _int(obj, "s", -1), x, y, vx, vy)
+        return _pose(obj)
     if kind == "prey":
-        x, y = _vec(obj, "p")
-        return Prey(_int(obj, "seq"), _float(obj.get("t"), "t", 1e12), _int(obj, "s", -1), x, y)
+        return _prey(obj)
+    return _other(obj, kind)
+
+
+def _prey(obj: dict) -> Prey:
+    """A prey map, checked as :func:`_pose` checks a pose."""
+    seq, t, s, p = obj.get("seq"), obj.get("t"), obj.get("s"), obj.get("p")
+    if type(seq) is int and type(t) is float and type(s) is int and type(p) is list and len(p) == 2:
+        x, y = p
+        if (type(x) is float and type(y) is float and 0 <= seq <= 2**62 and -1 <= s <= 2**62
+                and -1e12 <= t <= 1e12 and -MAX_COORD <= x <= MAX_COORD and -MAX_COORD <= y <= MAX_COORD):
+            return Prey(seq, t, s, x, y)
+    x, y = _vec(obj, "p")
+    return Prey(_int(obj, "seq"), _float(obj.get("t"), "t", 1e12), _int(obj, "s", -1), x, y)
+
+
+def _pose(obj: dict) -> Pose:
+    """A pose map: a well-formed one (every agent hears a few every tick) is checked in one pass;
+    anything else goes field by field, to say what is wrong."""
+    i, seq, t, s, p, u = obj.get("id"), obj.get("seq"), obj.get("t"), obj.get("s"), obj.get("p"), obj.get("u")
+    if (type(i) is int and type(seq) is int and type(s) is int and type(t) is float and type(p) is list
+            and type(u) is list and len(p) == 2 and len(u) == 2):
+        x, y = p
+        vx, vy = u
+        if (type(x) is float and type(y) is float and type(vx) is float and type(vy) is float
+                and 0 <= i <= MAX_ID and 0 <= seq <= 2**62 and -1 <= s <= 2**62 and -1e12 <= t <= 1e12
+                and -MAX_COORD <= x <= MAX_COORD and -MAX_COORD <= y <= MAX_COORD
+                and -MAX_COORD <= vx <= MAX_COORD and -MAX_COORD <= vy <= MAX_COORD):  # NaN fails these
+            return Pose(i, seq, t, s, x, y, vx, vy)
+    x, y = _vec(obj, "p")
+    vx, vy = _vec(obj, "u")
+    return Pose(_int(obj, "id", 0, MAX_ID), _int(obj, "seq"), _float(obj.get("t"), "t", 1e12),
+                _int(obj, "s", -1), x, y, vx, vy)
+
+
+def _other(obj: dict, kind: Any) -> Message:
+    """Every kind but the pose and the prey."""
     if kind == "tick":
         x, y = _vec(obj, "p")
         final = obj.get("f", False)

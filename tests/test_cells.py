@@ -1,0 +1,61 @@
+"""Which spatial cells an agent listens to: the cells its subscription disc meets, re-chosen only when
+it has moved far enough for that set to change."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import zenoh
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from agents.sensing import Body, Sensing
+from zswarm.net.bridge import Bridge
+from zswarm.net.config import zenoh_config
+from zswarm.net.keys import Keys, cells_in_disc, cells_in_disc_margin
+from zswarm.net.runspec import RunSpec
+
+coord = st.floats(-50, 50, allow_nan=False)
+KEYS = Keys("cells", cell_size=1.0)
+
+
+@settings(max_examples=300, deadline=None)
+@given(coord, coord, st.floats(0.05, 3.0), st.floats(0, 2 * math.pi), st.floats(0, 0.999))
+def test_the_cells_stay_the_same_within_the_margin(x, y, r, angle, fraction):
+    cells, margin = cells_in_disc_margin(KEYS, x, y, r)
+    assert cells == cells_in_disc(KEYS, x, y, r)
+    assert 0.0 <= margin <= KEYS.cell_size
+    step = fraction * margin
+    assert cells_in_disc(KEYS, x + step * math.cos(angle), y + step * math.sin(angle), r) == cells
+
+
+@settings(max_examples=200, deadline=None)
+@given(coord, coord, st.floats(0.05, 3.0))
+def test_the_margin_is_tight(x, y, r):
+    """Some move of a little more than the margin changes the set (unless the margin is a whole cell)."""
+    cells, margin = cells_in_disc_margin(KEYS, x, y, r)
+    if margin >= KEYS.cell_size or margin < 1e-9:
+        return
+    step = 1.1 * margin
+    assert any(cells_in_disc(KEYS, x + step * math.cos(a), y + step * math.sin(a), r) != cells
+               for a in np.linspace(0.0, 2 * math.pi, 256, endpoint=False))
+
+
+def test_an_agent_listens_to_exactly_the_cells_its_disc_meets_along_a_walk():
+    spec = RunSpec(run="cells", scenario_name="bench-field", overrides=(("n_agents", 4),))
+    rng = np.random.default_rng(7)
+    with zenoh.open(zenoh_config("peer")) as session:
+        bridge = Bridge(session, None, deliver=lambda item: None, batch=True, channels=True)
+        body = Body(0.3, -0.2)
+        s = Sensing(spec, 0, bridge, body)
+        chosen = 0
+        for _ in range(400):
+            body.x, body.y = body.x + rng.normal(0, 0.04), body.y + rng.normal(0, 0.04)
+            at = s.cells_at
+            s.follow_cells()
+            chosen += s.cells_at is not at
+            assert set(s.cells) == cells_in_disc(spec.keys, body.x, body.y, s.subscription_radius)
+            assert {sub for _, sub in bridge.channels} == set(s.cells.values())
+        assert chosen < 300  # most ticks keep the cells without working them out again
+        bridge.close()
