@@ -39,8 +39,7 @@ class Sensing:
         self.keys = spec.keys
         p = spec.scenario.params.swarm
         self.radius, self.v_max, self.dt = p.sensing_radius, p.v_max, spec.scenario.dt
-        # cells within R + 2 v_max dt: whoever can enter the sensing disc next step is already heard
-        self.subscription_radius = self.radius + 2.0 * self.v_max * self.dt
+        self.subscription_radius = spec.subscription_radius
         self.neighbours = PoseTable(3.0 * self.v_max * self.dt, spec.period)  # 3x slack on a tick's reach
         self.counters = Counters(Rejections(f"agent {agent_id}"))
         self.alive: set[int] = set()  # ids with a liveliness token

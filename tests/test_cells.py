@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from agents.sensing import Body, Sensing
 from zswarm.net.bridge import Bridge
 from zswarm.net.config import zenoh_config
-from zswarm.net.keys import Keys, cells_in_disc, cells_in_disc_margin
+from zswarm.net.keys import Keys, cells_in_disc, cells_in_disc_margin, in_reach_counts
 from zswarm.net.runspec import RunSpec
 
 coord = st.floats(-50, 50, allow_nan=False)
@@ -59,3 +59,12 @@ def test_an_agent_listens_to_exactly_the_cells_its_disc_meets_along_a_walk():
             assert {sub for _, sub in bridge.channels} == set(s.cells.values())
         assert chosen < 300  # most ticks keep the cells without working them out again
         bridge.close()
+
+
+def test_in_reach_counts_the_others_in_the_cells_each_disc_meets():
+    rng = np.random.default_rng(3)
+    for n, side, r in ((2, 2.0, 1.1), (30, 6.0, 1.1), (80, 12.0, 0.7)):
+        pos = rng.uniform(-side / 2, side / 2, (n, 2))
+        expected = [sum(1 for j in range(n) if j != i and KEYS.cell(*pos[j]) in cells_in_disc(KEYS, *pos[i], r))
+                    for i in range(n)]
+        assert in_reach_counts(pos, r, KEYS.cell_size).tolist() == expected

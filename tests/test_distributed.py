@@ -83,6 +83,9 @@ def test_free_running_swarm_agrees_with_the_reference_on_the_outcome(tmp_path):
     assert s["pose_age_ms"]["p50"] is not None and s["ticks"] > 0 and s["messages_rejected"] == 0
     # the ring-channel inbox: latency from one neighbour's poses stamped on arrival, poses counted apart
     assert s["pose_latency_ms"]["p50"] is not None and s["poses_received"] > 0
+    # they took in about what the agents in the cells they listen to published (the world's count)
+    delivered = s["poses_received"] / s["n_agents"] / s["duration"] / s["poses_in_reach_per_s"]
+    assert 0.5 < delivered < 1.5, delivered
     rerun_verify(record)
 
 

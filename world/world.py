@@ -30,6 +30,7 @@ from zswarm.model import prey as prey_motion
 from zswarm.model.observer import SwarmObserver
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Bridge, Inbound
+from zswarm.net.keys import in_reach_counts
 from zswarm.net.poses import PoseTable, Rejections
 from zswarm.net.runspec import RunSpec
 
@@ -47,6 +48,29 @@ class Census:
     arrivals: list[dict[str, Any]] = field(default_factory=list)
     departures: list[dict[str, Any]] = field(default_factory=list)
     all_alive_after: float | None = None  # wall seconds from the world's start
+
+
+@dataclass
+class Reach:
+    """How many other agents publish into the cells each agent listens to (sampled once a second from
+    the poses the world holds): what a lossless transport hands an agent per round. The agents' own
+    count of poses taken in is measured against it."""
+
+    total: float = 0.0  # sum over samples of the mean over agents
+    samples: int = 0
+    last: float = -math.inf  # wall time of the last sample
+
+    def sample(self, pos: np.ndarray, radius: float, cell_size: float, every: float = 1.0) -> None:
+        now = time.time()
+        if now - self.last < every or len(pos) < 2:
+            return
+        self.total += float(in_reach_counts(pos, radius, cell_size).mean())
+        self.samples += 1
+        self.last = now
+
+    def per_s(self, period: float) -> float | None:
+        """Poses in reach per agent per second, at one pose per agent per ``period``."""
+        return self.total / self.samples / period if self.samples else None
 
 
 @dataclass
@@ -77,6 +101,7 @@ class World:
         self.network_logged = self.network_agents_logged = 0.0  # wall times the network panel was last logged
         self.network_received = 0
         self.stalled = False  # the free clock is more than STALL behind
+        self.reach = Reach()
         self.pose_arrived = asyncio.Event()
         self.stop = asyncio.Event()
         self.started_wall = time.time()
@@ -163,6 +188,7 @@ class World:
         pos = np.array([[poses[i].x, poses[i].y] for i in ids])
         vel = np.array([[poses[i].vx, poses[i].vy] for i in ids])
         metrics = self.observer.observe(self.clock.t, ids, pos, vel, self.prey)
+        self.reach.sample(pos, self.spec.subscription_radius, self.keys.cell_size)
         self.recorder.log_step(self.clock.step, self.clock.t, ids, pos, vel, self.prey,
                                {**metrics, "agents_alive": float(len(self.census.alive))})
         self._log_network()
@@ -293,6 +319,7 @@ class World:
         result.update({"startup_s": self.census.all_alive_after, "departures": self.census.departures,
                        "requested_faults": s.faults.requested(), "missed_lockstep_poses": c.missed_poses,
                        "world_late_ticks": c.late_ticks, "world_ticks": c.step + 1,
+                       "poses_in_reach_per_s": self.reach.per_s(s.period),
                        "world_segments": self.recorder.segment + 1,
                        "resumed_from": None if self.resumed is None else self.resumed.to_dict()})
         self.recorder.close(result)

@@ -3,8 +3,9 @@
 Starts a router, the world and N agent processes in the ``bench-field`` setting (constant density:
 the area grows with N, so each agent has about the same number of neighbours), runs them in free
 mode and reports pose latency publish-to-neighbour (p50, p99), the share of control ticks on time,
-pose messages received per agent per second, the time until every agent is alive, and the resident
-memory of an agent process.
+pose messages received per agent per second (beside the poses in reach: what the agents in the
+cells it listens to published, sampled by the world), the time until every agent is alive, and the
+resident memory of an agent process.
 """
 
 from __future__ import annotations
@@ -104,11 +105,14 @@ def run(n_agents: int, duration: float, scenario: str = "bench-field", routers: 
     per_tick = [1000.0 * c * spec.period for c in window.share(a.name for a in agents)]
     poses = s.get("poses_received", 0)
     router_names = [c for c in names if c.startswith("router")]
+    received = poses / n_agents / duration if duration else None
+    reach = s.get("poses_in_reach_per_s")
     return {
         "n_agents": n_agents, "routers": routers, "rate_hz": round(1.0 / spec.period, 3), "duration_s": duration,
         "latency_ms": s["pose_latency_ms"], "age_at_use_ms": s["pose_age_ms"],
         "on_time_ratio": s["on_time_ratio"],
-        "received_per_agent_per_s": poses / n_agents / duration if duration else None,
+        "received_per_agent_per_s": received, "in_reach_per_agent_per_s": reach,
+        "received_to_in_reach": received / reach if received is not None and reach else None,
         "startup_s": s["startup_s"],
         "cpu_ms_per_tick_agent": statistics.mean(per_tick) if per_tick else None,
         "cpu_ms_per_tick_agent_max": max(per_tick) if per_tick else None,
@@ -247,7 +251,8 @@ def main_bench(args) -> int:
     for r in results:
         print(f"N={r['n_agents']:>4}  latency p50 {r['latency_ms']['p50']} ms  p99 {r['latency_ms']['p99']} ms  "
               f"age at use p99 {r['age_at_use_ms']['p99']} ms  on time {figure(r['on_time_ratio'], '.4f')}  "
-              f"received/agent/s {figure(r['received_per_agent_per_s'], '.1f')}  startup {figure(r['startup_s'], '.2f')} s")
+              f"received/agent/s {figure(r['received_per_agent_per_s'], '.1f')} (in reach "
+              f"{figure(r.get('in_reach_per_agent_per_s'), '.1f')})  startup {figure(r['startup_s'], '.2f')} s")
         print(f"        agent CPU {figure(r['cpu_ms_per_tick_agent'], '.2f')} ms/tick (max "
               f"{figure(r['cpu_ms_per_tick_agent_max'], '.2f')}), world {figure(r['cpu_share_world'], '.1%')} of a core, "
               f"routers ({r['routers']}) {figure(r['cpu_share_router'], '.1%')}; agent RSS {figure(r['rss_mb_per_agent'], '.1f')} MB, "

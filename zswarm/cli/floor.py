@@ -44,7 +44,7 @@ def run_floor(args: argparse.Namespace) -> int:
     spec = spec_from_args(args)
     scenario, keys = spec.scenario, spec.keys
     x, y = map(float, scenario.initial_positions(np.random.default_rng(spec.seed))[args.id])
-    reach = scenario.params.swarm.sensing_radius + 2.0 * scenario.params.swarm.v_max * scenario.dt
+    reach = spec.subscription_radius
     stop = []
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.append(True))

@@ -18,6 +18,8 @@ import math
 import re
 from dataclasses import dataclass
 
+import numpy as np
+
 from zswarm.errors import UsageError
 
 RUN_ID = re.compile(r"^[A-Za-z0-9_.-]{1,64}$")
@@ -134,6 +136,17 @@ def cells_in_disc_margin(keys: Keys, x: float, y: float, r: float) -> tuple[set[
             signed = math.sqrt(d2) if d2 > 0.0 else -min(x - x0, x0 + s - x, y - y0, y0 + s - y)
             margin = min(margin, abs(signed - r))
     return cells, margin
+
+
+def in_reach_counts(positions: np.ndarray, r: float, cell_size: float) -> np.ndarray:
+    """For each agent at ``positions`` (N, 2), how many others publish into a cell that its disc of
+    radius r meets (:func:`cells_in_disc`): the poses a lossless transport hands it per publishing round."""
+    p = np.asarray(positions, dtype=float).reshape(-1, 2)
+    lo = np.floor(p / cell_size) * cell_size  # each agent's cell
+    nearest = np.clip(p[:, None, :], lo[None, :, :], lo[None, :, :] + cell_size)  # [i, j]: of j's cell to i
+    meets = ((nearest - p[:, None, :]) ** 2).sum(axis=2) <= r * r
+    np.fill_diagonal(meets, False)
+    return meets.sum(axis=1)
 
 
 def parse_parameters(text: str) -> dict[str, str]:

@@ -75,6 +75,13 @@ class RunSpec:
         return Keys(self.run, cell_size=self.scenario.params.swarm.sensing_radius)
 
     @property
+    def subscription_radius(self) -> float:
+        """R + 2 v_max dt: an agent listens to the cells this disc about it meets, so whoever can
+        enter its sensing disc by the next step is already heard."""
+        swarm = self.scenario.params.swarm
+        return swarm.sensing_radius + 2.0 * swarm.v_max * self.scenario.dt
+
+    @property
     def period(self) -> float:
         """Wall seconds between control ticks in free mode."""
         return self.scenario.dt / self.time_scale
