@@ -113,6 +113,9 @@ def cells_in_disc(keys: Keys, x: float, y: float, r: float) -> set[tuple[int, in
     return out
 
 
+ROUNDING = 1e-9  # kept off the margin: a move within it must not flip a cell that rounding puts on the edge
+
+
 def cells_in_disc_margin(keys: Keys, x: float, y: float, r: float) -> tuple[set[tuple[int, int]], float]:
     """:func:`cells_in_disc` and how far (x, y) may move, in any direction, before that set changes.
 
@@ -135,7 +138,7 @@ def cells_in_disc_margin(keys: Keys, x: float, y: float, r: float) -> tuple[set[
                 cells.add((cx, cy))
             signed = math.sqrt(d2) if d2 > 0.0 else -min(x - x0, x0 + s - x, y - y0, y0 + s - y)
             margin = min(margin, abs(signed - r))
-    return cells, margin
+    return cells, max(margin - ROUNDING, 0.0)
 
 
 def in_reach_counts(positions: np.ndarray, r: float, cell_size: float) -> np.ndarray:
