@@ -83,26 +83,17 @@ class Sensing:
             self._on_probe(payload, received)
             return
         self.counters.received += 1
-        if tag == "pose":
-            who = self.keys.agent_of(key)
-            if who == self.id:
-                return  # its own pose, back from its own cell
-            try:
-                m = msg.decode(payload)
-            except msg.DecodeError as exc:
-                self.counters.rejections.add(exc.reason, str(exc))
-                return
-            if type(m) is msg.Pose:
-                self._on_pose(who, key, m, received)
-            else:
-                self.counters.rejections.add("kind", f"{type(m).__name__} on {tag} key")
-            return
+        who = self.keys.agent_of(key) if tag == "pose" else None
+        if tag == "pose" and who == self.id:
+            return  # its own pose, answered by its own queryable when it asked a cell
         try:
             m = msg.decode(payload)
         except msg.DecodeError as exc:
             self.counters.rejections.add(exc.reason, str(exc))
             return
-        if tag == "prey" and isinstance(m, msg.Prey):
+        if tag == "pose" and isinstance(m, msg.Pose):
+            self._on_pose(who, key, m, received)
+        elif tag == "prey" and isinstance(m, msg.Prey):
             self.prey = (m.x, m.y)
         elif tag == "tick" and isinstance(m, msg.Tick):
             self.final_tick = self.final_tick or m.final
@@ -195,8 +186,6 @@ class Sensing:
         """``pose`` arrived under ``key``, which names agent ``who``."""
         if who != pose.id:
             self.counters.rejections.add("schema", f"pose of {pose.id} under key {key}")
-            return
-        if pose.id == self.id:
             return
         self._count_sequence(pose)
         self.counters.heard.add(pose.id)

@@ -102,22 +102,15 @@ class Keys:
 
 def cells_in_disc(keys: Keys, x: float, y: float, r: float) -> set[tuple[int, int]]:
     """Every cell whose square meets the disc of radius r about (x, y)."""
-    s = keys.cell_size
-    out = set()
-    for cx in range(math.floor((x - r) / s), math.floor((x + r) / s) + 1):
-        for cy in range(math.floor((y - r) / s), math.floor((y + r) / s) + 1):
-            nx = min(max(x, cx * s), (cx + 1) * s)
-            ny = min(max(y, cy * s), (cy + 1) * s)
-            if (nx - x) ** 2 + (ny - y) ** 2 <= r * r:
-                out.add((cx, cy))
-    return out
+    return cells_in_disc_margin(keys, x, y, r)[0]
 
 
 ROUNDING = 1e-9  # kept off the margin: a move within it must not flip a cell that rounding puts on the edge
 
 
 def cells_in_disc_margin(keys: Keys, x: float, y: float, r: float) -> tuple[set[tuple[int, int]], float]:
-    """:func:`cells_in_disc` and how far (x, y) may move, in any direction, before that set changes.
+    """Every cell whose square meets the disc of radius r about (x, y) (:func:`cells_in_disc`), and
+    how far (x, y) may move, in any direction, before that set changes.
 
     A cell is in the set when its signed distance from (x, y) (negative inside it: minus the distance
     to its nearest edge) is at most r. A signed distance changes no faster than the point moves, so
@@ -126,7 +119,7 @@ def cells_in_disc_margin(keys: Keys, x: float, y: float, r: float) -> tuple[set[
     one cell size.
     """
     s = keys.cell_size
-    lo_x, hi_x = math.floor((x - r) / s), math.floor((x + r) / s)  # the range cells_in_disc looks at
+    lo_x, hi_x = math.floor((x - r) / s), math.floor((x + r) / s)  # the cells the disc's box spans
     lo_y, hi_y = math.floor((y - r) / s), math.floor((y + r) / s)
     cells, margin = set(), s
     for cx in range(lo_x - 1, hi_x + 2):
