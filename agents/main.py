@@ -17,6 +17,7 @@ from zswarm.net import messages as msg
 from zswarm.net.bridge import Bridge, teardown
 from zswarm.net.config import add_zenoh_args, config_from_args, open_session
 from zswarm.net.injector import FaultInjector
+from zswarm.net.rings import CELL_CAPACITY
 from zswarm.net.runspec import RunSpec, add_run_args, spec_from_args
 
 
@@ -64,7 +65,8 @@ class Process:
         # free clock: samples wait in ring channels (in an inbox, stamped on arrival, when a delay is
         # injected from the arrival time) and are taken in once per tick; lockstep: each one wakes the loop
         rings = loop is None and not (spec.faults.latency or spec.faults.jitter)
-        self.bridge = Bridge(self.session, loop, deliver=lambda item: None, batch=loop is None, channels=rings)
+        self.bridge = Bridge(self.session, loop, deliver=lambda item: None, batch=loop is None, channels=rings,
+                             capacity=CELL_CAPACITY)
         self.agent = Agent(spec, args.id, self.bridge, start, args.staleness, args.lockstep_wait)
         self.bridge.deliver = self.agent.sensing.handle
         self.injector: FaultInjector | None = None

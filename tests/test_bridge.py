@@ -8,6 +8,7 @@ import zenoh
 
 from conftest import free_port
 from zswarm.net.bridge import Bridge
+from zswarm.net.rings import CELL_CAPACITY, WIDE_CAPACITY
 from zswarm.net.config import zenoh_config
 
 
@@ -56,3 +57,43 @@ def test_ring_inbox_keeps_a_senders_last_pose_before_its_departure_and_stamps_on
         bridge.close()
         for d in (declared[0], declared[2]):
             d.undeclare()
+
+
+def resident_mb() -> float:
+    for line in open("/proc/self/status"):
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024
+    raise AssertionError("no VmRSS in /proc/self/status")
+
+
+def test_a_ring_channels_memory_grows_to_its_capacity_so_an_agents_channels_are_small():
+    """Why an agent's channels hold CELL_CAPACITY samples: a ring channel's memory grows with the
+    samples that passed, drained or not, up to its capacity (16384 slots: about 4 MB a subscription;
+    a free agent listening to a dozen cells grew by 1.3 MB a minute in the soak)."""
+    port = free_port()
+    endpoint = f"tcp/127.0.0.1:{port}"
+    with zenoh.open(zenoh_config("peer", listen=[endpoint])) as sender, \
+            zenoh.open(zenoh_config("peer", connect=[endpoint])) as receiver:
+        grew = {}
+        # a first round warms the sessions' own buffers up; then the small one, which cannot reuse the
+        # wide one's pages
+        for name, capacity in (("warm-up", CELL_CAPACITY), ("cell", CELL_CAPACITY), ("wide", WIDE_CAPACITY)):
+            got = [0]
+            bridge = Bridge(receiver, None, deliver=lambda item: got.__setitem__(0, got[0] + 1), batch=True,
+                            channels=True, capacity=capacity)
+            key = f"t/ring/{name}"
+            sub = bridge.subscribe(key, "pose")
+            publisher = sender.declare_publisher(key)
+            wait_until(lambda: (publisher.put(b"hello"), bridge.drain())[1] > 0, 10.0, "the subscription")
+            before = resident_mb()
+            for i in range(20_000):
+                publisher.put(b"p" * 76)
+                if i % 50 == 0:
+                    bridge.drain()
+                    time.sleep(0.0005)
+            wait_until(lambda: bridge.drain() == 0 and got[0] > 17_000, 10.0, "the samples")
+            grew[name] = resident_mb() - before
+            bridge.unsubscribe(sub)
+            publisher.undeclare()
+        assert grew["wide"] > 2.0, grew  # the effect is there, and this measures it
+        assert grew["cell"] < 1.0, grew

@@ -24,6 +24,7 @@ from zswarm.args import Parser, run_main
 from zswarm.net import messages as msg
 from zswarm.net.config import add_zenoh_args, config_from_args, open_session
 from zswarm.net.keys import cells_in_disc
+from zswarm.net.rings import CELL_CAPACITY
 from zswarm.net.runspec import add_run_args, spec_from_args
 
 
@@ -53,7 +54,7 @@ def run_floor(args: argparse.Namespace) -> int:
 
     def handler():
         if args.handler == "ring":
-            return zenoh.handlers.RingChannel(256)
+            return zenoh.handlers.RingChannel(CELL_CAPACITY)  # as an agent's
         append = lambda sample: inbox.append((str(sample.key_expr), sample.payload.to_bytes(), time.time()))  # noqa: E731
         return zenoh.handlers.Callback(append, indirect=args.handler == "callback")
     try:

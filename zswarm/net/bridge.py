@@ -16,6 +16,7 @@ import zenoh
 
 from zswarm.net.keys import parse_parameters
 from zswarm.net.messages import ENCODING
+from zswarm.net.rings import WIDE_CAPACITY
 
 Inbound = tuple[str, str, bytes, bool, float]  # (tag, key, payload, is_delete, local wall time of receipt)
 Deliver = Callable[[Inbound], None]
@@ -37,19 +38,19 @@ class Bridge:
 
     Every sample carries the wall time it arrived (the latency figures stay transport latency), or,
     from a channel, the time it was taken out. ``deliver`` may be replaced (the fault injector delays
-    or drops samples there).
+    or drops samples there). ``capacity``: how many samples a subscription's channel holds between two
+    drains before the oldest go (liveliness channels always hold ``WIDE_CAPACITY``).
     """
 
-    CHANNEL_CAPACITY = 16384  # samples a subscription holds between two drains before the oldest go
-
     def __init__(self, session: zenoh.Session, loop: asyncio.AbstractEventLoop | None, deliver: Deliver,
-                 batch: bool = False, channels: bool = False) -> None:
+                 batch: bool = False, channels: bool = False, capacity: int = WIDE_CAPACITY) -> None:
         self.session = session
         self.loop = loop
         self.deliver: Deliver = deliver
         self.batch = batch
         self.inbox: deque[Inbound] = deque()
         self.channels: list[tuple[str, Any]] | None = [] if channels else None  # (tag, subscriber)
+        self.capacity = capacity
         # liveliness channels, taken out after the others: a pose sent just before its sender died
         # must not be taken in after the token's deletion, as if the sender had come back
         self.tokens: list[tuple[str, Any]] = []
@@ -111,9 +112,9 @@ class Bridge:
                     break
         sub.undeclare()
 
-    def _handler(self, tag: str, stamped: bool = False) -> Any:
+    def _handler(self, tag: str, stamped: bool = False, capacity: int | None = None) -> Any:
         if self.channels is not None and not stamped:
-            return zenoh.handlers.RingChannel(self.CHANNEL_CAPACITY)
+            return zenoh.handlers.RingChannel(capacity or self.capacity)
         return self._hand_over(tag)
 
     def _declared(self, tag: str, sub: Any, stamped: bool = False, token: bool = False) -> Any:
@@ -129,7 +130,8 @@ class Bridge:
                                                                    allowed_origin=origin), stamped)
 
     def subscribe_liveliness(self, key: str, tag: str) -> Any:
-        return self._declared(tag, self.session.liveliness().declare_subscriber(key, self._handler(tag), history=True),
+        return self._declared(tag, self.session.liveliness().declare_subscriber(
+            key, self._handler(tag, capacity=WIDE_CAPACITY), history=True),
                               token=True)
 
     def queryable(self, key: str, answer: Callable[[dict[str, str]], list[tuple[str, bytes]]]) -> Any:
