@@ -53,9 +53,11 @@ def test_flood_of_hostile_messages_changes_nothing(tmp_path):
             i = 0
             while time.monotonic() < end:
                 for key, payload in garbage(rng, keys, cells[i % len(cells)], i):
-                    if len(payload) > msg.MAX_PAYLOAD and i % 10:
-                        continue  # a 256 KiB one every tenth round: fifty a second filled the peer's own
-                        # queues faster than loopback drains them, and its close then timed out
+                    if len(payload) > msg.MAX_PAYLOAD and i % 25:
+                        continue  # a 256 KiB one every 25th round (two a second): fifty a second filled
+                        # the peer's own queues faster than loopback drains them, and its close then timed
+                        # out; each one is copied to every subscriber of its cell, and on a busy 2-core
+                        # machine that took the time the agents needed
                     peer.put(key, payload)
                     sent += 1
                 i += 1
@@ -69,6 +71,9 @@ def test_flood_of_hostile_messages_changes_nothing(tmp_path):
     # memory is off); the size rule itself is tested on the decoder (tests/test_messages.py)
     for reason in ("malformed", "version", "nonfinite", "jump"):
         assert rejected.get(reason, 0) > 0, (reason, rejected)
-    assert s["capture_time"] is not None and s["collisions"] == 0 and s["final_components"] == 1
+    how = {k: s[k] for k in ("capture_time", "final_centroid_goal_distance", "late_ticks", "ticks",
+                             "world_late_ticks", "on_time_ratio", "observed_dropout", "messages_rejected")}
+    how["reference_capture_time"] = s["reference"]["capture_time"]
+    assert s["capture_time"] is not None and s["collisions"] == 0 and s["final_components"] == 1, how
     assert s["reference"]["collisions"] == 0
     assert s["agents_reporting"] == 10

@@ -49,7 +49,9 @@ def two_hosts():
 
 def test_router_and_world_on_one_host_agents_on_another(two_hosts, tmp_path):
     a, b = two_hosts
-    common = ["--agents", "10", "--scenario", "moving-prey", "--duration", "30", "--run", "netns", "--quiet"]
+    # at twice real time: the run is the same in simulated time, the test half as long
+    common = ["--agents", "10", "--scenario", "moving-prey", "--duration", "30", "--time-scale", "2", "--run", "netns",
+              "--quiet"]
     launch = [sys.executable, str(ROOT / "launch.py")]
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     host_a = subprocess.Popen(["ip", "netns", "exec", a, *launch, "--role", "router,world",
