@@ -8,8 +8,8 @@ import zenoh
 
 from conftest import free_port
 from zswarm.net.bridge import Bridge
-from zswarm.net.rings import CELL_CAPACITY, WIDE_CAPACITY
 from zswarm.net.config import zenoh_config
+from zswarm.net.rings import CELL_CAPACITY, WIDE_CAPACITY
 
 
 def wait_until(check, timeout: float, what: str) -> None:
