@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import os
 import time
 
 import zenoh
 
 from conftest import free_port
+from zswarm.cli.measure import rss_mb
 from zswarm.net.bridge import Bridge
 from zswarm.net.config import zenoh_config
 from zswarm.net.rings import CELL_CAPACITY, WIDE_CAPACITY
@@ -59,13 +61,6 @@ def test_ring_inbox_keeps_a_senders_last_pose_before_its_departure_and_stamps_on
             d.undeclare()
 
 
-def resident_mb() -> float:
-    for line in open("/proc/self/status"):
-        if line.startswith("VmRSS:"):
-            return int(line.split()[1]) / 1024
-    raise AssertionError("no VmRSS in /proc/self/status")
-
-
 def test_a_ring_channels_memory_grows_to_its_capacity_so_an_agents_channels_are_small():
     """Why an agent's channels hold CELL_CAPACITY samples: a ring channel's memory grows with the
     samples that passed, drained or not, up to its capacity (16384 slots: about 4 MB a subscription;
@@ -85,14 +80,14 @@ def test_a_ring_channels_memory_grows_to_its_capacity_so_an_agents_channels_are_
             sub = bridge.subscribe(key, "pose")
             publisher = sender.declare_publisher(key)
             wait_until(lambda: (publisher.put(b"hello"), bridge.drain())[1] > 0, 10.0, "the subscription")
-            before = resident_mb()
+            before = rss_mb(os.getpid())
             for i in range(20_000):
                 publisher.put(b"p" * 76)
                 if i % 50 == 0:
                     bridge.drain()
                     time.sleep(0.0005)
             wait_until(lambda: bridge.drain() == 0 and got[0] > 17_000, 10.0, "the samples")
-            grew[name] = resident_mb() - before
+            grew[name] = rss_mb(os.getpid()) - before
             bridge.unsubscribe(sub)
             publisher.undeclare()
         assert grew["wide"] > 2.0, grew  # the effect is there, and this measures it
