@@ -21,6 +21,7 @@ from typing import Any
 
 from agents.sensing import Body, Sensing
 from zswarm.model.agent_law import agent_velocity
+from zswarm.model.neighbour_law import neighbour_law
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Bridge
 from zswarm.net.runspec import RunSpec
@@ -37,6 +38,7 @@ class Agent:
         self.v_max, self.dt = p.swarm.v_max, spec.scenario.dt
         self.potential, self.formation = p.potential, spec.scenario.formation
         self.combination = spec.combination
+        self.law = neighbour_law(p)
         self.body = Body(float(start[0]), float(start[1]))
         self.sensing = Sensing(spec, agent_id, bridge, self.body)
         self.counters = self.sensing.counters
@@ -58,7 +60,7 @@ class Agent:
         """P' = sat(-grad U_i) from what it sensed (eq 5 with the speed limit), one Euler step."""
         b = self.body
         b.vx, b.vy = agent_velocity(b.x, b.y, goal, self.sensing.obstacles, neighbours, self.sensing.radius,
-                                    self.potential, self.combination, self.formation, self.v_max)
+                                    self.potential, self.combination, self.formation, self.v_max, self.law)
         b.x, b.y = b.x + self.dt * b.vx, b.y + self.dt * b.vy
 
     # --- outbound --------------------------------------------------------------------------------------

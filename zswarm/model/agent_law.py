@@ -12,7 +12,9 @@ reference simulator.
   F^o = sum 2/l_o^2 c_o e^{...} psi_o;
 - combination: additive (eqs 12-13) F = F^o + F^g; multiplicative (eqs 14-15)
   F = (U^g/c_g) F^o + (1 + U^o/c_g) F^g;
-- formation (eqs 26-28): F^f = -sum g(|psi_f|^2) psi_f, g as in :func:`zswarm.model.formation.pair_gain`.
+- formation (eqs 26-28): F^f = -sum g(|psi_f|^2) psi_f, g as in :func:`zswarm.model.formation.pair_gain`;
+  or, with ``law``, the interaction of :func:`zswarm.model.neighbour_law.neighbour_force` (its goal gate
+  weighs the goal term of the combination).
 """
 
 from __future__ import annotations
@@ -20,6 +22,12 @@ from __future__ import annotations
 import math
 from typing import Iterable
 
+from zswarm.model.neighbour_law import (
+    AHEAD_COS,
+    AHEAD_FULL,
+    CUTOFF_INNER,
+    NeighbourLaw,
+)
 from zswarm.model.params import PotentialParams
 from zswarm.model.potentials import Combination
 
@@ -29,10 +37,14 @@ Circle = tuple[float, float, float]  # centre x, y and radius (0: the paper's po
 
 def agent_velocity(x: float, y: float, goal: Point, obstacles: Iterable[Circle], neighbours: Iterable[Point],
                    sensing_radius: float, p: PotentialParams, combination: Combination, formation: bool,
-                   v_max: float) -> Point:
+                   v_max: float, law: NeighbourLaw | None = None) -> Point:
     """Commanded velocity of the agent at (x, y) from what it sensed: obstacles whose nearest boundary
-    point, and neighbours, within ``sensing_radius`` count (the others are ignored here)."""
+    point, and neighbours, within ``sensing_radius`` count (the others are ignored here). ``law``: an
+    interaction other than the paper's."""
     r2_max = sensing_radius * sensing_radius
+    goal_weight, variant = 1.0, None
+    if formation and law is not None and not law.interaction.is_paper:
+        variant, goal_weight = _neighbour_force(x, y, goal, neighbours, r2_max, p, law)
     gx, gy = x - goal[0], y - goal[1]
     lg2 = p.l_g**2
     e = math.exp(-(gx * gx + gy * gy) / lg2)
@@ -57,12 +69,14 @@ def agent_velocity(x: float, y: float, goal: Point, obstacles: Iterable[Circle],
         foy += k * py
 
     if combination == "additive":
-        fx, fy = fox + fgx, foy + fgy
+        fx, fy = fox + goal_weight * fgx, foy + goal_weight * fgy
     else:
         a, b = u_g / p.c_g, 1.0 + u_o / p.c_g
-        fx, fy = a * fox + b * fgx, a * foy + b * fgy
+        fx, fy = a * fox + goal_weight * (b * fgx), a * foy + goal_weight * (b * fgy)
 
-    if formation:
+    if variant is not None:
+        fx, fy = fx + variant[0], fy + variant[1]
+    elif formation:
         lr2, la2 = p.l_r**2, p.l_a**2
         ffx = ffy = 0.0
         for nx, ny in neighbours:
@@ -81,3 +95,49 @@ def agent_velocity(x: float, y: float, goal: Point, obstacles: Iterable[Circle],
         s = v_max / speed
         return fx * s, fy * s
     return fx, fy
+
+
+def _neighbour_force(x: float, y: float, goal: Point, neighbours: Iterable[Point], r2_max: float,
+                     p: PotentialParams, law: NeighbourLaw) -> tuple[Point, float]:
+    """:func:`zswarm.model.neighbour_law.neighbour_force` for one agent: its force from the neighbours
+    within reach and the weight of its goal term."""
+    spec = law.interaction
+    sensed = []
+    for nx, ny in neighbours:
+        px, py = x - nx, y - ny
+        r2 = px * px + py * py
+        if r2 <= r2_max:
+            sensed.append((r2, px, py))
+    if spec.nearest:
+        sensed.sort(key=lambda s: s[0])  # stable: ties keep the order heard, as the vectorized rank does
+        del sensed[law.k_nearest:]
+    gx, gy = goal[0] - x, goal[1] - y
+    gd = math.sqrt(gx * gx + gy * gy)
+    tx, ty = (gx / gd, gy / gd) if gd > 0.0 else (0.0, 0.0)
+    lr2, la2 = p.l_r**2, p.l_a**2
+    radius = math.sqrt(r2_max)
+    rx = ry = ax = ay = wsum = block = 0.0
+    for r2, px, py in sensed:
+        r = math.sqrt(r2)
+        w = 1.0
+        if spec.cutoff:
+            z = (r / radius - CUTOFF_INNER) / (1.0 - CUTOFF_INNER)
+            w = 1.0 if z <= 0.0 else 0.0 if z >= 1.0 else 0.5 * (1.0 + math.cos(math.pi * z))
+            if w <= 0.0:
+                continue
+        g_r = -2.0 * p.c_r / lr2 * math.exp(-r2 / lr2)
+        g_a = 2.0 * p.c_a / la2 * math.exp(-r2 / la2) + 2.0 * p.c_a_prime
+        rx += -w * g_r * px
+        ry += -w * g_r * py
+        ax += -w * g_a * px
+        ay += -w * g_a * py
+        wsum += w
+        if spec.gate:
+            cos = -(px * tx + py * ty) / (r if r > 0.0 else 1.0)
+            near = min(max((law.gate_out - r) / (law.gate_out - law.gate_in), 0.0), 1.0)
+            ahead = min(max((cos - AHEAD_COS) / (AHEAD_FULL - AHEAD_COS), 0.0), 1.0)
+            block = max(block, near * ahead)
+    if spec.mean:
+        k = max(wsum, 1.0)
+        ax, ay = ax / k, ay / k
+    return (rx + ax, ry + ay), 1.0 - block

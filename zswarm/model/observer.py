@@ -14,6 +14,7 @@ import numpy as np
 from zswarm.model.design import epsilon
 from zswarm.model.formation import equilibria
 from zswarm.model.metrics import MetricContext, Summary, step_metrics
+from zswarm.model.neighbour_law import neighbour_law
 from zswarm.model.neighbours import ObstacleIndex, pairs_within
 from zswarm.model.potentials import (
     Combination,
@@ -45,7 +46,7 @@ def swarm_field(controller: Controller, obstacles: ObstacleIndex, positions: np.
         i, psi_f = pairs
     a, m = obstacles.sensed(positions)
     psi_o = obstacle_offsets(positions[a], obstacles.centers[m], obstacles.radii[m])
-    return field(positions - goal, a, psi_o, i, psi_f, c.p, c.combination, c.c_f)
+    return field(positions - goal, a, psi_o, i, psi_f, c.p, c.combination, c.c_f, c.law)
 
 
 class SwarmObserver:
@@ -55,7 +56,7 @@ class SwarmObserver:
         p = scenario.params
         self.scenario = scenario
         self.combination: Combination = combination or scenario.combination
-        self.controller = make_controller(p.potential, self.combination, scenario.formation)
+        self.controller = make_controller(p.potential, self.combination, scenario.formation, neighbour_law(p))
         centers, radii = scenario.obstacle_arrays()
         self.obstacles = ObstacleIndex(centers, radii, p.swarm.sensing_radius)
         self.context = MetricContext(

@@ -8,6 +8,8 @@ Symbols follow Kim, Wang & Shin (2006):
   c'_a of eq 26.
 - ``d_m_go``: radius of the permissible goal region around an obstacle (Prop 1);
   ``d_m_ro``: the closest an agent may come to an obstacle (Prop 2).
+- ``interaction``: how an agent uses its neighbours (:mod:`zswarm.model.interaction`): ``paper``
+  (eqs 26-28) or a variant that scales; ``gate`` and ``k_nearest`` set two of the variants.
 
 Every field has one spec in :data:`FIELDS`; :func:`validate` is the only place that checks them, and
 :meth:`Params.with_overrides` is how command lines (``--set NAME=VALUE``) reach them.
@@ -21,6 +23,7 @@ from dataclasses import dataclass, field
 from typing import Any, Mapping
 
 from zswarm.errors import ParamError
+from zswarm.model.interaction import Interaction, parse_interaction
 
 
 @dataclass(frozen=True)
@@ -33,6 +36,8 @@ class FieldSpec:
     hi: float = math.inf  # inclusive upper bound
 
     def describe(self) -> str:
+        if self.kind is str:
+            return "a name"
         kind = "an integer" if self.kind is int else "a finite number"
         bound = f"{kind} {'>' if self.lo_open else '>='} {self.lo:g}"
         return bound if math.isinf(self.hi) else f"{bound} and <= {self.hi:g}"
@@ -59,16 +64,27 @@ FIELDS: dict[str, FieldSpec] = {
     "robot_radius": FieldSpec("swarm", float, 0.0, True, "physical radius d^r of an agent (Prop 5)"),
     "d_m_go": FieldSpec("margins", float, 0.0, False, "permissible goal-region radius d_m^go (Prop 1)"),
     "d_m_ro": FieldSpec("margins", float, 0.0, True, "minimum robot-obstacle distance d_m^ro (Prop 2)"),
+    "interaction": FieldSpec("interaction", str, 0.0, False,
+                             "paper (eqs 26-28), or modifiers joined by +: mean, cutoff, gate, nearest; "
+                             "scalable = mean+gate"),
+    "gate": FieldSpec("interaction", float, 0.0, True,
+                      "gate: no goal pull with a neighbour ahead closer than gate x d^f", hi=10.0),
+    "k_nearest": FieldSpec("interaction", int, 1, False, "nearest: how many nearest neighbours count"),
 }
 
 
-def validate(name: str, value: Any) -> float | int:
+Value = float | int | str
+
+
+def validate(name: str, value: Any) -> Value:
     """Check one field; return its value coerced to the field's type, or raise :class:`ParamError`."""
     spec = FIELDS.get(name)
     if spec is None:
         raise ParamError(f"unknown parameter {name!r}; known: {', '.join(FIELDS)}")
     if isinstance(value, bool):
         raise ParamError(f"{name} must be {spec.describe()} (got {value!r})")
+    if spec.kind is str:
+        return parse_interaction(value).name
     if spec.kind is int:
         if isinstance(value, float) and value.is_integer():
             value = int(value)
@@ -131,29 +147,48 @@ class DesignMargins:
 
 
 @dataclass(frozen=True)
+class InteractionParams:
+    """How an agent uses its neighbours: the interaction and the settings of two of its variants."""
+
+    interaction: str = "paper"
+    gate: float = 0.6
+    k_nearest: int = 10
+
+    def __post_init__(self) -> None:
+        _check(self)
+
+    @property
+    def spec(self) -> Interaction:
+        return parse_interaction(self.interaction)
+
+
+
+@dataclass(frozen=True)
 class Params:
-    """A complete parameter set: potentials, swarm and design margins."""
+    """A complete parameter set: potentials, swarm, design margins and interaction."""
 
     potential: PotentialParams = field(default_factory=PotentialParams)
     swarm: SwarmParams = field(default_factory=SwarmParams)
     margins: DesignMargins = field(default_factory=DesignMargins)
+    interaction: InteractionParams = field(default_factory=InteractionParams)
 
-    def flat(self) -> dict[str, float | int]:
+    def flat(self) -> dict[str, Value]:
         """Every effective value by field name (the keys of :data:`FIELDS`)."""
-        out: dict[str, float | int] = {}
-        for part in (self.potential, self.swarm, self.margins):
+        out: dict[str, Value] = {}
+        for part in (self.potential, self.swarm, self.margins, self.interaction):
             out.update(dataclasses.asdict(part))
         return out
 
     def with_values(self, values: Mapping[str, Any]) -> Params:
         """A copy with some fields replaced (already-typed values; validated)."""
-        groups: dict[str, dict[str, Any]] = {"potential": {}, "swarm": {}, "margins": {}}
+        groups: dict[str, dict[str, Any]] = {"potential": {}, "swarm": {}, "margins": {}, "interaction": {}}
         for name, value in values.items():
             groups[FIELDS[name].group if name in FIELDS else "potential"][name] = validate(name, value)
         return Params(
             potential=dataclasses.replace(self.potential, **groups["potential"]),
             swarm=dataclasses.replace(self.swarm, **groups["swarm"]),
             margins=dataclasses.replace(self.margins, **groups["margins"]),
+            interaction=dataclasses.replace(self.interaction, **groups["interaction"]),
         )
 
     def with_overrides(self, assignments: list[str]) -> Params:
@@ -165,9 +200,9 @@ class Params:
         return cls().with_values(values)
 
 
-def parse_assignments(assignments: list[str]) -> dict[str, float | int]:
-    """Parse ``NAME=VALUE`` strings (``VALUE`` may be a fraction such as ``1/3``)."""
-    out: dict[str, float | int] = {}
+def parse_assignments(assignments: list[str]) -> dict[str, Value]:
+    """Parse ``NAME=VALUE`` strings (``VALUE`` may be a fraction such as ``1/3``, or a name)."""
+    out: dict[str, Value] = {}
     for item in assignments:
         name, sep, text = item.partition("=")
         name = name.strip()
@@ -179,7 +214,9 @@ def parse_assignments(assignments: list[str]) -> dict[str, float | int]:
     return out
 
 
-def _parse_number(name: str, text: str) -> float | int:
+def _parse_number(name: str, text: str) -> Value:
+    if FIELDS[name].kind is str:
+        return text
     try:
         if "/" in text:
             num, den = text.split("/", 1)

@@ -22,6 +22,7 @@ from typing import Literal
 import numpy as np
 
 from zswarm.model.formation import formation_offset, pair_gain
+from zswarm.model.neighbour_law import NeighbourLaw, PairList, neighbour_force, unit_toward
 from zswarm.model.params import PotentialParams
 
 Combination = Literal["additive", "multiplicative"]
@@ -75,6 +76,7 @@ def field(
     p: PotentialParams,
     combination: Combination = "multiplicative",
     c_f: float = 0.0,
+    law: NeighbourLaw | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Total potential U_i (N,) and force F_i = -grad_i U_i (N, 2) of every agent.
 
@@ -83,20 +85,31 @@ def field(
                                  F = (U^g/c_g) F^o + (1 + U^o/c_g) F^g
     (the second form is eq 15 regrouped: -grad(U^g/c_g) = F^g/c_g). Both add the formation
     term U^f, F^f of eqs 26-28 (total eqs 35-36) when neighbour pairs are given.
+
+    ``law``: an interaction other than the paper's (:mod:`zswarm.model.neighbour_law`) replaces F^f and,
+    with the gate, weighs the goal term (F^g above). U stays eq 35's (with the paper's eq 26 sum), the
+    energy the metrics report: the variants' forces are not all gradients of one swarm potential.
     """
     n = psi_g.shape[0]
     u_g, f_g = goal_terms(psi_g, p)
     u_o, f_o = _per_agent(n, obs_agent, *obstacle_terms(psi_o, p))
+    variant = law is not None and not law.interaction.is_paper
+    goal_weight = 1.0
+    f_n = None
+    if variant and len(nbr_agent):
+        f_n, weight = neighbour_force(PairList(nbr_agent, n), psi_f, np.ones(len(nbr_agent), dtype=bool),
+                                      unit_toward(psi_g), p, law)
+        goal_weight = weight[:, None]
     if combination == "additive":
-        u, f = u_o + u_g, f_o + f_g
+        u, f = u_o + u_g, f_o + goal_weight * f_g
     elif combination == "multiplicative":
         u = u_o * u_g / p.c_g + u_g
-        f = (u_g / p.c_g)[:, None] * f_o + (1.0 + u_o / p.c_g)[:, None] * f_g
+        f = (u_g / p.c_g)[:, None] * f_o + goal_weight * ((1.0 + u_o / p.c_g)[:, None] * f_g)
     else:
         raise ValueError(f"unknown combination {combination!r}; use one of {COMBINATIONS}")
     if len(nbr_agent):
         u_f, f_f = _per_agent(n, nbr_agent, *formation_terms(psi_f, p, c_f))
-        u, f = u + u_f, f + f_f
+        u, f = u + u_f, f + (f_f if f_n is None else f_n)
     return u, f
 
 
@@ -153,6 +166,7 @@ class Controller:
     combination: Combination = "multiplicative"
     formation: bool = True
     c_f: float = 0.0
+    law: NeighbourLaw | None = None  # None: the paper's interaction
 
     def velocity(self, position: np.ndarray, goal: np.ndarray, sensed: Sensed, v_max: float) -> np.ndarray:
         """Commanded velocity of a single agent from its own state and what it sensed."""
@@ -166,14 +180,19 @@ class Controller:
             self.p,
             self.combination,
             self.c_f,
+            self.law,
         )
         return saturate(f, v_max)[0]
 
 
 def make_controller(
-    p: PotentialParams, combination: Combination = "multiplicative", formation: bool = True
+    p: PotentialParams, combination: Combination = "multiplicative", formation: bool = True,
+    law: NeighbourLaw | None = None,
 ) -> Controller:
-    """Factory: the controller with its formation offset c_f (eq 27) computed once."""
+    """Factory: the controller with its formation offset c_f (eq 27) computed once; ``law`` (from
+    :func:`zswarm.model.neighbour_law.neighbour_law`) for an interaction other than the paper's."""
     if combination not in COMBINATIONS:
         raise ValueError(f"unknown combination {combination!r}; use one of {COMBINATIONS}")
-    return Controller(p=p, combination=combination, formation=formation, c_f=formation_offset(p))
+    if law is not None and law.interaction.is_paper:
+        law = None
+    return Controller(p=p, combination=combination, formation=formation, c_f=formation_offset(p), law=law)

@@ -38,7 +38,7 @@ class RunSpec:
 
     run: str = DEFAULT_RUN
     scenario_name: str = "moving-prey"
-    overrides: tuple[tuple[str, float | int], ...] = ()
+    overrides: tuple[tuple[str, float | int | str], ...] = ()
     seed: int = 0
     potential: Combination | None = None
     clock: Clock = "free"
@@ -107,7 +107,7 @@ class RunSpec:
         out = ["--run", self.run, "--scenario", self.scenario_name, "--seed", str(self.seed),
                "--clock", self.clock, "--time-scale", repr(self.time_scale)]
         for name, value in self.overrides:
-            out += ["--set", f"{name}={value!r}"]
+            out += ["--set", f"{name}={value}" if isinstance(value, str) else f"{name}={value!r}"]
         if self.potential is not None:
             out += ["--potential", self.potential]
         if self.duration is not None:

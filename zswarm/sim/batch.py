@@ -28,6 +28,7 @@ import numpy as np
 
 from zswarm.model.faults import FaultModel
 from zswarm.model.formation import pair_gain
+from zswarm.model.neighbour_law import DensePairs, NeighbourLaw, neighbour_force, neighbour_law, unit_toward
 from zswarm.model.params import PotentialParams
 from zswarm.model.potentials import (
     Combination,
@@ -87,6 +88,23 @@ class _Potentials:
             setattr(self, name, _column([getattr(p, name) for p in params], dims))
 
 
+def _variant_groups(scen: list[Scenario]) -> list[tuple[np.ndarray, NeighbourLaw, _Potentials]]:
+    """The runs whose interaction is not the paper's, grouped by interaction and k; each group's gate
+    distance, sensing radius and potentials as columns (b, 1, 1) over its pairs."""
+    groups: dict[tuple[str, int], list[int]] = {}
+    laws = [neighbour_law(s.params) for s in scen]
+    for r, law in enumerate(laws):
+        if scen[r].formation and not law.interaction.is_paper:
+            groups.setdefault((law.interaction.name, law.k_nearest), []).append(r)
+    out = []
+    for rows in groups.values():
+        first = laws[rows[0]]
+        law = NeighbourLaw(first.interaction, _column([laws[r].sensing_radius for r in rows], 3),
+                           _column([laws[r].gate_out for r in rows], 3), first.k_nearest)
+        out.append((np.array(rows), law, _Potentials([scen[r].params.potential for r in rows], 3)))
+    return out
+
+
 class BatchSimulator:
     """State of B runs and their common step (see the module doc)."""
 
@@ -129,6 +147,7 @@ class BatchSimulator:
                                      self.radius[self.faulty]) if len(self.faulty) else None)
         self.off_diagonal = ~np.eye(self.n, dtype=bool)
         self.step_index = 0
+        self.variants = _variant_groups(scen)
 
     # -- the control law -------------------------------------------------------------------------------
 
@@ -154,7 +173,15 @@ class BatchSimulator:
             near = near.copy()
             near[f_idx] = sensed
         near &= self.formation > 0
+        # the interaction of each run (eqs 26-28, or a variant of zswarm.model.neighbour_law)
+        paper = np.ones(len(x), dtype=bool)
+        f_n, goal_weight = np.zeros_like(x), np.ones(x.shape[:2])
+        for rows, law, pots in self.variants:
+            paper[rows] = False
+            f_n[rows], goal_weight[rows] = neighbour_force(DensePairs(), psi_f[rows], near[rows],
+                                                           unit_toward(x[rows] - goal[rows]), pots, law)
         u_g, f_g = goal_terms(x - goal, pa)  # eqs 7-8
+        f_g = goal_weight[..., None] * f_g
         # obstacles (eqs 9-11): the sensed ones, |P - C| - rho within the sensing radius
         d = x[:, :, None, :] - self.centers[:, None, :, :]
         dist = np.sqrt(np.einsum("bimk,bimk->bim", d, d))
@@ -166,8 +193,9 @@ class BatchSimulator:
         # combination (eqs 13 and 15), each run its own
         mult = self.multiplicative[..., None]
         f = np.where(mult, (u_g / pa.c_g)[..., None] * f_o + (1.0 + u_o / pa.c_g)[..., None] * f_g, f_o + f_g)
-        # formation (eqs 26-28): F = -g(|psi|) psi per sensed pair
-        f = f + np.where(near[..., None], -pair_gain(r2, pp)[..., None] * psi_f, 0.0).sum(axis=2)
+        # formation (eqs 26-28): F = -g(|psi|) psi per sensed pair, or the run's variant
+        f_f = np.where(near[..., None], -pair_gain(r2, pp)[..., None] * psi_f, 0.0).sum(axis=2)
+        f = f + np.where(paper[:, None, None], f_f, f_n)
         v = saturate(f, self.v_max[:, None])
         if blind is not None:
             v[blind] = 0.0

@@ -24,6 +24,7 @@ import numpy as np
 from zswarm.model import prey as prey_motion
 from zswarm.model.faults import FaultModel
 from zswarm.model.metrics import Summary
+from zswarm.model.neighbour_law import neighbour_law
 from zswarm.model.neighbours import ObstacleIndex
 from zswarm.model.observer import SwarmObserver, swarm_field
 from zswarm.model.potentials import Combination, make_controller, saturate
@@ -41,7 +42,7 @@ class Simulator:
         self.seed = seed
         self.combination: Combination = combination or scenario.combination
         p = scenario.params
-        self.controller = make_controller(p.potential, self.combination, scenario.formation)
+        self.controller = make_controller(p.potential, self.combination, scenario.formation, neighbour_law(p))
         self.rng = np.random.default_rng(seed)
         self.positions = scenario.initial_positions(self.rng)
         self.ids = np.arange(len(self.positions))
