@@ -17,11 +17,11 @@ from functools import lru_cache
 
 import numpy as np
 
+from zswarm.model.metrics import components
+from zswarm.model.neighbour_law import neighbour_law
 from zswarm.model.neighbours import pairs_within
-from zswarm.model.params import PotentialParams
+from zswarm.model.params import Params
 from zswarm.model.potentials import field, formation_offset, saturate
-
-MAX_AGENTS = 60  # beyond this the check uses 60 agents (it is a design check, not a benchmark)
 
 
 @dataclass(frozen=True)
@@ -30,18 +30,25 @@ class Squeeze:
     min_pair_distance: float  # over the whole run
     min_obstacle_distance: float  # over the whole run
     final_median_nearest: float
+    final_groups: int  # groups of the sensing graph at the end
+
+
+def _disc(n: int, spacing: float) -> np.ndarray:
+    """``n`` points evenly filling a disc of radius spacing sqrt(n)/1.5 (Vogel's sunflower spiral: no two
+    closer than about 0.9 spacing), so no pair starts in contact."""
+    k = np.arange(n) + 0.5
+    radius = spacing * math.sqrt(n) / 1.5
+    r, theta = radius * np.sqrt(k / n), k * math.pi * (3.0 - math.sqrt(5.0))
+    return np.column_stack([r * np.cos(theta), r * np.sin(theta)])
 
 
 @lru_cache(maxsize=512)
-def squeeze(p: PotentialParams, n_agents: int, sensing_radius: float, v_max: float, seed: int = 2006,
-            duration: float = 60.0, dt: float = 0.05) -> Squeeze:
-    n = min(n_agents, MAX_AGENTS)
-    rng = np.random.default_rng(seed)
-    spacing = 0.5
-    radius = spacing * math.sqrt(n) / 1.5
-    angle = rng.uniform(0.0, 2.0 * np.pi, n)
-    rad = radius * np.sqrt((np.arange(n) + 0.5) / n)  # evenly filled disc, shuffled angles
-    x = np.column_stack([-2.0 - radius + rad * np.cos(angle), rad * np.sin(angle)])
+def squeeze(params: Params, n: int, seed: int = 2006, duration: float = 60.0, dt: float = 0.05) -> Squeeze:
+    """``n`` agents of the set ``params`` (its potentials, sensing radius, speed and interaction)."""
+    p, sensing_radius, v_max = params.potential, params.swarm.sensing_radius, params.swarm.v_max
+    law = neighbour_law(params)
+    x = _disc(n, 0.5) + np.array([-2.0 - 0.5 * math.sqrt(n) / 1.5, 0.0])
+    x = x + np.random.default_rng(seed).uniform(-0.02, 0.02, x.shape)  # no exact symmetry
     obstacle = np.array([[-1.0, 0.0]])
     c_f = formation_offset(p)
     min_pair = min_obs = math.inf
@@ -59,8 +66,10 @@ def squeeze(p: PotentialParams, n_agents: int, sensing_radius: float, v_max: flo
         min_obs = min(min_obs, float(dist_o.min()))
         sensed = dist_o <= sensing_radius
         agents = np.flatnonzero(sensed)
-        _, f = field(x, agents, psi_o[sensed], i, psi_f, p, "multiplicative", c_f)
+        _, f = field(x, agents, psi_o[sensed], i, psi_f, p, "multiplicative", c_f, law)
         x = x + dt * saturate(f, v_max)
     finite = nearest[np.isfinite(nearest)]
+    i, j = pairs_within(x, sensing_radius)
     return Squeeze(n_agents=n, min_pair_distance=min_pair, min_obstacle_distance=min_obs,
-                   final_median_nearest=float(np.median(finite)) if len(finite) else math.inf)
+                   final_median_nearest=float(np.median(finite)) if len(finite) else math.inf,
+                   final_groups=len(np.unique(components(n, i, j))))

@@ -18,15 +18,14 @@ eq 22 asks F <= 0 at y = d_m^ro, i.e. c_g/c_o <= B(d_m^ro + d_m^go, d_m^ro). Tha
 exact condition for stopping at y >= d_m^ro is c_g/c_o <= sup_{y >= d_m^ro} B, reported as
 ``exact_upper_bound``.
 
-Prop 3 (eq 34): epsilon = (N-1) e^{-1/2} (c_r/l_r + c_a/l_a) / (sqrt(2) c'_a N). The proof sums over
-all N agents (eq 30), so it covers a swarm whose members all sense each other: 2 epsilon <= R.
+Prop 3 (eq 34): epsilon = (N-1) e^{-1/2} (c_r/l_r + c_a/l_a) / (sqrt(2) c'_a N). The proof sums the
+paper's pair forces over all N agents (eq 30), so it covers a swarm whose members all sense each
+other (2 epsilon <= R) under the paper's interaction. Outside that it guarantees nothing and does not
+bind: its verdict is shown, and the swarm check (which simulates the law in use) stands in.
 
-Prop 4 (eqs 37-39): at |psi^o| = l_o/sqrt2 and |psi^f| = l_a/sqrt2,
-c_o/l_o > c_p (c_a/l_a + c'_a l_a e^{1/2}), c_p = n_p + 1 + (N - n_p - 1)/2; the worst case lines all
-other agents up behind the agent (n_p = N - 1, c_p = N).
-
-Prop 5 (eqs 40-41): c_r > c_g d^r l_r^2/(d_m^f l_g^2) exp(-(d^r)^2/l_g^2 + (d_m^f)^2/l_r^2), with
-d^r = robot_radius and d_m^f = d^f/10 (d^f: the numerically found stable spacing, else eq 27's).
+Prop 4 (eqs 37-39), Prop 5 (eqs 40-41), the contact check, the swarm squeeze and the time step are in
+:mod:`zswarm.model.design_swarm`, each for our agents (sensing radius, interaction) beside the paper's
+verdict.
 """
 
 from __future__ import annotations
@@ -37,13 +36,14 @@ from typing import Any
 
 import numpy as np
 
-from zswarm.model.cluster import squeeze
+from zswarm.model.design_swarm import contact, prop4, prop5, swarm_rest, time_step
 from zswarm.model.formation import (
     closed_form_spacing,
     equilibria,
     formation_offset,
     h_stable,
 )
+from zswarm.model.neighbour_law import GATE_INNER
 from zswarm.model.numeric import maximize, sign_changes
 from zswarm.model.params import Params, PotentialParams
 
@@ -150,27 +150,18 @@ def prop3(params: Params) -> dict[str, Any]:
     p, s = params.potential, params.swarm
     eps = epsilon(p, s.n_agents)
     holds = 2.0 * eps <= s.sensing_radius
+    paper = params.interaction.spec.is_paper
+    binding = holds and paper
     detail = (
         f"every agent ends within epsilon = {eps:.4g} of the swarm centre, a guarantee that assumes all "
         f"agents sense each other: 2 epsilon = {2 * eps:.4g} {'<=' if holds else '>'} "
         f"sensing_radius = {s.sensing_radius:g}"
         + ("" if holds else " (with this radius the swarm may split for good)")
+        + ("" if paper else f"; proved for the paper's interaction, not {params.interaction.interaction}")
+        + ("" if binding else ": it does not bind here; the swarm check judges this swarm")
     )
-    return {"holds": holds, "epsilon": eps, "margin": s.sensing_radius - 2.0 * eps, "detail": detail}
-
-
-def prop4(params: Params) -> dict[str, Any]:
-    p, n = params.potential, params.swarm.n_agents
-    n_p = n - 1
-    c_p = n_p + 1 + (n - n_p - 1) / 2.0
-    lhs = p.c_o / p.l_o
-    rhs = c_p * (p.c_a / p.l_a + p.c_a_prime * p.l_a * math.exp(0.5))
-    holds = lhs > rhs
-    detail = (
-        f"obstacle push c_o/l_o = {lhs:.4g} {'>' if holds else '<='} {rhs:.4g}, the pull of "
-        f"{n - 1} agents lined up behind one (c_p = {c_p:g})"
-    )
-    return {"holds": holds, "lhs": lhs, "rhs": rhs, "c_p": c_p, "margin": lhs - rhs, "detail": detail}
+    return {"holds": holds, "binding": binding, "epsilon": eps, "margin": s.sensing_radius - 2.0 * eps,
+            "detail": detail}
 
 
 def formation(params: Params) -> dict[str, Any]:
@@ -199,66 +190,6 @@ def formation(params: Params) -> dict[str, Any]:
             "unstable_spacings": list(eq.unstable), "detail": why}
 
 
-def prop5(params: Params, spacing: float | None) -> dict[str, Any]:
-    p, d_r = params.potential, params.swarm.robot_radius
-    if spacing is None:
-        return {"holds": False, "lhs": p.c_r, "rhs": None, "d_m_f": None, "margin": None,
-                "detail": "no formation spacing d^f exists, so d_m^f = d^f/10 is undefined"}
-    d_mf = spacing / 10.0
-    rhs = (p.c_g * d_r * p.l_r**2 / (d_mf * p.l_g**2)
-           * math.exp(-d_r**2 / p.l_g**2 + d_mf**2 / p.l_r**2))
-    holds = p.c_r > rhs
-    detail = (
-        f"repulsion c_r = {p.c_r:.4g} {'>' if holds else '<='} {rhs:.4g}, what the goal's pull needs "
-        f"at d_m^f = d^f/10 = {d_mf:.4g} for agents of radius {d_r:g}"
-    )
-    return {"holds": holds, "lhs": p.c_r, "rhs": rhs, "d_m_f": d_mf, "margin": p.c_r - rhs,
-            "detail": detail}
-
-
-def contact(params: Params) -> dict[str, Any]:
-    """Beyond the paper: two agents that touch must be pushed apart, however the swarm squeezes them.
-
-    Two agents a, b at a small offset delta: their own pair force separates them at rate -2 g(0)
-    (eq 28 near r = 0); every other sensed agent k pulls both with the quadratic term -2 c'_a psi, which
-    closes delta at rate 2 c'_a for each of the N - 2 others whatever their distance; near the goal its
-    curvature closes it at up to 2 c_g/l_g^2. With g(0) = -2 c_r/l_r^2 + 2 c_a/l_a^2 + 2 c'_a, the pair
-    separates (to first order, others far) iff
-
-        2 c_r/l_r^2 - 2 c_a/l_a^2 > c'_a N + c_g/l_g^2.
-
-    Otherwise agents squeezed together by the swarm merge (min distance 0), whatever d^f is.
-    """
-    p, n = params.potential, params.swarm.n_agents
-    lhs = 2.0 * p.c_r / p.l_r**2 - 2.0 * p.c_a / p.l_a**2
-    rhs = p.c_a_prime * n + p.c_g / p.l_g**2
-    holds = lhs > rhs
-    detail = (
-        f"repulsion at contact 2c_r/l_r^2 - 2c_a/l_a^2 = {lhs:.4g} {'>' if holds else '<='} {rhs:.4g} = "
-        f"c'_a N + c_g/l_g^2, the squeeze of {n - 2} other agents and the goal"
-        + ("" if holds else ": agents pressed together merge")
-    )
-    return {"holds": holds, "lhs": lhs, "rhs": rhs, "margin": lhs - rhs, "detail": detail}
-
-
-def swarm_rest(params: Params, spacing: float | None) -> dict[str, Any]:
-    """Beyond the paper, by brute force: a swarm pressed against an obstacle by the goal (Fig 10)."""
-    p, s, m = params.potential, params.swarm, params.margins
-    r = squeeze(p, s.n_agents, s.sensing_radius, s.v_max)
-    need = max(2.0 * s.robot_radius, spacing / 10.0 if spacing else 0.0)
-    holds = r.min_pair_distance >= need and r.min_obstacle_distance >= m.d_m_ro
-    detail = (
-        f"{r.n_agents} agents pressed against an obstacle by the goal (Fig 10) come {r.min_pair_distance:.3g} "
-        f"from each other ({'>=' if r.min_pair_distance >= need else '<'} {need:.3g} = max(2 d^r, d^f/10)) "
-        f"and {r.min_obstacle_distance:.3g} from the obstacle "
-        f"({'>=' if r.min_obstacle_distance >= m.d_m_ro else '<'} d_m^ro = {m.d_m_ro:g})"
-    )
-    return {"holds": holds, "min_pair_distance": r.min_pair_distance, "required_pair_distance": need,
-            "min_obstacle_distance": r.min_obstacle_distance, "n_simulated": r.n_agents,
-            "final_median_nearest": r.final_median_nearest, "margin": r.min_pair_distance - need,
-            "detail": detail}
-
-
 @dataclass(frozen=True)
 class DesignReport:
     params: Params
@@ -270,12 +201,22 @@ class DesignReport:
     formation: dict[str, Any]
     contact: dict[str, Any]
     swarm: dict[str, Any] | None  # None: not evaluated (the pair potential has no stable spacing)
+    step: dict[str, Any] | None = None  # the time step check, when a dt was given
 
     def failures(self) -> list[str]:
-        out = [f"prop{i}" for i in range(1, 6) if not getattr(self, f"prop{i}")["holds"]]
+        """The checks that fail and bind (Prop 3 binds only where it applies: see its docstring)."""
+        out = [f"prop{i}" for i in (1, 2) if not getattr(self, f"prop{i}")["holds"]]
+        out += [] if self.prop3["holds"] or not self.prop3.get("binding", True) else ["prop3"]
+        out += [f"prop{i}" for i in (4, 5) if not getattr(self, f"prop{i}")["holds"]]
         out += [] if self.formation["stable"] else ["formation"]
         out += [] if self.contact["holds"] else ["contact"]
-        return out + ([] if self.swarm is not None and self.swarm["holds"] else ["swarm"])
+        out += [] if self.swarm is not None and self.swarm["holds"] else ["swarm"]
+        return out + ([] if self.step is None or self.step["holds"] else ["step"])
+
+    def paper_failures(self) -> list[str]:
+        """What the paper's own guidelines say (Props 1-5 as printed: every agent senses every other)."""
+        checks = {f"prop{i}": getattr(self, f"prop{i}") for i in range(1, 6)}
+        return [k for k, d in checks.items() if not d.get("paper_holds", d["holds"])]
 
     @property
     def ok(self) -> bool:
@@ -285,8 +226,8 @@ class DesignReport:
         clean = lambda d: None if d is None else {k: _json_number(v) for k, v in d.items()}  # noqa: E731
         return {"params": self.params.flat(), **{f"prop{i}": clean(getattr(self, f"prop{i}"))
                 for i in range(1, 6)}, "formation": clean(self.formation), "contact": clean(self.contact),
-                "swarm": clean(self.swarm),
-                "ok": self.ok}
+                "swarm": clean(self.swarm), "step": clean(self.step),
+                "ok": self.ok, "failures": self.failures(), "paper_failures": self.paper_failures()}
 
 
 def _json_number(v: Any) -> Any:
@@ -297,13 +238,17 @@ def _json_number(v: Any) -> Any:
     return v
 
 
-def check(params: Params, swarm: bool = True) -> DesignReport:
-    """Judge a parameter set against Propositions 1-5, the pair spacing and the swarm at rest.
+def check(params: Params, swarm: bool = True, dt: float | None = None) -> DesignReport:
+    """Judge a parameter set against Propositions 1-5, the pair spacing and the swarm at rest, for the
+    swarm it describes (its N, sensing radius and interaction); ``dt`` adds the time step check.
 
     ``swarm=False`` skips the (slower) swarm-at-rest simulation; the report then lists it as failed.
     """
     form = formation(params)
-    spacing = form["equilibrium_spacing"] or form["closed_form_spacing"]
-    swarm = swarm_rest(params, form["equilibrium_spacing"]) if swarm and form["stable"] else None
-    return DesignReport(params, prop1(params), prop2(params), prop3(params), prop4(params),
-                        prop5(params, spacing), form, contact(params), swarm)
+    stable = form["equilibrium_spacing"]
+    spacing = stable or form["closed_form_spacing"]
+    gate_in = GATE_INNER * params.interaction.gate * stable if stable else 0.0
+    swarm = swarm_rest(params, stable) if swarm and form["stable"] else None
+    return DesignReport(params, prop1(params), prop2(params), prop3(params), prop4(params, stable),
+                        prop5(params, spacing, gate_in), form, contact(params, stable), swarm,
+                        None if dt is None else time_step(params, dt))

@@ -10,6 +10,8 @@ Per step (:func:`step_metrics`), from positions, velocities and the prey:
 - ``components`` of the sensing graph, ``union`` = (N - components)/(N - 1) and
   ``algebraic_connectivity`` (Fiedler value of its Laplacian; computed for N <= 400, else NaN);
 - ``spacing_error``: mean |nearest-neighbour distance - d^f| over agents with a neighbour;
+- ``median_nearest``: the median nearest-neighbour distance over agents with a neighbour within the
+  sensing radius (the swarm's spacing: it shrinks when the swarm is crushed);
 - ``order``: |sum v_i| / sum |v_i| (velocity alignment; 1 = all move alike);
 - ``energy``: sum of the agents' potentials U_i (eq 35), the Lyapunov trace.
 
@@ -96,12 +98,14 @@ def step_metrics(positions: np.ndarray, velocities: np.ndarray, prey: np.ndarray
     touching = clearance < ctx.robot_radius
     contacts = np.stack([a[touching], m[touching]], axis=1)
 
-    spacing_error = math.nan
-    if ctx.spacing is not None and len(i):
+    spacing_error = median_nearest = math.nan
+    if len(i):
         nearest = np.full(n, np.inf)
         np.minimum.at(nearest, i, d_ij)
         has = np.isfinite(nearest)
-        spacing_error = float(np.mean(np.abs(nearest[has] - ctx.spacing)))
+        median_nearest = float(np.median(nearest[has]))
+        if ctx.spacing is not None:
+            spacing_error = float(np.mean(np.abs(nearest[has] - ctx.spacing)))
     speed = np.linalg.norm(velocities, axis=1).sum()
     out = {
         "mean_goal_distance": float(to_goal.mean()),
@@ -115,6 +119,7 @@ def step_metrics(positions: np.ndarray, velocities: np.ndarray, prey: np.ndarray
         "union": (n - n_comp) / (n - 1) if n > 1 else 1.0,
         "algebraic_connectivity": algebraic_connectivity(n, i, j, n_comp),
         "spacing_error": spacing_error,
+        "median_nearest": median_nearest,
         "order": float(np.linalg.norm(velocities.sum(axis=0)) / speed) if speed > 0 else 0.0,
         "energy": float(energy),
     }
@@ -123,7 +128,7 @@ def step_metrics(positions: np.ndarray, velocities: np.ndarray, prey: np.ndarray
 
 METRIC_NAMES = ("mean_goal_distance", "centroid_goal_distance", "min_pair_distance", "colliding_pairs",
                 "min_obstacle_clearance", "obstacle_contacts", "cohesion", "components", "union",
-                "algebraic_connectivity", "spacing_error", "order", "energy")
+                "algebraic_connectivity", "spacing_error", "median_nearest", "order", "energy")
 
 
 @dataclass
@@ -187,6 +192,7 @@ class Summary:
             "final_union": _num(s["union"][-1]),
             "final_algebraic_connectivity": _num(s["algebraic_connectivity"][-1]),
             "final_spacing_error": _num(s["spacing_error"][-1]),
+            "final_median_nearest": _num(s["median_nearest"][-1]),
             "final_order": _num(s["order"][-1]),
             "final_energy": _num(s["energy"][-1]),
             "steps_observed": len(self.times),
@@ -196,7 +202,8 @@ class Summary:
 SUMMARY_KEYS = ("final_mean_goal_distance", "final_centroid_goal_distance", "capture_time", "max_lag_after_capture",
                 "min_pair_distance", "collisions", "min_obstacle_clearance", "obstacle_collisions", "max_components",
                 "max_components_after_joined", "final_components", "max_cohesion", "final_cohesion", "epsilon",
-                "final_union", "final_algebraic_connectivity", "final_spacing_error", "final_order", "final_energy")
+                "final_union", "final_algebraic_connectivity", "final_spacing_error", "final_median_nearest", "final_order",
+                "final_energy")
 
 
 def _num(x: float) -> float | None:

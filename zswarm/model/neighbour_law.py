@@ -38,7 +38,7 @@ from zswarm.model.interaction import Interaction
 from zswarm.model.params import Params, PotentialParams
 
 CUTOFF_INNER = 0.8  # the bump is 1 up to this fraction of R
-GATE_INNER = 0.75  # g_in = GATE_INNER g_out
+GATE_INNER = 0.9  # g_in = GATE_INNER g_out
 AHEAD_COS = 0.5  # a neighbour counts as ahead from this cosine ...
 AHEAD_FULL = 0.75  # ... and fully from this one
 

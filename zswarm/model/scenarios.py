@@ -14,6 +14,7 @@ from zswarm.errors import UsageError
 from zswarm.files import read_toml
 from zswarm.model.params import DEFAULT_PARAMS, ParamError, validate
 from zswarm.model.prey import PreyMotion
+from zswarm.model.scaling import interaction_for, run_time, scale_to
 from zswarm.model.scenario import Box, Obstacle, Scenario, spawn_positions
 
 __all__ = ["SCENARIOS", "Box", "Obstacle", "Scenario", "get_scenario", "load_scenario_file", "spawn_positions"]
@@ -96,24 +97,58 @@ def narrow_passage() -> Scenario:
     )
 
 
+#: large-swarm's obstacles leave passages at least this wide between them (docs/scaling.md: in a
+#: narrower gap two agents abreast are pressed together by both obstacles' push).
+PASSAGE = 1.5
+LARGE_SWARM_RADIUS = 0.3
+
+
+def obstacle_field(rng: np.random.Generator, count: int, box: Box, radius: float, passage: float
+                   ) -> tuple[Obstacle, ...]:
+    """About ``count`` circles of ``radius`` in ``box``, one per cell of a jittered grid whose cells are
+    wide enough that any two circles leave at least ``passage`` between them (O(count) work)."""
+    x0, y0, x1, y1 = box
+    side = min(x1 - x0, y1 - y0)
+    per_side = max(1, min(math.ceil(math.sqrt(count)), int(side // (2 * radius + passage))))
+    cell_w, cell_h = (x1 - x0) / per_side, (y1 - y0) / per_side
+    jx, jy = max(0.0, (cell_w - 2 * radius - passage) / 2), max(0.0, (cell_h - 2 * radius - passage) / 2)
+    cells = rng.choice(per_side * per_side, size=min(count, per_side * per_side), replace=False)
+    cx = x0 + cell_w * (cells // per_side + 0.5) + rng.uniform(-jx, jx, len(cells))
+    cy = y0 + cell_h * (cells % per_side + 0.5) + rng.uniform(-jy, jy, len(cells))
+    return tuple(Obstacle(float(x), float(y), radius) for x, y in zip(cx, cy))
+
+
 def large_swarm(n_agents: int = 300) -> Scenario:
-    """Hundreds of agents crossing an obstacle field; the area grows with N (constant density)."""
+    """Hundreds of agents crossing an obstacle field to a static goal; everything grows with N.
+
+    Spawn at constant density (1.5 per unit area) in a square of side s = sqrt(N/1.5); N/20 obstacles
+    of radius 0.3 in the next square, with passages of at least :data:`PASSAGE`; the goal beyond the
+    field by the radius the settled swarm takes (L = 0.45 sqrt(N)) plus 1; the goal counts as reached
+    when the swarm's centroid is within L/4 of it (at least 0.5), so the goal lies well inside the swarm
+    (a swarm held apart by its spacing cannot pile onto one point). The set follows the
+    distance D from the spawn centre to the goal: l_g = D (the start sits at the goal's peak-pull
+    side of the Gaussian), c_g = v_max l_g (peak pull 0.86 v_max), c_o = 3 c_g (the paper's
+    c_g/c_o = 1/3, so Props 1-2 hold as in Section 3.2.3). Run time 2 D/v_max + 20 s.
+    """
     density = 1.5  # agents per unit area at spawn
     side = math.sqrt(n_agents / density)
     rng = np.random.default_rng(20061)  # the obstacle layout is part of the scenario, not the run
-    n_obs = max(3, n_agents // 20)
-    xs = rng.uniform(0.5, 0.5 + side, n_obs)
-    ys = rng.uniform(-side / 2, side / 2, n_obs)
-    obstacles = tuple(Obstacle(float(x), float(y), 0.3) for x, y in zip(xs, ys))
-    params = DEFAULT_PARAMS.with_values({"n_agents": n_agents, "sensing_radius": 1.5, "l_g": side,
-                                         "c_g": side / 2.0})
-    params = params.with_values({"c_o": 3.0 * params.potential.c_g})
+    obstacles = obstacle_field(rng, max(3, n_agents // 20), (0.5, -side / 2, 0.5 + side, side / 2),
+                               LARGE_SWARM_RADIUS, PASSAGE)
+    settled = 0.45 * math.sqrt(n_agents)  # radius of the swarm gathered at its spacing
+    goal = (0.5 + side + settled + 1.0, 0.0)
+    distance = goal[0] + side / 2
+    v_max = DEFAULT_PARAMS.swarm.v_max
+    params = DEFAULT_PARAMS.with_values({
+        "n_agents": n_agents, "sensing_radius": 1.5, "l_g": distance, "c_g": v_max * distance,
+        "c_o": 3.0 * v_max * distance, "interaction": interaction_for(n_agents)})
     return Scenario(
         name="large-swarm",
-        description="A large swarm (N from --set n_agents) crossing a field of obstacles to a goal on "
-                    "the far side; spawn area and obstacle field grow with N.",
-        params=params, obstacles=obstacles, prey_start=(1.0 + 1.5 * side, 0.0),
-        spawn=(-side, -side / 2, 0.0, side / 2), duration=40.0,
+        description="A large swarm (N from --set n_agents) crossing a field of obstacles to a static goal "
+                    "beyond it; spawn area, obstacle field, distance and goal range grow with N.",
+        params=params, obstacles=obstacles, prey_start=goal,
+        spawn=(-side, -side / 2, 0.0, side / 2), duration=run_time(distance, v_max),
+        capture_radius=max(0.5, settled / 4.0),
     )
 
 
@@ -124,7 +159,8 @@ def bench_field(n_agents: int = 50) -> Scenario:
     return Scenario(
         name="bench-field",
         description="Transport benchmark: N agents at constant density, prey out of reach.",
-        params=DEFAULT_PARAMS.with_values({"n_agents": n_agents, "sensing_radius": 1.0}),
+        params=DEFAULT_PARAMS.with_values({"n_agents": n_agents, "sensing_radius": 1.0,
+                                           "interaction": interaction_for(n_agents)}),
         prey_start=(1000.0, 0.0), spawn=(-side / 2, -side / 2, side / 2, side / 2), duration=15.0,
     )
 
@@ -145,7 +181,9 @@ SCENARIOS: dict[str, Callable[[], Scenario]] = {
 def get_scenario(name: str, overrides: dict[str, Any] | None = None) -> Scenario:
     """A registered scenario (or a TOML file path), with parameter overrides applied.
 
-    For ``large-swarm`` an ``n_agents`` override rebuilds the scenario at that size.
+    An ``n_agents`` override grows a registered scenario to that size by the rule of
+    :mod:`zswarm.model.scaling` (``large-swarm`` and ``bench-field`` are rebuilt at that size); every
+    other override is then applied as given.
     """
     try:  # checked before anything is built from them (large-swarm grows with n_agents)
         overrides = {k: validate(k, v) for k, v in (overrides or {}).items()}
@@ -158,6 +196,9 @@ def get_scenario(name: str, overrides: dict[str, Any] | None = None) -> Scenario
             scenario = (large_swarm if name == "large-swarm" else bench_field)(int(overrides["n_agents"]))
         else:
             scenario = SCENARIOS[name]()
+            n = overrides.get("n_agents")
+            if n is not None and not scenario.starts and n != scenario.params.swarm.n_agents:
+                scenario = scale_to(scenario, int(n))
     else:
         raise UsageError(f"unknown scenario {name!r}; known: {', '.join(SCENARIOS)} (or a .toml file)")
     if scenario.starts and "n_agents" in overrides:

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from zswarm.model.faults import FaultModel
+from zswarm.model.metrics import components
 from zswarm.model.formation import pair_gain
 from zswarm.model.neighbour_law import DensePairs, NeighbourLaw, neighbour_force, neighbour_law, unit_toward
 from zswarm.model.params import PotentialParams
@@ -69,6 +70,8 @@ class BatchOutcome:
     min_obstacle_clearance: float | None
     obstacle_collisions: int
     final_centroid_goal_distance: float
+    final_components: int  # groups of the sensing graph at the end
+    final_median_nearest: float | None  # median distance to the nearest neighbour within R, at the end
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -276,14 +279,29 @@ class _Tally:
         self.contacts += (touching & ~self.was_touching).sum(axis=(1, 2))
         self.was_touching = touching
 
+    def final_shape(self) -> tuple[list[int], list[float | None]]:
+        """Groups of the sensing graph and median nearest-neighbour distance of each run, now."""
+        x, radius = self.sim.positions, self.sim.radius
+        groups, nearest = [], []
+        for r in range(len(x)):
+            d = np.linalg.norm(x[r][:, None] - x[r][None], axis=-1)
+            np.fill_diagonal(d, np.inf)
+            i, j = np.nonzero(d <= radius[r])
+            groups.append(len(np.unique(components(len(d), i, j))))
+            near = np.where(d <= radius[r], d, np.inf).min(axis=1)
+            nearest.append(float(np.median(near[np.isfinite(near)])) if np.isfinite(near).any() else None)
+        return groups, nearest
+
     def outcomes(self) -> list[BatchOutcome]:
         dt = self.sim.dt
+        groups, nearest = self.final_shape()
         return [BatchOutcome(
             capture_time=None if s < 0 else s * dt, min_pair_distance=float(self.min_pair[r]),
             collisions=int(self.collisions[r]),
             min_obstacle_clearance=float(self.min_clearance[r]) if math.isfinite(self.min_clearance[r]) else None,
             obstacle_collisions=int(self.contacts[r]),
-            final_centroid_goal_distance=float(self.centroid_distance[r]))
+            final_centroid_goal_distance=float(self.centroid_distance[r]),
+            final_components=groups[r], final_median_nearest=nearest[r])
             for r, s in enumerate(self.capture_step)]
 
 
