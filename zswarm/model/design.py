@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -45,7 +46,7 @@ from zswarm.model.formation import (
 )
 from zswarm.model.neighbour_law import GATE_INNER
 from zswarm.model.numeric import maximize, sign_changes
-from zswarm.model.params import Params, PotentialParams
+from zswarm.model.params import DesignMargins, Params, PotentialParams
 
 GRID = 40_001
 
@@ -89,8 +90,23 @@ def _ratio(p: PotentialParams) -> float:
     return math.inf if p.c_o == 0 else p.c_g / p.c_o
 
 
+def _goal_obstacle(params: Params) -> tuple[PotentialParams, DesignMargins]:
+    """What Props 1-2 depend on (the goal and obstacle terms and the margins): their cache key."""
+    p = params.potential
+    return PotentialParams(l_o=p.l_o, l_g=p.l_g, c_o=p.c_o, c_g=p.c_g), params.margins
+
+
 def prop1(params: Params) -> dict[str, Any]:
-    p, d = params.potential, params.margins.d_m_go
+    return dict(_prop1(*_goal_obstacle(params)))
+
+
+def prop2(params: Params) -> dict[str, Any]:
+    return dict(_prop2(*_goal_obstacle(params)))
+
+
+@lru_cache(maxsize=4096)
+def _prop1(p: PotentialParams, margins: DesignMargins) -> dict[str, Any]:
+    d = margins.d_m_go
     xs = np.linspace(0.0, _reach(p, d), GRID)[1:]
     x_max, bound, i = maximize(lambda x: prop1_curve(x, d, p), xs)
     if i == len(xs) - 1 and p.l_g <= p.l_o:
@@ -114,8 +130,8 @@ def _outer_root(curve, level: float, ys: np.ndarray) -> float | None:
     return roots[-1][0] if roots else None
 
 
-def prop2(params: Params) -> dict[str, Any]:
-    p, m = params.potential, params.margins
+@lru_cache(maxsize=4096)
+def _prop2(p: PotentialParams, m: DesignMargins) -> dict[str, Any]:
     d, d_ro = m.d_m_go, m.d_m_ro
     curve = lambda y: prop2_curve(y, d, p)  # noqa: E731
     bound = float(curve(np.array(d_ro)))

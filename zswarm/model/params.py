@@ -151,7 +151,7 @@ class InteractionParams:
     """How an agent uses its neighbours: the interaction and the settings of two of its variants."""
 
     interaction: str = "paper"
-    gate: float = 0.8
+    gate: float = 0.85
     k_nearest: int = 10
 
     def __post_init__(self) -> None:
