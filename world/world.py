@@ -26,6 +26,7 @@ import zenoh
 from world.obstacles import ObstacleService
 from world.recorder import Resumed, WorldRecorder
 from world.report import StatsBook, transport_summary
+from zswarm.model.design import verdict
 from zswarm.model import prey as prey_motion
 from zswarm.model.observer import SwarmObserver
 from zswarm.net import messages as msg
@@ -321,6 +322,7 @@ class World:
                        "world_late_ticks": c.late_ticks, "world_ticks": c.step + 1,
                        "poses_in_reach_per_s": self.reach.per_s(s.period),
                        "world_segments": self.recorder.segment + 1,
-                       "resumed_from": None if self.resumed is None else self.resumed.to_dict()})
+                       "resumed_from": None if self.resumed is None else self.resumed.to_dict(),
+                       "design": verdict(self.scenario.params, self.scenario.dt)})
         self.recorder.close(result)
         return result

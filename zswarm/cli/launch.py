@@ -15,6 +15,7 @@ every child is reaped.
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -81,6 +82,8 @@ def build_parser(prog: str = "zswarm run") -> Parser:
     p.add_argument("--router-config", type=Path, default=None, metavar="FILE",
                    help="a full Zenoh configuration (json5) for the router; --listen overrides its endpoints")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.add_argument("--require-design", action="store_true",
+                   help="refuse to start (exit 2) when the set this run would use fails zswarm design")
     p.add_argument("--no-fork", dest="fork", action="store_false",
                    help="start every agent as a fresh Python process instead of forking it from one that "
                         "imported the agent program once (slower to start, more memory; same behaviour)")
@@ -129,6 +132,7 @@ class Plan:
     world_outage: tuple[float, float] | None
     world_crash: tuple[float, float | None] | None
     viewer: Viewer = Viewer()
+    design: dict | None = None  # the design verdict of the set this run uses (None: not judged here)
 
 
 def plan_from_args(args: argparse.Namespace) -> Plan:
@@ -138,6 +142,9 @@ def plan_from_args(args: argparse.Namespace) -> Plan:
     spec = spec_from_args(args, run=f"run-{args.seed}-{int(time.time())}",
                           extra={"n_agents": args.agents} if args.agents is not None else None)
     n = spec.scenario.n_agents
+    design = None
+    if "world" in args.role or args.require_design:
+        design = judge_design(spec, args.require_design)
     if "world" in args.role:
         for path in (args.record, args.summary, args.trajectory):
             if path is not None:
@@ -176,7 +183,27 @@ def plan_from_args(args: argparse.Namespace) -> Plan:
                 summary=args.summary or args.record.with_suffix(".json"), trajectory=args.trajectory,
                 connect=args.connect, listen=args.listen, secure=args.secure, config=args.config,
                 router_config=args.router_config, quiet=args.quiet, fork=args.fork, kill=args.kill, restart_after=args.restart_after,
-                world_outage=args.world_outage, world_crash=args.world_crash, viewer=viewer)
+                world_outage=args.world_outage, world_crash=args.world_crash, viewer=viewer, design=design)
+
+
+def design_command(spec: RunSpec) -> str:
+    """The command that explains a run's design verdict."""
+    sets = " ".join(f"--set {k}={v}" for k, v in spec.overrides)
+    return f"zswarm design --scenario {spec.scenario_name}" + (f" {sets}" if sets else "")
+
+
+def judge_design(spec: RunSpec, required: bool) -> dict:
+    """The design verdict of the set the run will use; one warning line when it fails, or (with
+    ``required``) a usage error before anything starts."""
+    from zswarm.model.design import verdict, warning_line
+
+    result = verdict(spec.scenario.params, spec.scenario.dt)
+    if not result["ok"]:
+        line = warning_line(result, design_command(spec))
+        if required:
+            raise UsageError(line + " (--require-design)")
+        print(f"warning: {line}", file=sys.stderr, flush=True)
+    return result
 
 
 def _check_secure_dir(directory: Path, ids: Sequence[int]) -> None:

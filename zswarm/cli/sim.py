@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -32,6 +33,8 @@ def add_sim_arguments(parser: argparse.ArgumentParser) -> None:
 
     add_viewer_args(parser)
     parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    parser.add_argument("--require-design", action="store_true",
+                        help="refuse to start (exit 2) when the set this run would use fails zswarm design")
     from zswarm.net.runspec import add_fault_args
 
     add_fault_args(parser)
@@ -42,12 +45,23 @@ def run_sim(args: argparse.Namespace) -> int:
     from zswarm.record.live import viewer_from_args
     from zswarm.sim.simulator import simulate
 
+    from zswarm.args import UsageError
+    from zswarm.model.design import verdict, warning_line
+
     scenario = get_scenario(args.scenario, parse_assignments(args.assignments))
+    design = verdict(scenario.params, scenario.dt)
+    if not design["ok"]:
+        explain = " ".join(["zswarm design --scenario", args.scenario, *(f"--set {a}" for a in args.assignments)])
+        line = warning_line(design, explain)
+        if args.require_design:
+            raise UsageError(line + " (--require-design)")
+        print(f"warning: {line}", file=sys.stderr, flush=True)
     viewer = viewer_from_args(args)
     result = simulate(scenario, args.seed, combination=args.potential, duration=args.duration,
                       record=args.record, record_every=args.record_every,
                       sensing_discs=args.sensing_discs, faults=faults_from_args(args), viewer=viewer,
                       sensing_graph={"auto": None, "on": True, "off": False}[args.sensing_graph])
+    result.summary["design"] = design
     if args.json:
         print(json.dumps(result.summary, sort_keys=True))
     else:

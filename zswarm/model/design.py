@@ -268,3 +268,17 @@ def check(params: Params, swarm: bool = True, dt: float | None = None) -> Design
     return DesignReport(params, prop1(params), prop2(params), prop3(params), prop4(params, stable),
                         prop5(params, spacing, gate_in), form, contact(params, stable), swarm,
                         None if dt is None else time_step(params, dt))
+
+
+def verdict(params: Params, dt: float | None = None) -> dict[str, Any]:
+    """What a run records of its own design (``"design"`` in its summary): the verdict for the set it
+    runs (its N, sensing radius and interaction), the failing checks, and the paper's own verdict."""
+    report = check(params, dt=dt)
+    return {"ok": report.ok, "failures": report.failures(), "paper_failures": report.paper_failures(),
+            "interaction": params.interaction.interaction, "n_agents": params.swarm.n_agents}
+
+
+def warning_line(verdict_: dict[str, Any], explain: str) -> str:
+    """One line for a run whose set fails: which checks, and the command that explains them."""
+    return (f"the design fails for this run ({', '.join(verdict_['failures'])} at N = {verdict_['n_agents']}, "
+            f"interaction {verdict_['interaction']}): see {explain}")

@@ -2,13 +2,15 @@
 
 A scenario is designed at its own size N0. Asked for N agents, it keeps what made it work there:
 
-- **density**: the spawn box grows by sqrt(N/N0) in both directions, away from the goal (its right
-  edge, which faces the goal in every registered scenario, stays where it is; its height grows about
-  its centre);
+- **density and room**: the layout is magnified about the goal by f = sqrt(N/N0): the spawn box
+  (so the density at spawn is kept), the obstacles' centres (so the gaps a swarm f times wider
+  must pass grow with it; the obstacles keep their radius, the prey its motion) and the capture
+  radius (the centroid of a swarm f times wider is within f times the distance of the prey);
 - **the goal's pull at the start**: with D(N) the distance from the spawn box's centre to the goal,
-  l_g, c_g and c_o are multiplied by D(N)/D(N0) (never less than 1). The start stays at the same
-  fraction of l_g, so its pull is not lost in the Gaussian tail of eq 7; the peak pull c_g/l_g and
-  Props 1-2's ratio c_g/c_o are unchanged;
+  a grown scenario (N > N0) gets l_g = max(l_g, D(N)/sqrt2), so the centre of the spawn starts where
+  the goal's pull peaks instead of in the Gaussian tail of eq 7, and c_g and c_o grow by the same
+  factor (the peak pull c_g/l_g and Props 1-2's ratio c_g/c_o are unchanged). At N <= N0 the
+  scenario keeps its own (the paper's) values;
 - **time to get there**: the duration is at least 2 D(N)/v_max + 20 s (the swarm must cover D at
   less than v_max, then settle);
 - **the interaction**: the paper's (eqs 26-28) up to :data:`PAPER_MAX_N` agents, where the default
@@ -50,10 +52,14 @@ def scale_to(scenario: Scenario, n_agents: int) -> Scenario:
     n0 = scenario.params.swarm.n_agents
     x0, y0, x1, y1 = scenario.spawn
     f = math.sqrt(n_agents / n0)
-    cy, h = (y0 + y1) / 2, (y1 - y0) * f
-    grown = dataclasses.replace(scenario, spawn=(x1 - (x1 - x0) * f, cy - h / 2, x1, cy + h / 2))
-    k = max(1.0, start_distance(grown) / start_distance(scenario))
+    gx, gy = scenario.prey_start
+    grown = dataclasses.replace(
+        scenario, spawn=(gx + f * (x0 - gx), gy + f * (y0 - gy), gx + f * (x1 - gx), gy + f * (y1 - gy)),
+        obstacles=tuple(dataclasses.replace(o, x=gx + f * (o.x - gx), y=gy + f * (o.y - gy))
+                        for o in scenario.obstacles),
+        capture_radius=scenario.capture_radius * max(f, 1.0))
     p = scenario.params.potential
+    k = max(1.0, start_distance(grown) / math.sqrt(2.0) / p.l_g) if n_agents > n0 else 1.0
     v_max = scenario.params.swarm.v_max
     params = scenario.params.with_values({
         "n_agents": n_agents, "l_g": p.l_g * k, "c_g": p.c_g * k, "c_o": p.c_o * k,
