@@ -18,7 +18,7 @@ DELEGATED = {"run": "start a swarm: router, world and N agent processes (zswarm 
 
 
 def build_parser() -> Parser:
-    from zswarm.cli import bench_net, certs, design, monitor, replay, sim, soak, tune
+    from zswarm.cli import bench_guidelines, bench_net, certs, design, monitor, replay, sim, soak, tune
 
     parser = Parser(prog="zswarm", description="Decentralized APF swarms (Kim, Wang & Shin 2006).")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
@@ -81,6 +81,10 @@ def build_parser() -> Parser:
     so.add_argument("--seed", type=seed_arg, default=0)
     so.add_argument("--json", action="store_true")
     so.set_defaults(run=soak.main_soak)
+    bg = bench_sub.add_parser("guidelines", help="do the design checks predict the swarm? (false-safe sets)",
+                              description=bench_guidelines.DESCRIPTION)
+    bench_guidelines.add_arguments(bg)
+    bg.set_defaults(run=bench_guidelines.run)
 
     replay.add_arguments(sub)
 

@@ -1,0 +1,181 @@
+"""``zswarm bench guidelines``: do the design checks predict what the swarm does?
+
+For each scenario and N: the scenario's own (scaled) set, the same with the paper's interaction, and
+K random sets around it (each potential value times a factor drawn log-uniformly in [1/S, S], a
+random interaction, gate and k). Each set is judged by ``zswarm design`` (the checks for that N, R,
+interaction and time step) and simulated on a few seeds. A set *collides* if any of its runs has a
+collision. The number that matters is **false-safe**: sets the checker passes that collide (target 0).
+How conservative the checker is: sets it fails that never collide.
+
+Runs go through :func:`zswarm.sim.outcome.run_outcome` (the reference simulator with a lean tally)
+in a pool of processes, one per core.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from zswarm.args import UsageError, positive_float, positive_int, seed_arg
+from zswarm.model.params import FIELDS, ParamError, Params
+
+DESCRIPTION = __doc__.split("\n\n")[1]
+INTERACTIONS = ("paper", "mean", "gate", "nearest", "cutoff", "mean+gate", "mean+gate+cutoff", "mean+nearest")
+POTENTIAL = [name for name, spec in FIELDS.items() if spec.group == "potential"]
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    ints = lambda t: [positive_int(x) for x in t.split(",")]  # noqa: E731
+    p.add_argument("--scenarios", type=lambda t: t.split(","), default=["moving-prey", "large-swarm"],
+                   help="comma-separated scenarios (default moving-prey,large-swarm)")
+    p.add_argument("--agents", type=ints, default=[10, 30, 100, 300], help="N values (default 10,30,100,300)")
+    p.add_argument("--sets", type=positive_int, default=24, help="random sets per scenario and N (default 24)")
+    p.add_argument("--seeds", type=positive_int, default=2, help="runs per set (default 2)")
+    p.add_argument("--spread", type=positive_float, default=3.0,
+                   help="each potential value is scaled by a factor in [1/S, S] (default 3)")
+    p.add_argument("--seed", type=seed_arg, default=0, help="seed of the sampling (default 0)")
+    p.add_argument("--workers", type=positive_int, default=os.cpu_count() or 1, help="processes (default: cores)")
+    p.add_argument("--out", type=Path, default=None, metavar="DIR",
+                   help="write study.json (every set and run) and guidelines.png there")
+    p.add_argument("--json", action="store_true", help="print the table as JSON")
+
+
+def sample_set(rng: np.random.Generator, base: Params, spread: float) -> Params:
+    """One random set around ``base``; drawn again until it is a valid parameter set."""
+    while True:
+        change: dict[str, Any] = {n: float(base.flat()[n]) * math.exp(rng.uniform(-1, 1) * math.log(spread))
+                                  for n in POTENTIAL if float(base.flat()[n]) > 0}
+        change["interaction"] = str(rng.choice(INTERACTIONS))
+        change["gate"] = float(rng.uniform(0.5, 1.0))
+        change["k_nearest"] = int(rng.integers(3, 13))
+        try:
+            return base.with_values(change)
+        except ParamError:
+            continue
+
+
+@dataclass(frozen=True)
+class Case:
+    scenario: str
+    n: int
+    index: int  # 0: the scenario's own set; 1: it with the paper's interaction; then random
+    params: Params
+
+
+def _outcome(task: tuple[Case, int]) -> dict[str, Any]:
+    from zswarm.model.scenarios import get_scenario
+    from zswarm.sim.outcome import run_outcome
+
+    case, seed = task
+    scenario = get_scenario(case.scenario, {"n_agents": case.n}).with_params(case.params)
+    return run_outcome(scenario, seed).to_dict()
+
+
+def cases(args: argparse.Namespace) -> list[Case]:
+    from zswarm.model.scenarios import get_scenario
+
+    rng = np.random.default_rng(args.seed)
+    out = []
+    for name in args.scenarios:
+        for n in args.agents:
+            base = get_scenario(name, {"n_agents": n}).params
+            sets = [base, base.with_values({"interaction": "paper"})]
+            sets += [sample_set(rng, base, args.spread) for _ in range(args.sets)]
+            out += [Case(name, n, k, s) for k, s in enumerate(sets)]
+    return out
+
+
+def table(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Verdict against outcome, per scenario and N and over all."""
+    out = []
+    keys = sorted({(r["scenario"], r["n"]) for r in rows}) + [("all", 0)]
+    for scenario, n in keys:
+        sel = [r for r in rows if scenario == "all" or (r["scenario"], r["n"]) == (scenario, n)]
+        passed = [r for r in sel if r["design_ok"]]
+        failed = [r for r in sel if not r["design_ok"]]
+        out.append({
+            "scenario": scenario, "n": n, "sets": len(sel), "passed": len(passed),
+            "false_safe": sum(r["collided"] for r in passed),
+            "passed_clean": sum(not r["collided"] for r in passed),
+            "failed_collided": sum(r["collided"] for r in failed),
+            "conservative": sum(not r["collided"] for r in failed),
+            "passed_one_group": sum(r["one_group"] for r in passed),
+            "passed_reached": sum(r["reached"] for r in passed),
+        })
+    return out
+
+
+def run(args: argparse.Namespace) -> int:
+    from multiprocessing import get_context
+
+    from zswarm.model.design import check
+    from zswarm.model.scenarios import SCENARIOS, get_scenario
+    from zswarm.provenance import machine, versions
+
+    for name in args.scenarios:
+        if name not in SCENARIOS:
+            raise UsageError(f"unknown scenario {name!r}; known: {', '.join(SCENARIOS)}")
+    if args.out is not None:
+        from zswarm.files import check_writable
+
+        args.out.mkdir(parents=True, exist_ok=True)
+        check_writable(args.out / "study.json")
+    start = time.time()
+    todo = cases(args)
+    print(f"guidelines: {len(todo)} sets x {args.seeds} seeds; judging them", flush=True)
+    verdicts = []
+    for c in todo:
+        dt = get_scenario(c.scenario, {"n_agents": c.n}).dt
+        report = check(c.params, dt=dt)
+        verdicts.append((report.ok, report.failures()))
+    tasks = [(c, seed) for c in todo for seed in range(args.seeds)]
+    print(f"guidelines: {len(tasks)} runs on {args.workers} processes", flush=True)
+    with get_context("fork").Pool(args.workers) as pool:
+        outcomes = []
+        for k, o in enumerate(pool.imap(_outcome, tasks, chunksize=1), 1):
+            outcomes.append(o)
+            if k % max(1, len(tasks) // 20) == 0:
+                print(f"guidelines: {k}/{len(tasks)} runs ({time.time() - start:.0f} s)", flush=True)
+    rows = []
+    for i, (c, (ok, failures)) in enumerate(zip(todo, verdicts)):
+        runs = outcomes[i * args.seeds:(i + 1) * args.seeds]
+        rows.append({"scenario": c.scenario, "n": c.n, "index": c.index, "params": c.params.flat(),
+                     "design_ok": ok, "failures": failures,
+                     "collided": any(r["collisions"] > 0 for r in runs),
+                     "one_group": all(r["final_components"] == 1 for r in runs),
+                     "reached": all(r["capture_time"] is not None for r in runs),
+                     "min_pair_distance": min(r["min_pair_distance"] for r in runs), "runs": runs})
+    result = {"table": table(rows), "settings": {k: (str(v) if isinstance(v, Path) else v)
+                                                 for k, v in vars(args).items() if k != "run"},
+              "machine": machine(), "versions": versions(), "seconds": time.time() - start}
+    if args.out is not None:
+        (args.out / "study.json").write_text(json.dumps({**result, "sets": rows}, indent=1))
+        from zswarm.cli.guidelines_figure import save_figure
+
+        robot = rows[0]["params"]["robot_radius"] if rows else 0.05
+        save_figure(result["table"], rows, args.out / "guidelines.png", 2.0 * float(robot))
+    if args.json:
+        print(json.dumps(result))
+    else:
+        print(render(result["table"]))
+        print(f"machine: {result['machine']}; {result['seconds']:.0f} s")
+    return 0
+
+
+def render(rows: list[dict[str, Any]]) -> str:
+    head = (f"{'scenario':<13} {'N':>4} {'sets':>5} {'pass':>5} {'FALSE-SAFE':>10} {'pass ok':>8} "
+            f"{'fail coll':>9} {'conservative':>12} {'pass 1 group':>12} {'pass reached':>12}")
+    lines = [head]
+    for r in rows:
+        lines.append(f"{r['scenario']:<13} {r['n'] or '':>4} {r['sets']:>5} {r['passed']:>5} {r['false_safe']:>10} "
+                     f"{r['passed_clean']:>8} {r['failed_collided']:>9} {r['conservative']:>12} "
+                     f"{r['passed_one_group']:>12} {r['passed_reached']:>12}")
+    return "\n".join(lines)
