@@ -26,6 +26,11 @@ def _mixed_batch() -> list[Member]:
         Member(get_scenario("moving-prey-straight"), 7),
         Member(prey, 8,
                FaultModel(dropout=0.5, seed=8)),
+        # the interactions of zswarm.model.neighbour_law, a faulty one among them
+        Member(get_scenario("moving-prey", {"interaction": "mean+gate"}), 9),
+        Member(get_scenario("moving-prey", {"interaction": "cutoff+nearest", "k_nearest": 3}), 10,
+               FaultModel(latency=0.1, dropout=0.3, seed=10)),
+        Member(get_scenario("moving-prey", {"interaction": "mean+gate", "gate": 0.6}), 11),
     ]
 
 

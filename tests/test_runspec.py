@@ -53,6 +53,13 @@ def test_the_defaults_and_the_scenario_come_back_too():
     assert spec_from_args(parse([])) == RunSpec()
 
 
+def test_an_interaction_and_its_settings_come_back():
+    spec = RunSpec(overrides=(("interaction", "mean+gate"), ("gate", 0.7), ("k_nearest", 4), ("n_agents", 20)))
+    back = spec_from_args(parse(spec.to_argv()))
+    assert back == spec
+    assert back.scenario.params.interaction.spec.gate and back.scenario.params.interaction.gate == 0.7
+
+
 @pytest.mark.parametrize("kwargs,needle", [
     ({"seed": -1}, "--seed"), ({"seed": 2**63}, "--seed"), ({"run": "a b"}, "run id"),
     ({"time_scale": 0.0}, "--time-scale"), ({"duration": -1.0}, "--duration"), ({"clock": "wall"}, "--clock"),

@@ -70,13 +70,22 @@ class Case:
     params: Params
 
 
-def _outcome(task: tuple[Case, int]) -> dict[str, Any]:
+def judge_and_run(task: tuple[Case, int]) -> dict[str, Any]:
+    """One set: its design verdict, and its runs on seeds 0..seeds-1 (in a worker process)."""
+    from zswarm.model.design import check
     from zswarm.model.scenarios import get_scenario
     from zswarm.sim.outcome import run_outcome
 
-    case, seed = task
+    case, seeds = task
     scenario = get_scenario(case.scenario, {"n_agents": case.n}).with_params(case.params)
-    return run_outcome(scenario, seed).to_dict()
+    report = check(case.params, dt=scenario.dt)
+    runs = [run_outcome(scenario, seed).to_dict() for seed in range(seeds)]
+    return {"scenario": case.scenario, "n": case.n, "index": case.index, "params": case.params.flat(),
+            "design_ok": report.ok, "failures": report.failures(),
+            "collided": any(r["collisions"] > 0 for r in runs),
+            "one_group": all(r["final_components"] == 1 for r in runs),
+            "reached": all(r["capture_time"] is not None for r in runs),
+            "min_pair_distance": min(r["min_pair_distance"] for r in runs), "runs": runs}
 
 
 def cases(args: argparse.Namespace) -> list[Case]:
@@ -116,8 +125,7 @@ def table(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
 def run(args: argparse.Namespace) -> int:
     from multiprocessing import get_context
 
-    from zswarm.model.design import check
-    from zswarm.model.scenarios import SCENARIOS, get_scenario
+    from zswarm.model.scenarios import SCENARIOS
     from zswarm.provenance import machine, versions
 
     for name in args.scenarios:
@@ -130,29 +138,16 @@ def run(args: argparse.Namespace) -> int:
         check_writable(args.out / "study.json")
     start = time.time()
     todo = cases(args)
-    print(f"guidelines: {len(todo)} sets x {args.seeds} seeds; judging them", flush=True)
-    verdicts = []
-    for c in todo:
-        dt = get_scenario(c.scenario, {"n_agents": c.n}).dt
-        report = check(c.params, dt=dt)
-        verdicts.append((report.ok, report.failures()))
-    tasks = [(c, seed) for c in todo for seed in range(args.seeds)]
-    print(f"guidelines: {len(tasks)} runs on {args.workers} processes", flush=True)
-    with get_context("fork").Pool(args.workers) as pool:
-        outcomes = []
-        for k, o in enumerate(pool.imap(_outcome, tasks, chunksize=1), 1):
-            outcomes.append(o)
-            if k % max(1, len(tasks) // 20) == 0:
-                print(f"guidelines: {k}/{len(tasks)} runs ({time.time() - start:.0f} s)", flush=True)
+    # the largest N first, so the slowest sets do not come last
+    tasks = sorted(((c, args.seeds) for c in todo), key=lambda t: -t[0].n)
+    print(f"guidelines: {len(todo)} sets x {args.seeds} seeds on {args.workers} processes", flush=True)
     rows = []
-    for i, (c, (ok, failures)) in enumerate(zip(todo, verdicts)):
-        runs = outcomes[i * args.seeds:(i + 1) * args.seeds]
-        rows.append({"scenario": c.scenario, "n": c.n, "index": c.index, "params": c.params.flat(),
-                     "design_ok": ok, "failures": failures,
-                     "collided": any(r["collisions"] > 0 for r in runs),
-                     "one_group": all(r["final_components"] == 1 for r in runs),
-                     "reached": all(r["capture_time"] is not None for r in runs),
-                     "min_pair_distance": min(r["min_pair_distance"] for r in runs), "runs": runs})
+    with get_context("fork").Pool(args.workers) as pool:
+        for k, row in enumerate(pool.imap_unordered(judge_and_run, tasks, chunksize=1), 1):
+            rows.append(row)
+            if k % max(1, len(tasks) // 20) == 0:
+                print(f"guidelines: {k}/{len(tasks)} sets ({time.time() - start:.0f} s)", flush=True)
+    rows.sort(key=lambda r: (r["scenario"], r["n"], r["index"]))
     result = {"table": table(rows), "settings": {k: (str(v) if isinstance(v, Path) else v)
                                                  for k, v in vars(args).items() if k != "run"},
               "machine": machine(), "versions": versions(), "seconds": time.time() - start}

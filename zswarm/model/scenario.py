@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from zswarm.errors import UsageError
+from zswarm.model.neighbour_law import neighbour_law
 from zswarm.model.neighbours import ObstacleIndex
 from zswarm.model.params import DEFAULT_PARAMS, Params
 from zswarm.model.potentials import COMBINATIONS, Combination
@@ -59,6 +60,8 @@ class Scenario:
         x0, y0, x1, y1 = self.spawn
         if not (x0 < x1 and y0 < y1):
             raise ValueError(f"spawn must be (x_min, y_min, x_max, y_max) with min < max (got {self.spawn})")
+        if self.formation:
+            neighbour_law(self.params)  # an interaction this potential cannot use fails here, in one line
         if self.prey.speed >= self.params.swarm.v_max:
             raise ValueError(f"the prey must be slower than the agents (Section 5): prey speed "
                              f"{self.prey.speed} >= v_max {self.params.swarm.v_max}")
