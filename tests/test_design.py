@@ -255,3 +255,29 @@ def test_cli_figure_marks_the_exact_bounds_on_labelled_axes(cli, tmp_path):
         assert label in text, label
     pixels = np.asarray(Image.open(png).convert("L"), dtype=float)
     assert pixels.shape[0] > 500 and pixels.std() > 20  # drawn, not blank
+
+
+def test_cli_judges_a_scenarios_own_set_and_finds_a_nearest_set_that_passes(cli):
+    own = cli("-m", "zswarm", "design", "--scenario", "moving-prey", "--set", "n_agents=30", "--json")
+    assert own.returncode == 0, own.stderr
+    out = json.loads(own.stdout)
+    assert out["params"]["n_agents"] == 30 and out["params"]["interaction"] == "mean+gate"
+    assert out["step"]["holds"] and out["ok"] and "prop4" in out["paper_failures"]
+    res = cli("-m", "zswarm", "design", "--set", "n_agents=30", "--set", "sensing_radius=1", "--nearest", "--json")
+    assert res.returncode == 1, res.stderr  # the set itself fails; the search reports what passes
+    out = json.loads(res.stdout)
+    assert not out["ok"] and out["nearest"]["ok"] is True
+    assert "nearest:" in res.stderr  # progress, on stderr
+    again = cli("-m", "zswarm", "design", *sum((["--set", f"{k}={v}"] for k, v in out["nearest"]["params"].items()),
+                                                []), "--json")
+    assert again.returncode == 0 and json.loads(again.stdout)["ok"]
+
+
+def test_nearest_says_what_blocks_when_nothing_passes():
+    from zswarm.model.nearest import REMEDIES, NoPassingSet, nearest_passing
+
+    hopeless = DEFAULT_PARAMS.with_values({"robot_radius": 5.0})  # agents wider than their spacing
+    found = nearest_passing(hopeless, names=["c_o"], squeezes=1)
+    assert isinstance(found, NoPassingSet) and found.blocking and set(found.blocking) <= set(REMEDIES)
+    text = found.explain()
+    assert "\n" not in text and all(f"{b}: {REMEDIES[b]}" in text for b in found.blocking)

@@ -21,6 +21,9 @@ CASES = [
     (["-m", "zswarm", "design", "--save", "{missing}/x.rrd"], "does not exist"),
     (["-m", "zswarm", "design", "--figure", "{dir}/f.txt"], "give a file name ending in .png"),
     (["-m", "zswarm", "design", "--figure", "{missing}/f.png"], "does not exist"),
+    (["-m", "zswarm", "design", "--set", "interaction=swarm"], "unknown interaction"),
+    (["-m", "zswarm", "design", "--scenario", "nope"], "unknown scenario"),
+    (["-m", "zswarm", "design", "--paper", "--scenario", "moving-prey"], "give one"),
     # sim
     (["-m", "zswarm", "sim", "--scenario", "nope"], "unknown scenario"),
     (["-m", "zswarm", "sim", "--seed", "x"], "invalid int value"),
@@ -30,6 +33,11 @@ CASES = [
     (["-m", "zswarm", "sim", "--duration", "-1"], "--duration"),
     (["-m", "zswarm", "sim", "--potential", "both"], "--potential"),
     (["-m", "zswarm", "sim", "--set", "v_max=0"], "v_max must be"),
+    (["-m", "zswarm", "sim", "--set", "interaction=mean+gate+x"], "unknown interaction"),
+    (["-m", "zswarm", "sim", "--set", "n_agents=30", "--set", "interaction=paper", "--require-design"],
+     "the design fails for this run"),
+    (["-m", "zswarm", "bench", "interactions", "--interactions", "paper,foo"], "unknown interaction"),
+    (["-m", "zswarm", "bench", "guidelines", "--scenarios", "nope"], "unknown scenario"),
     (["-m", "zswarm", "sim", "--scenario", "{missing}.toml"], "does not exist"),
     (["-m", "zswarm", "sim", "--scenario", "{junk}.toml"], "scenario"),
     (["-m", "zswarm", "sim", "--record", "{dir}"], "is a directory"),
@@ -65,6 +73,8 @@ CASES = [
     ([LAUNCH, "--routers", "0"], "--routers must be between 1 and 64"),
     ([LAUNCH, "--routers", "2", "--role", "agents", "--connect", "tcp/127.0.0.1:1"], "give the router role"),
     ([LAUNCH, "--scenario", "nope"], "unknown scenario"),
+    ([LAUNCH, "--agents", "30", "--set", "interaction=paper", "--require-design"], "the design fails for this run"),
+    ([LAUNCH, "--set", "interaction=nope"], "unknown interaction"),
     ([LAUNCH, "--scenario", "{junk}.toml"], "scenario"),
     ([LAUNCH, "--dropout", "2"], "dropout must be in [0, 1)"),
     ([LAUNCH, "--latency", "5parsecs"], "expected a duration"),
@@ -128,3 +138,13 @@ def test_user_mistakes_get_one_line_and_exit_2(argv, needle, busy_port, tmp_path
     assert needle in res.stderr, res.stderr
     assert "Traceback" not in res.stderr and len(res.stderr.strip().splitlines()) == 1, res.stderr
     assert not any(p.name not in ("junk", "junk.toml", "d") for p in tmp_path.iterdir()), "left files behind"
+
+
+def test_a_scenario_file_with_an_interaction_its_potential_cannot_use_is_refused_when_read(tmp_path):
+    f = tmp_path / "gated.toml"
+    f.write_text('[params]\ninteraction = "mean+gate"\nl_a = 0.5\nl_r = 1.0\nc_r = 0.3333\n')
+    for argv in (["-m", "zswarm", "sim", "--scenario", str(f)], [LAUNCH, "--scenario", str(f)]):
+        res = run_cli(*argv, timeout=60, cwd=tmp_path)
+        assert res.returncode == 2 and "needs a pair spacing" in res.stderr, res.stderr
+        assert "Traceback" not in res.stderr and len(res.stderr.strip().splitlines()) == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["gated.toml"]

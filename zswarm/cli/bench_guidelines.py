@@ -49,7 +49,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def sample_set(rng: np.random.Generator, base: Params, spread: float) -> Params:
-    """One random set around ``base``; drawn again until it is a valid parameter set."""
+    """One random set around ``base``; drawn again until it is a valid parameter set that its interaction
+    can use (the gate needs a pair spacing)."""
+    from zswarm.model.neighbour_law import neighbour_law
+
     while True:
         change: dict[str, Any] = {n: float(base.flat()[n]) * math.exp(rng.uniform(-1, 1) * math.log(spread))
                                   for n in POTENTIAL if float(base.flat()[n]) > 0}
@@ -57,7 +60,9 @@ def sample_set(rng: np.random.Generator, base: Params, spread: float) -> Params:
         change["gate"] = float(rng.uniform(0.5, 1.0))
         change["k_nearest"] = int(rng.integers(3, 13))
         try:
-            return base.with_values(change)
+            params = base.with_values(change)
+            neighbour_law(params)
+            return params
         except ParamError:
             continue
 

@@ -18,7 +18,7 @@ DELEGATED = {"run": "start a swarm: router, world and N agent processes (zswarm 
 
 
 def build_parser() -> Parser:
-    from zswarm.cli import bench_guidelines, bench_net, certs, design, monitor, replay, sim, soak, tune
+    from zswarm.cli import bench_guidelines, bench_interactions, bench_net, certs, design, monitor, replay, sim, soak, tune
 
     parser = Parser(prog="zswarm", description="Decentralized APF swarms (Kim, Wang & Shin 2006).")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
@@ -85,6 +85,10 @@ def build_parser() -> Parser:
                               description=bench_guidelines.DESCRIPTION)
     bench_guidelines.add_arguments(bg)
     bg.set_defaults(run=bench_guidelines.run)
+    bi = bench_sub.add_parser("interactions", help="each interaction on the same scenario, sizes and seeds",
+                              description=bench_interactions.DESCRIPTION)
+    bench_interactions.add_arguments(bi)
+    bi.set_defaults(run=bench_interactions.run)
 
     replay.add_arguments(sub)
 

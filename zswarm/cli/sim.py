@@ -76,11 +76,13 @@ def run_scenarios(args: argparse.Namespace) -> int:
     rows = [get_scenario(name) for name in SCENARIOS]
     if args.json:
         print(json.dumps([{"name": s.name, "n_agents": s.n_agents, "prey": s.prey.kind,
-                           "obstacles": len(s.obstacles), "description": s.description} for s in rows]))
+                           "obstacles": len(s.obstacles), "interaction": s.params.interaction.interaction,
+                           "description": s.description} for s in rows]))
         return 0
     for s in rows:
         print(f"{s.name:<22} N={s.n_agents:<4} prey={s.prey.kind:<9} obstacles={len(s.obstacles):<3} "
-              f"{s.description}")
+              f"{s.params.interaction.interaction:<10} {s.description}")
+    print("\n--set n_agents=N grows a scenario by the rule of docs/scaling.md")
     return 0
 
 

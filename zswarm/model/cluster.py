@@ -4,9 +4,10 @@ Props 3-5 reason about one pair, or bound forces one at a time. A swarm adds up 
 every agent, and the goal's pull presses the whole swarm against an obstacle that lies on its way
 (Fig 10, the case Prop 4 is about). With soft (bounded) repulsion the sum can squeeze neighbours far
 closer than the pair spacing d^f, or onto each other. This module runs exactly that case with the full
-control law (eq 36, speed limit, sensing radius): N agents start in a disc behind a point obstacle that
-sits on the straight line to a static goal, and it records the closest any two agents and any agent
-and the obstacle come during the run.
+control law (eq 36, speed limit, sensing radius, interaction): N agents start in a disc 1 behind a
+point obstacle that sits on the straight line to a static goal, where the goal pulls hardest
+(l_g/sqrt2 from it, at least 1), and it records the closest any two agents and any agent and the
+obstacle come during the run.
 """
 
 from __future__ import annotations
@@ -47,9 +48,12 @@ def squeeze(params: Params, n: int, seed: int = 2006, duration: float = 60.0, dt
     """``n`` agents of the set ``params`` (its potentials, sensing radius, speed and interaction)."""
     p, sensing_radius, v_max = params.potential, params.swarm.sensing_radius, params.swarm.v_max
     law = neighbour_law(params)
-    x = _disc(n, 0.5) + np.array([-2.0 - 0.5 * math.sqrt(n) / 1.5, 0.0])
+    # the obstacle where the goal pulls hardest (|psi_g| = l_g/sqrt2, eq 8's peak; at least 1 away), the
+    # swarm 1 behind it: the press of Fig 10 at its strongest, whatever the goal's range
+    reach = max(1.0, p.l_g / math.sqrt(2.0))
+    x = _disc(n, 0.5) + np.array([-reach - 1.0 - 0.5 * math.sqrt(n) / 1.5, 0.0])
     x = x + np.random.default_rng(seed).uniform(-0.02, 0.02, x.shape)  # no exact symmetry
-    obstacle = np.array([[-1.0, 0.0]])
+    obstacle = np.array([[-reach, 0.0]])
     c_f = formation_offset(p)
     min_pair = min_obs = math.inf
     nearest = np.full(n, math.inf)

@@ -39,7 +39,7 @@ def amounts(report: DesignReport) -> dict[str, float]:
         out["prop1"] = _log_ratio(p1["lower_bound"], ratio)
     if not p2["holds"]:
         out["prop2"] = _log_ratio(ratio, p2["upper_bound"])
-    if not p3["holds"]:
+    if not p3["holds"] and p3.get("binding", True):
         out["prop3"] = _log_ratio(2.0 * p3["epsilon"], report.params.swarm.sensing_radius)
     if not p4["holds"]:
         out["prop4"] = _log_ratio(p4["rhs"], p4["lhs"])
