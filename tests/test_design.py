@@ -262,7 +262,7 @@ def test_cli_judges_a_scenarios_own_set_and_finds_a_nearest_set_that_passes(cli)
     assert own.returncode == 0, own.stderr
     out = json.loads(own.stdout)
     assert out["params"]["n_agents"] == 30 and out["params"]["interaction"] == "mean+gate"
-    assert out["step"]["holds"] and out["ok"] and "prop4" in out["paper_failures"]
+    assert out["step"]["holds"] and out["ok"] and "prop3" in out["paper_failures"]
     res = cli("-m", "zswarm", "design", "--set", "n_agents=30", "--set", "sensing_radius=1", "--nearest", "--json")
     assert res.returncode == 1, res.stderr  # the set itself fails; the search reports what passes
     out = json.loads(res.stdout)

@@ -13,6 +13,8 @@ A scenario is designed at its own size N0. Asked for N agents, it keeps what mad
   scenario keeps its own (the paper's) values;
 - **time to get there**: the duration is at least 2 D(N)/v_max + 20 s (the swarm must cover D at
   less than v_max, then settle);
+- **the time step**: dt is halved until the design's time step check holds (a stronger c_o makes the
+  obstacle's push steeper, and explicit Euler would bounce an agent off it: k dt <= 1);
 - **the interaction**: the paper's (eqs 26-28) up to :data:`PAPER_MAX_N` agents, where the default
   set passes every guideline; ``scalable`` above it (docs/scaling.md: the paper's sum squeezes
   larger swarms onto each other).
@@ -26,6 +28,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
+from zswarm.model.params import Params
 from zswarm.model.scenario import Scenario
 
 #: Up to this N the registered scenarios use the paper's interaction; the default set passes every
@@ -65,4 +68,15 @@ def scale_to(scenario: Scenario, n_agents: int) -> Scenario:
         "n_agents": n_agents, "l_g": p.l_g * k, "c_g": p.c_g * k, "c_o": p.c_o * k,
         "interaction": interaction_for(n_agents)})
     duration = max(scenario.duration, run_time(start_distance(grown), v_max))
-    return dataclasses.replace(grown, params=params, duration=duration)
+    return dataclasses.replace(grown, params=params, duration=duration, dt=stable_dt(params, scenario.dt))
+
+
+def stable_dt(params: Params, dt: float) -> float:
+    """``dt``, halved until the design's time step check holds for ``params`` (at most five times)."""
+    from zswarm.model.design_swarm import time_step
+
+    for _ in range(5):
+        if time_step(params, dt)["holds"]:
+            break
+        dt /= 2.0
+    return dt
