@@ -32,14 +32,16 @@ from swarm_procs import (
 )
 
 
-@pytest.mark.parametrize("scenario,duration", [("moving-prey", 30.0), ("static-goal", 32.0)])
-def test_lockstep_swarm_reproduces_the_reference_and_catches_the_prey(tmp_path, scenario, duration):
+@pytest.mark.parametrize("scenario,duration,interaction", [("moving-prey", 30.0, "paper"), ("static-goal", 32.0, "paper"),
+                                                          ("moving-prey", 30.0, "mean+gate")])
+def test_lockstep_swarm_reproduces_the_reference_and_catches_the_prey(tmp_path, scenario, duration, interaction):
+    sets = ["--set", f"interaction={interaction}"]
     n = get_scenario(scenario).n_agents
     with processes() as kids:
         endpoint = start_router(kids)
         world, summary_path, record, traj = start_world(kids, endpoint, "ls", scenario, tmp_path,
-                                                        "--clock", "lockstep", "--duration", str(duration))
-        agents = [start_agent(kids, endpoint, "ls", scenario, i, "--clock", "lockstep") for i in range(n)]
+                                                        "--clock", "lockstep", "--duration", str(duration), *sets)
+        agents = [start_agent(kids, endpoint, "ls", scenario, i, "--clock", "lockstep", *sets) for i in range(n)]
         assert len({a.pid for a in agents} | {world.pid}) == n + 1  # each agent is its own process
         assert wait_exit(world, 240) == 0
         for a in agents:
@@ -47,7 +49,8 @@ def test_lockstep_swarm_reproduces_the_reference_and_catches_the_prey(tmp_path, 
     summary = load_summary(summary_path)
     assert summary["capture_time"] is not None and summary["collisions"] == 0
     assert summary["agents_reporting"] == n and summary["missed_lockstep_poses"] == 0
-    ref = simulate(get_scenario(scenario), 0, duration=duration, keep_trajectory=True)
+    assert summary["design"]["ok"] and summary["design"]["interaction"] == interaction
+    ref = simulate(get_scenario(scenario, {"interaction": interaction}), 0, duration=duration, keep_trajectory=True)
     observed = np.load(traj)["positions"]
     assert observed.shape == ref.trajectory.shape
     assert np.max(np.abs(observed - ref.trajectory)) < 1e-6  # at every step, every agent

@@ -129,6 +129,13 @@ def test_cli_sim_json_and_recording(cli, tmp_path):
                 "max_cohesion", "epsilon"):
         assert key in s
     assert s["scenario"] == "moving-prey" and s["seed"] == 2 and s["steps"] == 80
+    assert s["design"] == {"ok": True, "failures": [], "paper_failures": ["prop3"], "interaction": "paper",
+                           "n_agents": 10} and "warning" not in res.stderr
+    crushed = cli("-m", "zswarm", "sim", "--set", "n_agents=100", "--set", "interaction=paper", "--duration", "0.5",
+                  "--json")
+    design = json.loads(crushed.stdout)["design"]
+    assert crushed.returncode == 0 and not design["ok"] and "swarm" in design["failures"]
+    assert crushed.stderr.count("\n") == 1 and "warning: the design fails for this run" in crushed.stderr
     rerun = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")
     verify = subprocess.run([rerun, "rrd", "verify", str(out)], capture_output=True, text=True, timeout=60)
     assert verify.returncode == 0, verify.stderr

@@ -29,16 +29,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--interactions", type=lambda t: t.split(","), default=list(DEFAULT),
                    help=f"comma-separated (default {','.join(DEFAULT)})")
     p.add_argument("--seeds", type=positive_int, default=5, help="runs per interaction and N (default 5)")
+    p.add_argument("--set", dest="assignments", action="append", default=[], metavar="NAME=VALUE",
+                   help="override a parameter of every run (repeatable), e.g. --set gate=0.7")
     p.add_argument("--workers", type=positive_int, default=os.cpu_count() or 1, help="processes (default: cores)")
     p.add_argument("--json", action="store_true")
 
 
-def _run(task: tuple[str, int, str, int]) -> dict[str, Any]:
+def _run(task: tuple[str, int, str, int, dict[str, Any]]) -> dict[str, Any]:
     from zswarm.model.scenarios import get_scenario
     from zswarm.sim.outcome import run_outcome
 
-    name, n, interaction, seed = task
-    scenario = get_scenario(name, {"n_agents": n, "interaction": interaction})
+    name, n, interaction, seed, extra = task
+    scenario = get_scenario(name, {**extra, "n_agents": n, "interaction": interaction})
     return {"n": n, "interaction": interaction, "seed": seed, **run_outcome(scenario, seed).to_dict()}
 
 
@@ -58,21 +60,23 @@ def summarize(runs: list[dict[str, Any]]) -> dict[str, Any]:
 def run(args: argparse.Namespace) -> int:
     from multiprocessing import get_context
 
+    from zswarm.model.params import parse_assignments
     from zswarm.model.scenarios import get_scenario
     from zswarm.provenance import machine
 
+    extra = parse_assignments(args.assignments)
     for interaction in args.interactions:
         for n in args.agents:
-            get_scenario(args.scenario, {"n_agents": n, "interaction": interaction})  # bad input fails here
+            get_scenario(args.scenario, {**extra, "n_agents": n, "interaction": interaction})  # bad input fails here
     start = time.time()
-    tasks = [(args.scenario, n, i, s) for n in sorted(args.agents, reverse=True) for i in args.interactions
+    tasks = [(args.scenario, n, i, s, extra) for n in sorted(args.agents, reverse=True) for i in args.interactions
              for s in range(args.seeds)]
     with get_context("fork").Pool(args.workers) as pool:
         runs = list(pool.imap_unordered(_run, tasks, chunksize=1))
     rows = [{"scenario": args.scenario, "n": n, "interaction": i,
              **summarize([r for r in runs if r["n"] == n and r["interaction"] == i])}
             for n in args.agents for i in args.interactions]
-    out = {"rows": rows, "seeds": args.seeds, "machine": machine(), "seconds": time.time() - start}
+    out = {"rows": rows, "seeds": args.seeds, "set": extra, "machine": machine(), "seconds": time.time() - start}
     if args.json:
         print(json.dumps(out))
         return 0
@@ -83,5 +87,6 @@ def run(args: argparse.Namespace) -> int:
         print(f"{r['n']:>5} {r['interaction']:<18} {r['collisions']:>10} {r['runs_with_collision']:>8} "
               f"{r['min_pair_distance']:>8.3g} {r['one_group']:>5}/{r['runs']:<3} {r['reached']:>3}/{r['runs']:<3} "
               f"{cap:>8} {r['median_spacing']:>8.3f}")
-    print(f"{args.scenario}, seeds 0-{args.seeds - 1}; machine: {out['machine']}; {out['seconds']:.0f} s")
+    print(f"{args.scenario}, seeds 0-{args.seeds - 1}" + "".join(f", {k}={v}" for k, v in extra.items())
+          + f"; machine: {out['machine']}; {out['seconds']:.0f} s")
     return 0

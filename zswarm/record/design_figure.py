@@ -37,10 +37,13 @@ def _fmt(v) -> str:
 def verdict_rows(report: DesignReport) -> list[tuple[str, str, str]]:
     """(check, verdict, bound) per check: what the table shows."""
     r = report
+    prop3 = None if not r.prop3.get("binding", True) and not r.prop3["holds"] else r.prop3["holds"]
     rows = [
         ("Prop 1", r.prop1["holds"], f"c_g/c_o >= {_fmt(r.prop1['lower_bound'])}"),
         ("Prop 2", r.prop2["holds"], f"c_g/c_o <= {_fmt(r.prop2['upper_bound'])}"),
-        ("Prop 3", r.prop3["holds"], f"2 eps = {_fmt(2 * r.prop3['epsilon'])} <= R = {_fmt(r.params.swarm.sensing_radius)}"),
+        ("Prop 3", prop3, f"2 eps = {_fmt(2 * r.prop3['epsilon'])} {'<=' if r.prop3['holds'] else '>'} "
+                          f"R = {_fmt(r.params.swarm.sensing_radius)}"
+                          + ("" if prop3 is not None else " (does not bind: local sensing)")),
         ("Prop 4", r.prop4["holds"], f"c_o/l_o = {_fmt(r.prop4['lhs'])} > {_fmt(r.prop4['rhs'])}"),
         ("Prop 5", r.prop5["holds"], f"c_r = {_fmt(r.prop5['lhs'])} > {_fmt(r.prop5['rhs'])}"),
         ("Formation", r.formation["stable"], f"d^f = {_fmt(r.formation['equilibrium_spacing'])}"),
@@ -48,7 +51,9 @@ def verdict_rows(report: DesignReport) -> list[tuple[str, str, str]]:
         ("Swarm", bool(r.swarm and r.swarm["holds"]),
          f"closest pair {_fmt((r.swarm or {}).get('min_pair_distance'))}"),
     ]
-    return [(name, "holds" if ok else "FAILS", bound) for name, ok, bound in rows]
+    if r.step is not None:
+        rows.append(("Time step", r.step["holds"], f"2 v_max dt = {_fmt(r.step['step'])}, k dt = {_fmt(r.step['k_dt'])}"))
+    return [(name, "n/a" if ok is None else "holds" if ok else "FAILS", bound) for name, ok, bound in rows]
 
 
 def draw(report: DesignReport):
@@ -117,6 +122,9 @@ def draw(report: DesignReport):
         ax3.axvline(spacing, color="tab:green", linestyle="--", label=f"d^f = {_fmt(spacing)} (rest spacing)")
         ax3.axvline(spacing / 10.0, color="tab:orange", linestyle=":", label=f"d_m^f = d^f/10 = {_fmt(spacing / 10)}")
     ax3.axvline(2.0 * s.robot_radius, color="tab:red", linestyle=":", label=f"2 d^r = {_fmt(2 * s.robot_radius)} (contact)")
+    if s.sensing_radius < r[-1]:
+        ax3.axvline(s.sensing_radius, color="gray", linestyle="-.",
+                    label=f"R = {_fmt(s.sensing_radius)} (sensing radius: no force beyond)")
     ax3.set_xlabel("r = |psi_f|: distance between two agents")
     ax3.set_ylabel("force (positive: repulsive)")
     ax3.legend(fontsize=8)
@@ -132,7 +140,7 @@ def draw(report: DesignReport):
     table.set_fontsize(10)
     table.scale(1.0, 1.6)
     for i, (_, verdict, _) in enumerate(rows, start=1):
-        table[i, 1].set_text_props(color="tab:green" if verdict == "holds" else "tab:red", weight="bold")
+        table[i, 1].set_text_props(color={"holds": "tab:green", "n/a": "gray"}.get(verdict, "tab:red"), weight="bold")
     flat = report.params.flat()
     ax4.text(0.0, 0.02, "  ".join(f"{k}={_fmt(v)}" for k, v in flat.items()), fontsize=7, wrap=True,
              transform=ax4.transAxes)

@@ -36,10 +36,11 @@ TIMELINE: Final = "sim_time"
 THRESHOLD_NAMES = {"capture_radius": "capture radius", "collision_distance": "2 d^r (collision)",
                    "d_m_ro": "d_m^ro (Prop 2)", "epsilon": "epsilon (Prop 3)"}
 PLOTS = (("distance to prey", ("mean_goal_distance", "centroid_goal_distance", "capture_radius")),
-         ("safety", ("min_pair_distance", "min_obstacle_clearance", "collision_distance", "d_m_ro")),
+         ("safety and spacing", ("min_pair_distance", "median_nearest", "min_obstacle_clearance", "collision_distance",
+                                "d_m_ro")),
          ("cohesion and components", ("cohesion", "components", "epsilon")),
          ("order and union", ("order", "union")),
-         ("energy (Lyapunov trace)", ("energy",)))
+         ("energy (eq 35; the Lyapunov trace of the paper's interaction)", ("energy",)))
 
 
 def blueprint(extra_plots: Iterable[tuple[str, tuple[str, ...]]] = (), network: bool = False) -> rrb.Blueprint:

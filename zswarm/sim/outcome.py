@@ -21,7 +21,9 @@ from zswarm.sim.batch import BatchOutcome
 from zswarm.sim.simulator import Simulator
 
 
-def run_outcome(scenario: Scenario, seed: int) -> BatchOutcome:
+def run_outcome(scenario: Scenario, seed: int, stop_at_collision: bool = False) -> BatchOutcome:
+    """The run's outcome; with ``stop_at_collision`` the run ends at its first collision (a study that
+    only asks whether a set collides need not simulate a crushed swarm to its end)."""
     sim = Simulator(scenario, seed)
     p = scenario.params.swarm
     collide, touch = 2.0 * p.robot_radius, p.robot_radius
@@ -50,6 +52,10 @@ def run_outcome(scenario: Scenario, seed: int) -> BatchOutcome:
         centroid_distance = float(np.linalg.norm(x.mean(axis=0) - sim.prey))
         if capture is None and centroid_distance <= scenario.capture_radius:
             capture = k * scenario.dt
+        if stop_at_collision and collisions:
+            i, j = pairs_within(x, p.sensing_radius)
+            d = np.sqrt(np.einsum("ij,ij->i", x[i] - x[j], x[i] - x[j]))
+            break
         if k < scenario.steps:
             _, v = sim.potential_and_velocity(x, sim.prey)
             sim.advance(v)
