@@ -39,8 +39,9 @@ def test_a_grown_scenario_is_its_layout_magnified_about_the_goal(name):
     assert get_scenario(name, {"n_agents": PAPER_MAX_N}).params.interaction.interaction == "paper"
 
 
-@pytest.mark.parametrize("name,n", [("moving-prey", 30), ("moving-prey", 100), ("static-goal", 30),
-                                    ("large-swarm", 300), ("large-swarm", 1000), ("bench-field", 100)])
+@pytest.mark.parametrize("name,n", [("moving-prey", 12), ("moving-prey", 30), ("moving-prey", 100), ("static-goal", 30),
+                                    ("large-swarm", 10), ("large-swarm", 300), ("large-swarm", 1000),
+                                    ("bench-field", 100)])
 def test_the_grown_set_passes_the_design_checks_at_that_size(name, n):
     scenario = get_scenario(name, {"n_agents": n})
     report = check(scenario.params, dt=scenario.dt)

@@ -19,6 +19,7 @@ import argparse
 import json
 import math
 import os
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -147,13 +148,14 @@ def run(args: argparse.Namespace) -> int:
     todo = cases(args)
     # the largest N first, so the slowest sets do not come last
     tasks = sorted(((c, args.seeds) for c in todo), key=lambda t: -t[0].n)
-    print(f"guidelines: {len(todo)} sets x {args.seeds} seeds on {args.workers} processes", flush=True)
+    print(f"guidelines: {len(todo)} sets x {args.seeds} seeds on {args.workers} processes", file=sys.stderr,
+          flush=True)
     rows = []
     with get_context("fork").Pool(args.workers) as pool:
         for k, row in enumerate(pool.imap_unordered(judge_and_run, tasks, chunksize=1), 1):
             rows.append(row)
             if k % max(1, len(tasks) // 20) == 0:
-                print(f"guidelines: {k}/{len(tasks)} sets ({time.time() - start:.0f} s)", flush=True)
+                print(f"guidelines: {k}/{len(tasks)} sets ({time.time() - start:.0f} s)", file=sys.stderr, flush=True)
     rows.sort(key=lambda r: (r["scenario"], r["n"], r["index"]))
     result = {"table": table(rows), "settings": {k: (str(v) if isinstance(v, Path) else v)
                                                  for k, v in vars(args).items() if k != "run"},

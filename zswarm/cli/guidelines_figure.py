@@ -56,7 +56,7 @@ def save_figure(table: list[dict[str, Any]], sets: list[dict[str, Any]], path: P
     right.set_yscale("log")
     right.set_xlabel("N (agents)")
     right.set_ylabel("closest two agents came (min over the set's runs)")
-    right.set_title("closest approach per set", fontsize=9)
+    right.set_title("closest two agents came, per set (a run stops at its first collision)", fontsize=9)
     right.grid(alpha=0.3)
     right.legend(fontsize=8)
     fig.suptitle("zswarm bench guidelines: do the design checks predict the swarm?", fontsize=10)

@@ -19,8 +19,9 @@ A scenario is designed at its own size N0. Asked for N agents, it keeps what mad
   set passes every guideline; ``scalable`` above it (docs/scaling.md: the paper's sum squeezes
   larger swarms onto each other).
 
-``large-swarm`` and ``bench-field`` are built for any N by their own functions, and take the
-interaction rule only. An explicit ``--set`` of any of these values wins over the rule.
+``large-swarm`` and ``bench-field`` are built for any N by their own functions; ``bench-field`` takes
+the interaction rule, ``large-swarm`` is ``scalable`` at every N (with its long goal range the paper's
+sum fails the swarm check already at N = 10). An explicit ``--set`` of any of these values wins over the rule.
 """
 
 from __future__ import annotations

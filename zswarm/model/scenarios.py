@@ -144,7 +144,7 @@ def large_swarm(n_agents: int = 300) -> Scenario:
     v_max = DEFAULT_PARAMS.swarm.v_max
     params = DEFAULT_PARAMS.with_values({
         "n_agents": n_agents, "sensing_radius": 1.5, "l_g": distance, "c_g": v_max * distance,
-        "c_o": 4.0 * v_max * distance, "interaction": interaction_for(n_agents)})
+        "c_o": 4.0 * v_max * distance, "interaction": "scalable"})
     return Scenario(
         name="large-swarm",
         description="A large swarm (N from --set n_agents) crossing a field of obstacles to a static goal "
