@@ -147,4 +147,8 @@ def test_a_scenario_file_with_an_interaction_its_potential_cannot_use_is_refused
         res = run_cli(*argv, timeout=60, cwd=tmp_path)
         assert res.returncode == 2 and "needs a pair spacing" in res.stderr, res.stderr
         assert "Traceback" not in res.stderr and len(res.stderr.strip().splitlines()) == 1
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["gated.toml"]
+    crowded = tmp_path / "crowded.toml"  # an N that no set can serve at this density
+    crowded.write_text('spawn = [-1, -1, 0, 0]\n[params]\nn_agents = 500\n')
+    res = run_cli("-m", "zswarm", "sim", "--scenario", str(crowded), timeout=60, cwd=tmp_path)
+    assert res.returncode == 2 and "cannot place 500 agents" in res.stderr and "Traceback" not in res.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["crowded.toml", "gated.toml"]

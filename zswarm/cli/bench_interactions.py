@@ -54,7 +54,9 @@ def summarize(runs: list[dict[str, Any]]) -> dict[str, Any]:
             "reached": len(caught), "median_capture_time": float(np.median(caught)) if caught else None,
             "median_spacing": float(np.median([r["final_median_nearest"] for r in runs
                                                if r["final_median_nearest"] is not None])),
-            "obstacle_contacts": sum(r["obstacle_collisions"] for r in runs)}
+            "obstacle_contacts": sum(r["obstacle_collisions"] for r in runs),
+            "final_distance": {"median": float(np.median([r["final_centroid_goal_distance"] for r in runs])),
+                               "max": max(r["final_centroid_goal_distance"] for r in runs)}}
 
 
 def run(args: argparse.Namespace) -> int:
