@@ -33,7 +33,7 @@ from swarm_procs import (
 
 
 @pytest.mark.parametrize("scenario,duration,interaction", [("moving-prey", 30.0, "paper"), ("static-goal", 32.0, "paper"),
-                                                          ("moving-prey", 30.0, "mean+gate")])
+                                                          ("moving-prey", 38.0, "mean+gate")])
 def test_lockstep_swarm_reproduces_the_reference_and_catches_the_prey(tmp_path, scenario, duration, interaction):
     sets = ["--set", f"interaction={interaction}"]
     n = get_scenario(scenario).n_agents
