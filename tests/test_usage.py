@@ -4,6 +4,7 @@ unknown options, bad values, unknown scenarios, unreadable files and occupied po
 from __future__ import annotations
 
 import socket
+import time
 
 import pytest
 
@@ -149,6 +150,12 @@ def test_a_scenario_file_with_an_interaction_its_potential_cannot_use_is_refused
         assert "Traceback" not in res.stderr and len(res.stderr.strip().splitlines()) == 1
     crowded = tmp_path / "crowded.toml"  # an N that no set can serve at this density
     crowded.write_text('spawn = [-1, -1, 0, 0]\n[params]\nn_agents = 500\n')
-    res = run_cli("-m", "zswarm", "sim", "--scenario", str(crowded), timeout=60, cwd=tmp_path)
-    assert res.returncode == 2 and "cannot place 500 agents" in res.stderr and "Traceback" not in res.stderr
+    for argv in (["-m", "zswarm", "sim", "--scenario", str(crowded)], [LAUNCH, "--scenario", str(crowded)]):
+        start = time.monotonic()
+        res = run_cli(*argv, timeout=60, cwd=tmp_path)
+        assert res.returncode == 2 and "cannot place 500 agents" in res.stderr and "Traceback" not in res.stderr
+        assert len(res.stderr.strip().splitlines()) == 1 and time.monotonic() - start < 20  # no agent started
+    res = run_cli(LAUNCH, "--agents", "100000", "--duration", "1", timeout=60, cwd=tmp_path)  # placeable, not holdable
+    assert res.returncode == 2 and "100000 agent processes need about" in res.stderr, res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1
     assert sorted(p.name for p in tmp_path.iterdir()) == ["crowded.toml", "gated.toml"]

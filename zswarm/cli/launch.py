@@ -142,6 +142,9 @@ def plan_from_args(args: argparse.Namespace) -> Plan:
     spec = spec_from_args(args, run=f"run-{args.seed}-{int(time.time())}",
                           extra={"n_agents": args.agents} if args.agents is not None else None)
     n = spec.scenario.n_agents
+    if "agents" in args.role:
+        check_capacity(len(args.ids) if args.ids is not None else n, args.fork)
+    spec.scenario.check_placement()  # every agent would fail to place itself, one by one
     design = None
     if "world" in args.role or args.require_design:
         design = judge_design(spec, args.require_design)
@@ -184,6 +187,30 @@ def plan_from_args(args: argparse.Namespace) -> Plan:
                 connect=args.connect, listen=args.listen, secure=args.secure, config=args.config,
                 router_config=args.router_config, quiet=args.quiet, fork=args.fork, kill=args.kill, restart_after=args.restart_after,
                 world_outage=args.world_outage, world_crash=args.world_crash, viewer=viewer, design=design)
+
+
+#: Memory an agent process holds (PSS, measured in docs/benchmarks.md: 10-12 MB forked, 22-25 MB not), with margin.
+AGENT_MIB = {True: 16, False: 32}
+
+
+def available_mib() -> float | None:
+    """MemAvailable from /proc/meminfo, in MiB (None where there is no such file)."""
+    try:
+        for line in Path("/proc/meminfo").read_text().splitlines():
+            if line.startswith("MemAvailable:"):
+                return int(line.split()[1]) / 1024.0
+    except (OSError, ValueError, IndexError):
+        return None
+    return None
+
+
+def check_capacity(n_local: int, fork: bool) -> None:
+    """Refuse, before anything starts, a number of agent processes this machine cannot hold."""
+    need, have = n_local * AGENT_MIB[fork], available_mib()
+    if have is not None and need > have:
+        raise UsageError(f"{n_local} agent processes need about {need / 1024:,.0f} GiB of memory ({AGENT_MIB[fork]} MiB "
+                         f"each{', forked' if fork else ''}) and this machine has {have / 1024:.1f} GiB available; "
+                         f"run fewer agents, or spread them over machines (--role agents --ids A-B on each)")
 
 
 def design_command(spec: RunSpec) -> str:

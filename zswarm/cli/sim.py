@@ -49,6 +49,7 @@ def run_sim(args: argparse.Namespace) -> int:
     from zswarm.model.design import verdict, warning_line
 
     scenario = get_scenario(args.scenario, parse_assignments(args.assignments))
+    scenario.check_placement()  # before the design check, which takes seconds at large N
     design = verdict(scenario.params, scenario.dt)
     if not design["ok"]:
         explain = " ".join(["zswarm design --scenario", args.scenario, *(f"--set {a}" for a in args.assignments)])

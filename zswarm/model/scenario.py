@@ -85,6 +85,12 @@ class Scenario:
         return spawn_positions(rng, self.n_agents, self.spawn, 4.0 * self.params.swarm.robot_radius,
                                centers, radii)
 
+    def check_placement(self) -> None:
+        """Raise :class:`UsageError` (one line) if the spawn region cannot hold the swarm. Whether it can
+        does not depend on the seed (the grid is fixed; the seed only picks cells and jitter), so one
+        call before anything starts answers for every process of a run."""
+        self.initial_positions(np.random.default_rng(0))
+
     def with_params(self, params: Params) -> Scenario:
         return dataclasses.replace(self, params=params)
 
