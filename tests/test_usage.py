@@ -159,3 +159,19 @@ def test_a_scenario_file_with_an_interaction_its_potential_cannot_use_is_refused
     assert res.returncode == 2 and "100000 agent processes need about" in res.stderr, res.stderr
     assert len(res.stderr.strip().splitlines()) == 1
     assert sorted(p.name for p in tmp_path.iterdir()) == ["crowded.toml", "gated.toml"]
+
+
+def test_launch_warns_when_the_machine_cannot_step_the_agents_in_real_time():
+    import re
+
+    from zswarm.cli.launch import AGENT_SHARE, AGENT_TICK_MS, pace_warning
+
+    fits = int(AGENT_SHARE * 2 * 0.05 / (AGENT_TICK_MS / 1000.0))  # agents 2 cores step at 20 Hz
+    assert pace_warning(fits, 0.05, 1.0, cores=2) is None
+    line = pace_warning(fits + 1, 0.05, 1.0, cores=2)
+    assert line and "stale poses" in line and "\n" not in line
+    large = pace_warning(100, 0.025, 1.0, cores=2)  # large-swarm's 100 processes, measured late at 0.5
+    scale = float(re.search(r"--time-scale ([0-9.]+)", large).group(1))
+    assert scale <= 0.25 and pace_warning(100, 0.025, scale, cores=2) is None
+    assert pace_warning(100, 0.025, 1.0, cores=16) is None
+    assert "fewer agents" in pace_warning(100_000, 0.05, 1.0, cores=2)

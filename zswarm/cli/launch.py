@@ -15,6 +15,8 @@ every child is reaped.
 from __future__ import annotations
 
 import argparse
+import math
+import os
 import sys
 import time
 from dataclasses import dataclass
@@ -145,6 +147,11 @@ def plan_from_args(args: argparse.Namespace) -> Plan:
     if "agents" in args.role:
         check_capacity(len(args.ids) if args.ids is not None else n, args.fork)
     spec.scenario.check_placement()  # every agent would fail to place itself, one by one
+    if "agents" in args.role and spec.clock == "free":
+        line = pace_warning(len(args.ids) if args.ids is not None else n, spec.scenario.dt, spec.time_scale,
+                            available_cores())
+        if line:
+            print(f"warning: {line}", file=sys.stderr, flush=True)
     design = None
     if "world" in args.role or args.require_design:
         design = judge_design(spec, args.require_design)
@@ -211,6 +218,34 @@ def check_capacity(n_local: int, fork: bool) -> None:
         raise UsageError(f"{n_local} agent processes need about {need / 1024:,.0f} GiB of memory ({AGENT_MIB[fork]} MiB "
                          f"each{', forked' if fork else ''}) and this machine has {have / 1024:.1f} GiB available; "
                          f"run fewer agents, or spread them over machines (--role agents --ids A-B on each)")
+
+
+#: CPU an agent's control step takes (ms): 0.5-0.8 measured on bench-field (docs/benchmarks.md), more in a dense swarm.
+AGENT_TICK_MS = 1.0
+#: The share of the machine the agents may use in real time; the router, the world and the OS need the rest.
+AGENT_SHARE = 0.5
+
+
+def available_cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
+def pace_warning(n_local: int, dt: float, time_scale: float, cores: int) -> str | None:
+    """A free-clock run whose agents need more CPU than the machine has falls behind: poses arrive late,
+    agents act on stale neighbours and collide, whatever the design says. The warning names a time scale
+    that fits (measured: large-swarm, 100 agents at dt = 0.025 on 2 cores: 0.25 on time, 0.5 not)."""
+    need = n_local * (time_scale / dt) * AGENT_TICK_MS / 1000.0  # cores, for the control steps alone
+    budget = AGENT_SHARE * cores
+    if need <= budget:
+        return None
+    fits = math.floor(20.0 * time_scale * budget / need) / 20.0
+    advice = f"--time-scale {fits:g}" if fits >= 0.05 else "fewer agents on this machine (--ids)"
+    return (f"{n_local} agents stepping {time_scale / dt:g} times a second need about {need:.2g} cores "
+            f"({AGENT_TICK_MS:g} ms a step) and this machine has {cores}: the run may fall behind and act on "
+            f"stale poses; use {advice}")
 
 
 def design_command(spec: RunSpec) -> str:

@@ -39,7 +39,7 @@ with the interaction in use (:mod:`zswarm.model.cluster`), up to :data:`SQUEEZE_
 only a gated law is judged from that many (its load does not grow with N). An ungated law is judged up
 to :data:`UNGATED_MAX` agents only: above it the squeeze against one obstacle is not enough, measured
 (docs/scaling.md, docs/design.md): ``mean`` and ``mean+cutoff`` at N = 300 collide in every run of
-``large-swarm`` while their squeeze keeps 0.2 apart, and the study's one false-safe set was ungated at
+``large-swarm`` while their squeeze keeps 0.165 and 0.228 apart, and the study's one false-safe set was ungated at
 N = 300. The chains that carry the goal's pull form in the passages a swarm crosses, a shape the
 single-obstacle squeeze does not have; so an ungated law fails the check above that N.
 
