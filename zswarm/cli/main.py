@@ -9,12 +9,20 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from types import ModuleType
 from typing import Sequence
 
 from zswarm.args import Parser, positive_float, positive_int, run_main, seed_arg
 
 DELEGATED = {"run": "start a swarm: router, world and N agent processes (zswarm run --help)",
              "sweep": "sweep latency x dropout, distributed and simulated (zswarm sweep --help)"}
+
+
+def module_command(sub: argparse._SubParsersAction, name: str, text: str, module: ModuleType) -> None:
+    """A subcommand whose module has ``DESCRIPTION``, ``add_arguments(parser)`` and ``run(args)``."""
+    p = sub.add_parser(name, help=text, description=module.DESCRIPTION)
+    module.add_arguments(p)
+    p.set_defaults(run=module.run)
 
 
 def build_parser() -> Parser:
@@ -33,15 +41,8 @@ def build_parser() -> Parser:
     sim.add_sim_arguments(s)
     s.set_defaults(run=sim.run_sim)
 
-    t = sub.add_parser("tune", help="search the parameters that pass the guidelines and perform best",
-                       description=tune.DESCRIPTION)
-    tune.add_arguments(t)
-    t.set_defaults(run=tune.run)
-
-    mon = sub.add_parser("monitor", help="watch a running swarm live from any machine on its router",
-                         description=monitor.DESCRIPTION)
-    monitor.add_arguments(mon)
-    mon.set_defaults(run=monitor.run)
+    module_command(sub, "tune", "search the parameters that pass the guidelines and perform best", tune)
+    module_command(sub, "monitor", "watch a running swarm live from any machine on its router", monitor)
 
     scen = sub.add_parser("scenarios", help="list the registered scenarios")
     scen.add_argument("--json", action="store_true")
@@ -81,14 +82,10 @@ def build_parser() -> Parser:
     so.add_argument("--seed", type=seed_arg, default=0)
     so.add_argument("--json", action="store_true")
     so.set_defaults(run=soak.main_soak)
-    bg = bench_sub.add_parser("guidelines", help="do the design checks predict the swarm? (false-safe sets)",
-                              description=bench_guidelines.DESCRIPTION)
-    bench_guidelines.add_arguments(bg)
-    bg.set_defaults(run=bench_guidelines.run)
-    bi = bench_sub.add_parser("interactions", help="each interaction on the same scenario, sizes and seeds",
-                              description=bench_interactions.DESCRIPTION)
-    bench_interactions.add_arguments(bi)
-    bi.set_defaults(run=bench_interactions.run)
+    module_command(bench_sub, "guidelines", "do the design checks predict the swarm? (false-safe sets)",
+                   bench_guidelines)
+    module_command(bench_sub, "interactions", "each interaction on the same scenario, sizes and seeds",
+                   bench_interactions)
 
     replay.add_arguments(sub)
 
