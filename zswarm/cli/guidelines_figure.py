@@ -40,7 +40,8 @@ def save_figure(table: list[dict[str, Any]], sets: list[dict[str, Any]], path: P
     left.set_title(f"verdict against outcome: false-safe {total['false_safe']} of {total['passed']} passed sets, "
                    f"{total['conservative']} of {total['sets'] - total['passed']} failed sets never collided",
                    fontsize=9)
-    left.legend(fontsize=8)
+    left.set_ylim(0, 1.4 * float(bottom.max()))  # room above the bars for the legend
+    left.legend(fontsize=8, loc="upper center", ncols=2)
     rng = np.random.default_rng(0)
     for ok, color, label in ((False, "gray", "failed zswarm design"), (True, "tab:green", "passed zswarm design")):
         chosen = [s for s in sets if s["design_ok"] is ok]
