@@ -51,3 +51,8 @@ def test_bench_interactions_runs_each_interaction_on_the_same_seeds(cli):
     assert set(rows) == {"paper", "scalable"} and all(r["runs"] == 2 for r in rows.values())
     alone = run_outcome(get_scenario("moving-prey", {"interaction": "paper"}), 1)
     assert rows["paper"]["collisions"] >= alone.collisions
+    assert rows["paper"]["reached"] == 2  # it catches the prey at 26.7 s of its 60 s
+    short = cli("-m", "zswarm", "bench", "interactions", "--scenario", "moving-prey", "--agents", "10",
+                "--interactions", "paper", "--seeds", "1", "--duration-factor", "0.25", "--json", timeout=300)
+    row = json.loads(short.stdout)["rows"][0]
+    assert row["reached"] == 0 and row["final_distance"]["max"] > get_scenario("moving-prey").capture_radius

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from zswarm.args import positive_int
+from zswarm.args import positive_float, positive_int
 
 DESCRIPTION = __doc__.split("\n\n")[1]
 DEFAULT = ("paper", "mean", "cutoff", "gate", "nearest", "mean+cutoff", "mean+gate", "mean+gate+cutoff")
@@ -31,16 +31,22 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seeds", type=positive_int, default=5, help="runs per interaction and N (default 5)")
     p.add_argument("--set", dest="assignments", action="append", default=[], metavar="NAME=VALUE",
                    help="override a parameter of every run (repeatable), e.g. --set gate=0.7")
+    p.add_argument("--duration-factor", type=positive_float, default=1.0, metavar="F",
+                   help="run each for F times the scenario's own duration (default 1): how long a slow swarm "
+                        "needs, without changing the scenario")
     p.add_argument("--workers", type=positive_int, default=os.cpu_count() or 1, help="processes (default: cores)")
     p.add_argument("--json", action="store_true")
 
 
-def _run(task: tuple[str, int, str, int, dict[str, Any]]) -> dict[str, Any]:
+def _run(task: tuple[str, int, str, int, dict[str, Any], float]) -> dict[str, Any]:
+    import dataclasses
+
     from zswarm.model.scenarios import get_scenario
     from zswarm.sim.outcome import run_outcome
 
-    name, n, interaction, seed, extra = task
+    name, n, interaction, seed, extra, factor = task
     scenario = get_scenario(name, {**extra, "n_agents": n, "interaction": interaction})
+    scenario = dataclasses.replace(scenario, duration=factor * scenario.duration)
     return {"n": n, "interaction": interaction, "seed": seed, **run_outcome(scenario, seed).to_dict()}
 
 
@@ -71,14 +77,14 @@ def run(args: argparse.Namespace) -> int:
         for n in args.agents:
             get_scenario(args.scenario, {**extra, "n_agents": n, "interaction": interaction})  # bad input fails here
     start = time.time()
-    tasks = [(args.scenario, n, i, s, extra) for n in sorted(args.agents, reverse=True) for i in args.interactions
+    tasks = [(args.scenario, n, i, s, extra, args.duration_factor) for n in sorted(args.agents, reverse=True) for i in args.interactions
              for s in range(args.seeds)]
     with get_context("fork").Pool(args.workers) as pool:
         runs = list(pool.imap_unordered(_run, tasks, chunksize=1))
     rows = [{"scenario": args.scenario, "n": n, "interaction": i,
              **summarize([r for r in runs if r["n"] == n and r["interaction"] == i])}
             for n in args.agents for i in args.interactions]
-    out = {"rows": rows, "seeds": args.seeds, "set": extra, "machine": machine(), "seconds": time.time() - start}
+    out = {"rows": rows, "seeds": args.seeds, "set": extra, "duration_factor": args.duration_factor, "machine": machine(), "seconds": time.time() - start}
     if args.json:
         print(json.dumps(out))
         return 0
@@ -90,5 +96,6 @@ def run(args: argparse.Namespace) -> int:
               f"{r['min_pair_distance']:>8.3g} {r['one_group']:>5}/{r['runs']:<3} {r['reached']:>3}/{r['runs']:<3} "
               f"{cap:>8} {r['median_spacing']:>8.3f}")
     print(f"{args.scenario}, seeds 0-{args.seeds - 1}" + "".join(f", {k}={v}" for k, v in extra.items())
+          + (f", {args.duration_factor:g} x its duration" if args.duration_factor != 1.0 else "")
           + f"; machine: {out['machine']}; {out['seconds']:.0f} s")
     return 0
