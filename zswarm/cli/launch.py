@@ -147,11 +147,6 @@ def plan_from_args(args: argparse.Namespace) -> Plan:
     if "agents" in args.role:
         check_capacity(len(args.ids) if args.ids is not None else n, args.fork)
     spec.scenario.check_placement()  # every agent would fail to place itself, one by one
-    if "agents" in args.role and spec.clock == "free":
-        line = pace_warning(len(args.ids) if args.ids is not None else n, spec.scenario.dt, spec.time_scale,
-                            available_cores())
-        if line:
-            print(f"warning: {line}", file=sys.stderr, flush=True)
     design = None
     if "world" in args.role or args.require_design:
         design = judge_design(spec, args.require_design)
@@ -189,6 +184,10 @@ def plan_from_args(args: argparse.Namespace) -> Plan:
                          "(--spawn and --serve live in the world process)")
     if args.secure is not None:
         _check_secure_dir(args.secure, ids if "agents" in args.role else ())
+    if "agents" in args.role and spec.clock == "free":  # last: a usage error above comes alone
+        line = pace_warning(len(ids), spec.scenario.dt, spec.time_scale, available_cores())
+        if line:
+            print(f"warning: {line}", file=sys.stderr, flush=True)
     return Plan(spec=spec, roles=tuple(args.role), routers=args.routers, ids=ids, record=args.record,
                 summary=args.summary or args.record.with_suffix(".json"), trajectory=args.trajectory,
                 connect=args.connect, listen=args.listen, secure=args.secure, config=args.config,
