@@ -77,14 +77,15 @@ def run(args: argparse.Namespace) -> int:
         for n in args.agents:
             get_scenario(args.scenario, {**extra, "n_agents": n, "interaction": interaction})  # bad input fails here
     start = time.time()
-    tasks = [(args.scenario, n, i, s, extra, args.duration_factor) for n in sorted(args.agents, reverse=True) for i in args.interactions
-             for s in range(args.seeds)]
+    tasks = [(args.scenario, n, i, s, extra, args.duration_factor) for n in sorted(args.agents, reverse=True)
+             for i in args.interactions for s in range(args.seeds)]
     with get_context("fork").Pool(args.workers) as pool:
         runs = list(pool.imap_unordered(_run, tasks, chunksize=1))
     rows = [{"scenario": args.scenario, "n": n, "interaction": i,
              **summarize([r for r in runs if r["n"] == n and r["interaction"] == i])}
             for n in args.agents for i in args.interactions]
-    out = {"rows": rows, "seeds": args.seeds, "set": extra, "duration_factor": args.duration_factor, "machine": machine(), "seconds": time.time() - start}
+    out = {"rows": rows, "seeds": args.seeds, "set": extra, "duration_factor": args.duration_factor,
+           "machine": machine(), "seconds": time.time() - start}
     if args.json:
         print(json.dumps(out))
         return 0

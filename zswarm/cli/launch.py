@@ -195,7 +195,7 @@ def plan_from_args(args: argparse.Namespace) -> Plan:
                 world_outage=args.world_outage, world_crash=args.world_crash, viewer=viewer, design=design)
 
 
-#: Memory an agent process holds (PSS, measured in docs/benchmarks.md: 10-12 MB forked, 22-25 MB not), with margin.
+#: Memory an agent process holds, with margin (PSS in docs/benchmarks.md: 10-12 MB forked, 22-25 MB not).
 AGENT_MIB = {True: 16, False: 32}
 
 
@@ -214,12 +214,12 @@ def check_capacity(n_local: int, fork: bool) -> None:
     """Refuse, before anything starts, a number of agent processes this machine cannot hold."""
     need, have = n_local * AGENT_MIB[fork], available_mib()
     if have is not None and need > have:
-        raise UsageError(f"{n_local} agent processes need about {need / 1024:,.0f} GiB of memory ({AGENT_MIB[fork]} MiB "
-                         f"each{', forked' if fork else ''}) and this machine has {have / 1024:.1f} GiB available; "
-                         f"run fewer agents, or spread them over machines (--role agents --ids A-B on each)")
+        raise UsageError(f"{n_local} agent processes need about {need / 1024:,.0f} GiB of memory "
+                         f"({AGENT_MIB[fork]} MiB each{', forked' if fork else ''}) and this machine has "
+                         f"{have / 1024:.1f} GiB available; run fewer agents, or spread them over machines (--role agents --ids A-B on each)")
 
 
-#: CPU an agent's control step takes (ms): 0.5-0.8 measured on bench-field (docs/benchmarks.md), more in a dense swarm.
+#: CPU an agent's control step takes (ms): 0.5-0.8 on bench-field (docs/benchmarks.md), more in a dense swarm.
 AGENT_TICK_MS = 1.0
 #: The share of the machine the agents may use in real time; the router, the world and the OS need the rest.
 AGENT_SHARE = 0.5

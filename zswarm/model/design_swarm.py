@@ -39,9 +39,10 @@ with the interaction in use (:mod:`zswarm.model.cluster`), up to :data:`SQUEEZE_
 only a gated law is judged from that many (its load does not grow with N). An ungated law is judged up
 to :data:`UNGATED_MAX` agents only: above it the squeeze against one obstacle is not enough, measured
 (docs/scaling.md, docs/design.md): ``mean`` and ``mean+cutoff`` at N = 300 collide in every run of
-``large-swarm`` while their squeeze keeps 0.165 and 0.228 apart, and the study's one false-safe set was ungated at
-N = 300. The chains that carry the goal's pull form in the passages a swarm crosses, a shape the
-single-obstacle squeeze does not have; so an ungated law fails the check above that N.
+``large-swarm`` while their squeeze keeps 0.165 and 0.228 apart, and the one false-safe set of an
+earlier run of the guideline study was ungated at N = 300. The chains that carry the goal's pull form
+in the passages a swarm crosses, a shape the single-obstacle squeeze does not have; so an ungated law
+fails the check above that N.
 
 **Time step** (:func:`time_step`): two agents closing at v_max each must not jump through the collision
 distance in one step (2 v_max dt <= 2 d^r), and an agent must not bounce off an obstacle (the push's
