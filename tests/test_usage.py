@@ -100,6 +100,22 @@ CASES = [
     ([LAUNCH, "sweep", "--out", "{dir}/s", "--dropout", "1.5"], "dropout must be in [0, 1)"),
     ([LAUNCH, "sweep", "--out", "{dir}/s", "--duration", "-1"], "--duration must be > 0"),
     ([LAUNCH, "sweep", "--out", "{junk}"], "is a file"),
+    # files that cannot be written, or would be written under the wrong name
+    (["-m", "zswarm", "design", "--save", "/proc/x.rrd"], "cannot create a file in /proc"),
+    (["-m", "zswarm", "design", "--figure", "/proc/x.png"], "cannot create a file in /proc"),
+    ([LAUNCH, "--record", "/proc/x.rrd"], "cannot create a file in /proc"),
+    (["-m", "zswarm", "design", "--figure", "{dir}"], "ending in .png or .svg or .pdf"),
+    ([LAUNCH, "--summary", "{dir}"], "ending in .json"),
+    (["-m", "zswarm", "design", "--save", "{dir}/x.txt"], "ending in .rrd"),
+    ([LAUNCH, "--record", "{dir}/x.txt"], "ending in .rrd"),
+    (["-m", "zswarm", "sim", "--record", "{dir}/x.txt"], "ending in .rrd"),
+    (["-m", "zswarm", "replay", "{dir}"], "is a directory"),
+    # monitor, tune
+    (["-m", "zswarm", "monitor", "--run", "x", "--connect", "foo:bar"], "an endpoint looks like tcp/HOST:PORT"),
+    (["-m", "zswarm", "monitor", "--run", "x", "--wait", "-1"], "--wait must be"),
+    (["-m", "zswarm", "monitor", "--run", "x", "--duration", "-1"], "--duration must be"),
+    (["-m", "zswarm", "tune", "--out", "{dir}/t", "--popsize", "1"], "--popsize must be >= 2"),
+    (["-m", "zswarm", "tune", "--out", ""], "--out needs a directory"),
     # the processes
     (["-m", "zswarm.net.router", "--listen", "tcp/127.0.0.1:{busy}"], "cannot listen"),
     (["-m", "zswarm.net.router", "--config", "{junk}"], "cannot read zenoh config"),
@@ -175,3 +191,30 @@ def test_launch_warns_when_the_machine_cannot_step_the_agents_in_real_time():
     assert scale <= 0.25 and pace_warning(100, 0.025, scale, cores=2) is None
     assert pace_warning(100, 0.025, 1.0, cores=16) is None
     assert "fewer agents" in pace_warning(100_000, 0.05, 1.0, cores=2)
+
+
+BAD_SCENARIOS = {
+    "obstacle at x = nan": ("[[obstacles]]\nx = nan\ny = 0\n", "x and y must be finite"),
+    "obstacle at y = inf": ("[[obstacles]]\nx = 0\ny = inf\nradius = 0.2\n", "x and y must be finite"),
+    "prey at nan": ("prey_start = [nan, 0]\n", "prey_start must hold finite numbers"),
+    "negative radius": ("[[obstacles]]\nx = 1\ny = 0\nradius = -1\n", "radius must be a finite number >= 0"),
+    "obstacle without x": ("[[obstacles]]\ny = 0\n", "missing key 'x'"),
+    "prey centre at nan": ('[prey]\nkind = "circle"\nspeed = 0.1\ncenter = [nan, 0]\n', "prey center must hold"),
+    "three-number prey start": ("prey_start = [1, 2, 3]\n", "prey_start must be [x, y]"),
+}
+
+
+@pytest.mark.parametrize("body,needle", BAD_SCENARIOS.values(), ids=list(BAD_SCENARIOS))
+def test_a_scenario_file_with_impossible_numbers_is_refused_when_read(body, needle, tmp_path):
+    f = tmp_path / "bad.toml"
+    f.write_text(body)
+    for argv in (["-m", "zswarm", "sim", "--scenario", str(f)], [LAUNCH, "--scenario", str(f), "--duration", "1"]):
+        res = run_cli(*argv, timeout=60, cwd=tmp_path)
+        assert res.returncode == 2 and needle in res.stderr, res.stderr
+        assert "Traceback" not in res.stderr and len(res.stderr.strip().splitlines()) == 1, res.stderr
+    assert [p.name for p in tmp_path.iterdir()] == ["bad.toml"]  # no recording, no summary
+
+
+def test_a_refused_tune_leaves_no_out_directory_behind(tmp_path):
+    res = run_cli("-m", "zswarm", "tune", "--out", str(tmp_path / "t"), "--popsize", "1", timeout=60, cwd=tmp_path)
+    assert res.returncode == 2 and not (tmp_path / "t").exists()  # so the corrected command is not blocked

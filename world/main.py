@@ -88,9 +88,9 @@ async def run_world(args: argparse.Namespace, spec: RunSpec, viewer: Viewer | No
 def _main(argv: Sequence[str] | None) -> int:
     args = build_parser().parse_args(argv)
     spec = spec_from_args(args)
-    for path in (args.record, args.summary, args.trajectory):
+    for path, suffixes in ((args.record, (".rrd",)), (args.summary, (".json",)), (args.trajectory, (".npz",))):
         if path is not None:
-            check_writable(path)
+            check_writable(path, suffixes)
     viewer = viewer_from_args(args)  # an unreachable viewer is a usage error before anything starts
     if args.resume and spec.clock == "lockstep":
         raise UsageError("--resume works with the free clock only (a lockstep run cannot re-issue its ticks)")

@@ -10,16 +10,31 @@ from typing import Any
 from zswarm.errors import UsageError
 
 
-def check_writable(path: Path) -> Path:
-    """Fail early, with one line, if ``path`` cannot be written."""
+def check_writable(path: Path, suffixes: tuple[str, ...] | None = None) -> Path:
+    """Fail early, with one line, if ``path`` cannot be written, or does not end in one of ``suffixes``.
+
+    A path that does not exist yet is probed by creating it and removing it again, so a directory that
+    only looks writable (``/proc``, a read-only mount) fails here and not after the work is done.
+    """
     path = Path(path)
     parent = path.parent if str(path.parent) else Path(".")
+    wanted = " or ".join(suffixes) if suffixes else None
     if path.is_dir():
-        raise UsageError(f"cannot write {path}: it is a directory; give a file name ending in .rrd")
+        raise UsageError(f"cannot write {path}: it is a directory; give a file name"
+                         + (f" ending in {wanted}" if wanted else ""))
+    if suffixes and path.suffix.lower() not in suffixes:
+        raise UsageError(f"cannot write {path}: give a file name ending in {wanted}")
     if not parent.is_dir():
         raise UsageError(f"cannot write {path}: directory {parent} does not exist")
-    if not os.access(parent, os.W_OK):
-        raise UsageError(f"cannot write {path}: directory {parent} is not writable")
+    if path.exists():
+        if not os.access(path, os.W_OK):
+            raise UsageError(f"cannot write {path}: the file is not writable")
+        return path
+    try:
+        os.close(os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644))
+        os.unlink(path)
+    except OSError as exc:
+        raise UsageError(f"cannot write {path}: cannot create a file in {parent} ({exc.strerror})") from None
     return path
 
 

@@ -239,7 +239,7 @@ def main_bench(args) -> int:
     from zswarm.provenance import machine, versions
 
     if args.record is not None:
-        check_writable(args.record)
+        check_writable(args.record, (".rrd",))
     results = [measure(n, args.duration, args.floor, args.routers, args.repeat) for n in args.agents]
     if args.record is not None:
         record_curves(results, args.record, {"agents": args.agents, "duration_s": args.duration, "floor": args.floor,

@@ -110,11 +110,9 @@ def run(args: argparse.Namespace) -> int:
     from zswarm.files import check_writable
     from zswarm.record.design_figure import FORMATS
 
-    for path in (args.save, args.figure):
+    for path, suffixes in ((args.save, (".rrd",)), (args.figure, FORMATS)):
         if path is not None:
-            check_writable(path)
-    if args.figure is not None and args.figure.suffix.lower() not in FORMATS:
-        raise UsageError(f"--figure {args.figure}: give a file name ending in {', '.join(FORMATS)}")
+            check_writable(path, suffixes)
     report = check(params, dt=dt)
     out: dict[str, Any] = report.to_json()
     nearest = None

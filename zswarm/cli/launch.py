@@ -151,9 +151,9 @@ def plan_from_args(args: argparse.Namespace) -> Plan:
     if "world" in args.role or args.require_design:
         design = judge_design(spec, args.require_design)
     if "world" in args.role:
-        for path in (args.record, args.summary, args.trajectory):
+        for path, suffixes in ((args.record, (".rrd",)), (args.summary, (".json",)), (args.trajectory, (".npz",))):
             if path is not None:
-                check_writable(path)
+                check_writable(path, suffixes)
     if "router" not in args.role and args.connect is None:
         raise UsageError("without the router role, give --connect tcp/HOST:PORT of the router")
     for flag, endpoint in (("--listen", args.listen), ("--connect", args.connect)):

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import signal
 import sys
 import time
@@ -63,8 +64,9 @@ def run(args: argparse.Namespace) -> int:
     from zswarm.net.watch import RunWatch
 
     check_run_id(args.run_id)
-    if not args.every > 0:
-        raise UsageError(f"--every must be > 0 (got {args.every})")
+    for flag, value in (("--every", args.every), ("--wait", args.wait), ("--duration", args.duration)):
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise UsageError(f"{flag} must be a number of seconds > 0 (got {value:g})")
     session = open_session(config_from_args(args), what="monitor", retry_for=args.connect_timeout)
     watch = RunWatch(Keys(args.run_id, cell_size=1.0))  # the wildcards it subscribes to span every cell
     stop = False

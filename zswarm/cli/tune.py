@@ -130,6 +130,10 @@ def _plan(args: argparse.Namespace):
     from zswarm.tune.objective import Task
     from zswarm.tune.space import Space
 
+    if args.popsize is not None and args.popsize < 2:
+        raise UsageError(f"--popsize must be >= 2: CMA-ES ranks candidates against each other (got {args.popsize})")
+    if not str(args.out).strip() or str(args.out) == ".":
+        raise UsageError("--out needs a directory of its own for the search's files (e.g. --out tune-run)")
     overrides = parse_assignments(args.assignments)
     scenario = get_scenario(args.scenario, overrides)
     if args.duration is not None:

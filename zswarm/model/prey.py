@@ -43,6 +43,11 @@ class PreyMotion:
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"prey {name} must be a finite number >= 0 (got {value!r})")
+        for name, values in (("heading_deg", (self.heading_deg,)), ("center", self.center), ("bounds", self.bounds)):
+            if not all(math.isfinite(v) for v in values):
+                raise ValueError(f"prey {name} must hold finite numbers (got {values if len(values) > 1 else values[0]!r})")
+        if len(self.center) != 2:
+            raise ValueError(f"prey center must be [x, y] (got {self.center!r})")
         if self.kind == "circle" and self.radius <= 0:
             raise ValueError("prey radius must be > 0 for a circular prey")
         x0, y0, x1, y1 = self.bounds

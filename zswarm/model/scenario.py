@@ -30,6 +30,13 @@ class Obstacle:
     y: float
     radius: float = 0.0
 
+    def __post_init__(self) -> None:
+        if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in (self.x, self.y)):
+            raise ValueError(f"an obstacle's x and y must be finite numbers (got x = {self.x!r}, y = {self.y!r})")
+        if not (isinstance(self.radius, (int, float)) and math.isfinite(self.radius) and self.radius >= 0):
+            raise ValueError(f"an obstacle's radius must be a finite number >= 0 (got {self.radius!r} at "
+                             f"({self.x:g}, {self.y:g}))")
+
 
 Box = tuple[float, float, float, float]  # x_min, y_min, x_max, y_max
 
@@ -57,6 +64,13 @@ class Scenario:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"scenario {name} must be a finite number > 0 (got {value!r})")
+        if len(self.prey_start) != 2 or len(self.spawn) != 4 or any(len(p) != 2 for p in self.starts):
+            raise ValueError(f"prey_start must be [x, y], spawn [x_min, y_min, x_max, y_max] and each start [x, y] "
+                             f"(got prey_start {list(self.prey_start)}, spawn {list(self.spawn)})")
+        for name, values in (("prey_start", self.prey_start), ("spawn", self.spawn),
+                             *((f"starts[{k}]", p) for k, p in enumerate(self.starts))):
+            if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in values):
+                raise ValueError(f"scenario {name} must hold finite numbers (got {tuple(values)!r})")
         x0, y0, x1, y1 = self.spawn
         if not (x0 < x1 and y0 < y1):
             raise ValueError(f"spawn must be (x_min, y_min, x_max, y_max) with min < max (got {self.spawn})")

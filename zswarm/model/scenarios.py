@@ -242,5 +242,7 @@ def load_scenario_file(path: Path) -> Scenario:
         return Scenario(**kw)
     except ParamError as exc:
         raise UsageError(f"scenario file {path}: {exc}") from None
-    except (TypeError, ValueError, KeyError) as exc:
+    except KeyError as exc:
+        raise UsageError(f"scenario file {path}: missing key {exc} (every obstacle needs x and y)") from None
+    except (TypeError, ValueError) as exc:
         raise UsageError(f"scenario file {path}: {exc}") from None

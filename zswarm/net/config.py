@@ -61,10 +61,13 @@ def zenoh_config(mode: str | None = "client", connect: Iterable[str] = (), liste
     if mode is not None or config is None:
         conf.insert_json5("mode", json.dumps(mode or "client"))
     connect, listen = list(connect), list(listen)
-    if connect:
-        conf.insert_json5("connect/endpoints", json.dumps(connect))
-    if listen:
-        conf.insert_json5("listen/endpoints", json.dumps(listen))
+    for flag, endpoints in (("connect", connect), ("listen", listen)):
+        if endpoints:
+            try:
+                conf.insert_json5(f"{flag}/endpoints", json.dumps(endpoints))
+            except Exception:  # zenoh reports a malformed endpoint as ZError
+                raise UsageError(f"--{flag} {' '.join(endpoints)}: an endpoint looks like tcp/HOST:PORT "
+                                 f"(or tls/HOST:PORT)") from None
     if config is None or scout:
         conf.insert_json5("scouting/multicast/enabled", json.dumps(bool(scout)))
     # No shared-memory transport: a swarm's messages are under 100 bytes, far below the 3 KB from

@@ -18,7 +18,7 @@ def open_recording(path: Path | None, application_id: str, blueprint: rrb.Bluepr
     """A recording stream that saves to ``path`` (checked first) and/or streams to ``viewer``, with its
     default blueprint."""
     if path is not None:
-        check_writable(path)
+        check_writable(path, (".rrd",))
     rec = rr.RecordingStream(application_id, recording_id=recording_id)
     if viewer is None or not viewer.wanted:
         rec.save(path, default_blueprint=blueprint)

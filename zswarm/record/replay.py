@@ -67,6 +67,8 @@ def load_run(path: Path, require_states: bool = True) -> RunRecord:
     stored, and every step (a later segment wins where two hold the same step). A zswarm recording
     with no step yet (its world died at once) is an error unless ``require_states`` is off."""
     path = Path(path)
+    if path.is_dir():
+        raise UsageError(f"recording {path} is a directory; give a .rrd file")
     if not path.is_file():
         raise UsageError(f"recording {path} does not exist")
     paths = segments(path)
