@@ -218,3 +218,19 @@ def test_a_scenario_file_with_impossible_numbers_is_refused_when_read(body, need
 def test_a_refused_tune_leaves_no_out_directory_behind(tmp_path):
     res = run_cli("-m", "zswarm", "tune", "--out", str(tmp_path / "t"), "--popsize", "1", timeout=60, cwd=tmp_path)
     assert res.returncode == 2 and not (tmp_path / "t").exists()  # so the corrected command is not blocked
+
+
+def test_serve_on_a_taken_port_is_refused_before_anything_starts(tmp_path):
+    from zswarm.record.live import SERVE_PORT
+
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as holder:  # as another run serving live would
+        holder.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            holder.bind(("0.0.0.0", SERVE_PORT))
+        except OSError:
+            pytest.skip(f"port {SERVE_PORT} is already taken on this machine")
+        holder.listen()
+        for argv in ([LAUNCH, "--serve", "--duration", "1"], ["-m", "zswarm", "sim", "--serve", "--duration", "1"]):
+            res = run_cli(*argv, timeout=60, cwd=tmp_path)
+            assert res.returncode == 2 and f"port {SERVE_PORT} is in use" in res.stderr, res.stderr
+            assert len(res.stderr.strip().splitlines()) == 1 and not any(tmp_path.iterdir())

@@ -76,7 +76,21 @@ def viewer_from_args(args: argparse.Namespace) -> Viewer:
     viewer = Viewer(spawn=args.spawn, connect=args.viewer_connect, serve=args.serve)
     if viewer.connect is not None:
         check_reachable(viewer.connect)
+    if viewer.serve:
+        for port in (SERVE_PORT, WEB_PORT):
+            check_port_free(port)
     return viewer
+
+
+def check_port_free(port: int) -> None:
+    """``--serve`` listens on fixed ports: one line, before anything starts, if something holds one."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            s.bind(("0.0.0.0", port))
+        except OSError:
+            raise UsageError(f"--serve: port {port} is in use (another run serving live?); stop it, or stream "
+                             "this run with --spawn or --connect URL") from None
 
 
 def sinks(path: Path | None, viewer: Viewer | None) -> list:
