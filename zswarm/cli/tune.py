@@ -178,11 +178,15 @@ def _clock(seconds: float) -> str:
     return f"{seconds // 60}m{seconds % 60:02d}s"
 
 
-def write_best_toml(path: Path, params: Params, plan: Plan, objective: float, command: str) -> None:
+def write_best_toml(path: Path, params: Params, plan: Plan, objective: float, command: str,
+                    kept_start: bool = False) -> None:
     flat = params.flat()
     keep = [n for n in TUNABLE] + [n for n in plan.overrides if FIELDS[n].group != "potential"]
     swarm = " ".join(f"--set {n}={flat[n]:g}" for n in ("n_agents", "sensing_radius", "v_max", "robot_radius"))
-    lines = [f"# zswarm tune: the best set found for {plan.scenario_name} (validation objective {objective:.4g} s)",
+    what = (f"the START set for {plan.scenario_name}: the best set found (validation objective {objective:.4g} s) did "
+            "not beat it on the held-out seeds (comparison.json)" if kept_start else
+            f"the best set found for {plan.scenario_name} (validation objective {objective:.4g} s)")
+    lines = [f"# zswarm tune: {what}",
              f"# command: {command}", "# use it with --params FILE (zswarm run, sim, design, launch.py);",
              f"# its design report (design.txt) is: zswarm design --params FILE {swarm}", "",
              "[params]"]
@@ -248,14 +252,17 @@ def run(args: argparse.Namespace) -> int:
     validation = validate(task, space, chosen, plan.validation)
     best = validation[0]
     best_params = space.params(best["x"])
-    report = check(best_params)  # the full report, waived checks included, for the reader
-    write_best_toml(plan.out / "best.toml", best_params, plan, best["validation_objective"], command)
-    write_json(plan.out / "design.json", report.to_json())
-    (plan.out / "design.txt").write_text(render(report) + "\n")
     save_figure(plan.out / "tune.png", result.records, space.values(space.start), start_objective,
                 qualified_below, title, chosen=(best["gen"], best["slot"]))
     sets = {"tuned": best_params, "start": start_params}
     comparison = {"as_tuned": held_out(task, sets, plan.holdout)}
+    tuned_wins = _beats(comparison["as_tuned"]["tuned"], comparison["as_tuned"]["start"])
+    recommended = best_params if tuned_wins else start_params
+    report = check(recommended)  # the full report, waived checks included, for the reader
+    write_best_toml(plan.out / "best.toml", recommended, plan, best["validation_objective"], command,
+                    kept_start=not tuned_wins)
+    write_json(plan.out / "design.json", report.to_json())
+    (plan.out / "design.txt").write_text(render(report) + "\n")
     if faults.active:
         comparison["fault_free"] = held_out(dataclasses.replace(task, faults=dataclasses.replace(faults, latency=0.0,
                                             jitter=0.0, dropout=0.0, distance_loss=0.0)), sets, plan.holdout)
@@ -263,7 +270,8 @@ def run(args: argparse.Namespace) -> int:
     out.update(best={"values": best["values"], "objective": best["search_objective"],
                      "validation_objective": best["validation_objective"], "generation": best["gen"],
                      "slot": best["slot"], "design_failures": list(report.failures())},
-               finalists=[{k: v for k, v in row.items() if k != "x"} for row in validation], comparison=comparison)
+               finalists=[{k: v for k, v in row.items() if k != "x"} for row in validation], comparison=comparison,
+               recommended="tuned" if tuned_wins else "start")
     if args.confirm:
         try:
             out["confirm"] = confirm(plan, args, sets, faults, quiet=args.json)
@@ -279,7 +287,20 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(out, default=str))
     else:
         _print_result(out, plan, faults)
+    if not tuned_wins:
+        t, st = comparison["as_tuned"]["tuned"], comparison["as_tuned"]["start"]
+        print(f"zswarm tune: the chosen set does not beat the start on the held-out seeds (objective "
+              f"{t['objective']:.2f} s, caught {t['captured']}/{t['runs']}, against {st['objective']:.2f} s, "
+              f"{st['captured']}/{st['runs']}): {plan.out}/best.toml keeps the start; a larger --budget or more "
+              f"--seeds may find better", file=sys.stderr)
+        return 1
     return 0
+
+
+def _beats(tuned: dict[str, Any], start: dict[str, Any]) -> bool:
+    """Whether the tuned set is better than the start on the held-out seeds (lower objective: mean
+    capture time with misses and disqualifications penalised)."""
+    return tuned["objective"] is not None and (start["objective"] is None or tuned["objective"] < start["objective"])
 
 
 def _report_md(out: dict[str, Any]) -> str:
