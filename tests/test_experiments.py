@@ -85,3 +85,24 @@ def test_interrupted_distributed_sweep_resumes(tmp_path):
     assert (out / "cells" / "lat0ms_drop0.3_rep0" / "run.json").exists()
     rows = [line for line in (out / "results.md").read_text().splitlines() if line.startswith("| distributed")]
     assert len(rows) == 2
+
+
+def test_the_sweep_figure_says_when_nothing_was_caught_and_frames_a_single_latency(tmp_path):
+    import re
+    import warnings
+
+    from zswarm.cli.sweep_figure import save_figure
+
+    cell = {"dropout": 0.0, "latency_ms": 0.0, "capture_time_mean": None, "capture_rate": 0.0}
+    rows = [{**cell, "source": "distributed", "min_obstacle_clearance": 0.30},
+            {**cell, "source": "simulated", "min_obstacle_clearance": 0.30}]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no "no artists with labels" legend warning
+        save_figure(rows, tmp_path / "one.svg", "static-goal", d_m_ro=0.2)
+    text = (tmp_path / "one.svg").read_text()
+    assert "no run caught the prey" in text
+    texts = re.findall(r">([^<]*)</text>", text)
+    starts = [0] + [k + 1 for k, t in enumerate(texts) if t.startswith("capture time (labels")]
+    for first in starts:  # each panel's x tick labels come just before its x label
+        label = texts.index("injected latency (ms)", first)
+        assert texts[first:label] == ["0"], texts[first:label]  # the one latency, not -0.04..0.04 ms

@@ -234,3 +234,12 @@ def test_serve_on_a_taken_port_is_refused_before_anything_starts(tmp_path):
             res = run_cli(*argv, timeout=60, cwd=tmp_path)
             assert res.returncode == 2 and f"port {SERVE_PORT} is in use" in res.stderr, res.stderr
             assert len(res.stderr.strip().splitlines()) == 1 and not any(tmp_path.iterdir())
+
+
+def test_sweep_help_shows_every_default():
+    res = run_cli("-m", "zswarm", "sweep", "--help", timeout=60)
+    assert res.returncode == 0
+    text = " ".join(res.stdout.split())
+    for default in ("(default static- goal)", "(default 0,50,100,200ms)", "(default 0,0.2,0.5)", "(default 3)",
+                    "(default: the scenario's)"):
+        assert default.replace("- ", "-") in text.replace("- ", "-"), default

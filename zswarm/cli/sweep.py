@@ -46,15 +46,19 @@ class Cell:
 
 def build_parser(prog: str = "zswarm sweep") -> Parser:
     p = Parser(prog=prog, description="Sweep latency x dropout, distributed and simulated.")
-    p.add_argument("--scenario", default="static-goal")
-    p.add_argument("--latency", default="0,50,100,200ms", help="list, e.g. 0,50,100,200ms")
-    p.add_argument("--dropout", default="0,0.2,0.5", help="list of loss probabilities")
-    p.add_argument("--jitter", default="0", help="jitter of every cell, e.g. 10ms")
-    p.add_argument("--burst", type=float, default=0.0, help="mean loss-burst length of every cell")
-    p.add_argument("--repeats", type=int, default=3)
-    p.add_argument("--seed", type=seed_arg, default=0, help="repeat r uses seed + r")
-    p.add_argument("--agents", type=int, default=None)
-    p.add_argument("--duration", type=float, default=None, help="simulated seconds (default: scenario's)")
+    p.add_argument("--scenario", default="static-goal", help="a registered scenario or a .toml file "
+                   "(default static-goal)")
+    p.add_argument("--latency", default="0,50,100,200ms",
+                   help="one-way latencies, a comma-separated list (default 0,50,100,200ms)")
+    p.add_argument("--dropout", default="0,0.2,0.5",
+                   help="loss probabilities, a comma-separated list (default 0,0.2,0.5)")
+    p.add_argument("--jitter", default="0", help="jitter of every cell, e.g. 10ms (default 0)")
+    p.add_argument("--burst", type=float, default=0.0,
+                   help="mean loss-burst length of every cell (default 0: independent)")
+    p.add_argument("--repeats", type=int, default=3, help="runs per cell, seeds seed..seed+repeats-1 (default 3)")
+    p.add_argument("--seed", type=seed_arg, default=0, help="repeat r uses seed + r (default 0)")
+    p.add_argument("--agents", type=int, default=None, help="N (default: the scenario's)")
+    p.add_argument("--duration", type=float, default=None, help="simulated seconds (default: the scenario's)")
     p.add_argument("--out", type=Path, required=True, help="output directory (reused to resume)")
     p.add_argument("--sim-only", action="store_true", help="only the reference simulator (fast)")
     return p
