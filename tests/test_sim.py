@@ -7,6 +7,7 @@ import pytest
 
 from zswarm.args import UsageError
 from zswarm.model.potentials import sense_one
+from zswarm.model.prey import step
 from zswarm.model.scenarios import SCENARIOS, get_scenario, load_scenario_file
 from zswarm.sim.simulator import Simulator, simulate
 
@@ -187,3 +188,19 @@ def test_spawning_a_large_swarm_takes_memory_in_proportion_to_n():
         tracemalloc.stop()
     assert positions.shape == (20000, 2)
     assert peak < 50e6, f"{peak / 1e6:.0f} MB"  # the N x obstacles way took over 700 MB here
+
+
+def test_the_arena_frames_every_agent_obstacle_and_the_prey_all_run_long():
+    for name in SCENARIOS:
+        scenario = get_scenario(name)
+        x0, y0, x1, y1 = scenario.arena(margin=0.0)
+        sim = Simulator(scenario, 0)
+        inside = lambda p: x0 - 1e-9 <= p[0] <= x1 + 1e-9 and y0 - 1e-9 <= p[1] <= y1 + 1e-9  # noqa: E731
+        assert all(inside(p) for p in sim.positions), name
+        assert all(inside((o.x + dx * o.radius, o.y + dy * o.radius)) for o in scenario.obstacles
+                   for dx, dy in ((-1, 0), (1, 0), (0, -1), (0, 1))), name
+        prey_framed = name != "bench-field"  # its prey is out of reach on purpose, and out of the frame
+        prey = sim.prey
+        for _ in range(scenario.steps):  # wherever its motion takes it during the run (agents held at spawn)
+            assert inside(prey) == prey_framed, (name, prey)
+            prey = step(scenario.prey, prey, scenario.dt, sim.positions)

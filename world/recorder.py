@@ -90,7 +90,8 @@ class WorldRecorder:
         return self.rec is not None
 
     def open(self, run: str, config: dict[str, Any], centers: np.ndarray, radii: np.ndarray,
-             thresholds: dict[str, float] | None = None, sensing_radius: float | None = None) -> None:
+             thresholds: dict[str, float] | None = None, sensing_radius: float | None = None,
+             arena: tuple[float, float, float, float] | None = None) -> None:
         """Open this world's segment and write what never changes; flushed at once, so that a
         successor finds the run's identity even if this world dies at its first step."""
         if self.record_path is None and not (self.viewer is not None and self.viewer.wanted):
@@ -100,8 +101,8 @@ class WorldRecorder:
         from zswarm.record.replay import segment_path
 
         path = None if self.record_path is None else segment_path(self.record_path, self.segment)
-        self.rec = open_recording(path, "zswarm-world", swarm_log.blueprint(network=True), recording_id=run,
-                                  viewer=self.viewer)
+        self.rec = open_recording(path, "zswarm-world", swarm_log.blueprint(network=True, arena=arena),
+                                  recording_id=run, viewer=self.viewer)
         self.thresholds = thresholds or {}
         self.graph_radius = sensing_radius if self.sensing_graph and sensing_radius else None
         swarm_log.log_config(self.rec, config)

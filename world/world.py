@@ -119,7 +119,8 @@ class World:
             if self.resumed.prey is not None:
                 self.prey = self.resumed.prey
         self.recorder.open(self.spec.run, self.config(), self.obstacles.centers, self.obstacles.radii,
-                           self.observer.thresholds(), self.scenario.params.swarm.sensing_radius)
+                           self.observer.thresholds(), self.scenario.params.swarm.sensing_radius,
+                           arena=self.scenario.arena())
         if self.resumed is not None:
             self._event(f"world restarted: segment {self.resumed.segment} continues after step "
                         f"{self.resumed.step} (t = {self.resumed.t:.2f} s)")

@@ -99,6 +99,34 @@ class Scenario:
         return spawn_positions(rng, self.n_agents, self.spawn, 4.0 * self.params.swarm.robot_radius,
                                centers, radii)
 
+    def arena(self, margin: float = 1.0) -> Box:
+        """The region a run plays out in: the spawn box (or starts), every obstacle, the prey's start and
+        where its motion can take it (its circle, its straight path over the run, the evasive prey's
+        bounds), widened by ``margin``. What a map view should frame. A prey farther from the rest than
+        twice the rest's size (``bench-field``'s, out of reach on purpose) is left out of the frame."""
+        xs = [self.spawn[0], self.spawn[2]] + [p[0] for p in self.starts]
+        ys = [self.spawn[1], self.spawn[3]] + [p[1] for p in self.starts]
+        for o in self.obstacles:
+            xs += [o.x - o.radius, o.x + o.radius]
+            ys += [o.y - o.radius, o.y + o.radius]
+        px, py = [self.prey_start[0]], [self.prey_start[1]]
+        m = self.prey
+        if m.kind == "circle":
+            px += [m.center[0] - m.radius, m.center[0] + m.radius]
+            py += [m.center[1] - m.radius, m.center[1] + m.radius]
+        elif m.kind == "straight":
+            h, reach = math.radians(m.heading_deg), m.speed * self.duration
+            px.append(self.prey_start[0] + reach * math.cos(h))
+            py.append(self.prey_start[1] + reach * math.sin(h))
+        elif m.kind == "evasive":
+            px += [m.bounds[0], m.bounds[2]]
+            py += [m.bounds[1], m.bounds[3]]
+        size = math.hypot(max(xs) - min(xs), max(ys) - min(ys))
+        gap = math.hypot(max(min(px) - max(xs), min(xs) - max(px), 0.0), max(min(py) - max(ys), min(ys) - max(py), 0.0))
+        if gap <= 2.0 * size:
+            xs, ys = xs + px, ys + py
+        return (min(xs) - margin, min(ys) - margin, max(xs) + margin, max(ys) + margin)
+
     def check_placement(self) -> None:
         """Raise :class:`UsageError` (one line) if the spawn region cannot hold the swarm. Whether it can
         does not depend on the seed (the grid is fixed; the seed only picks cells and jitter), so one

@@ -43,9 +43,11 @@ PLOTS = (("distance to prey", ("mean_goal_distance", "centroid_goal_distance", "
          ("energy (eq 35; the Lyapunov trace of the paper's interaction)", ("energy",)))
 
 
-def blueprint(extra_plots: Iterable[tuple[str, tuple[str, ...]]] = (), network: bool = False) -> rrb.Blueprint:
+def blueprint(extra_plots: Iterable[tuple[str, tuple[str, ...]]] = (), network: bool = False,
+              arena: tuple[float, float, float, float] | None = None) -> rrb.Blueprint:
     """The map beside the metric plots (each with its threshold lines); ``network``: a third column with
-    the transport figures and the run's events (the world's recordings)."""
+    the transport figures and the run's events (the world's recordings). ``arena`` (x_min, y_min, x_max,
+    y_max): what the map frames when it opens (the scenario's :meth:`~zswarm.model.scenario.Scenario.arena`)."""
     def path(name: str) -> str:
         return f"{THRESHOLDS}/{name}" if name in THRESHOLD_NAMES else f"{METRICS}/{name}"
 
@@ -64,7 +66,8 @@ def blueprint(extra_plots: Iterable[tuple[str, tuple[str, ...]]] = (), network: 
             row_shares=[2, 2, 1]))
     return rrb.Blueprint(
         rrb.Horizontal(
-            rrb.Spatial2DView(origin=MAP, name="swarm"),
+            rrb.Spatial2DView(origin=MAP, name="swarm", visual_bounds=None if arena is None else
+                              rrb.VisualBounds2D(x_range=[arena[0], arena[2]], y_range=[arena[1], arena[3]])),
             *side,
             column_shares=[3, 2, 2] if network else [3, 2],
         ),

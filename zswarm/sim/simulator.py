@@ -114,7 +114,7 @@ def simulate(scenario: Scenario, seed: int, *, combination: Combination | None =
         from zswarm.record import swarm_log
         from zswarm.record.recording import open_recording
 
-        rec = open_recording(record, "zswarm-sim", swarm_log.blueprint(),
+        rec = open_recording(record, "zswarm-sim", swarm_log.blueprint(arena=scenario.arena()),
                              recording_id=f"sim-{scenario.name}-{seed}", viewer=viewer)
         swarm_log.log_config(rec, {**header, "scenario_definition": scenario.to_dict(),
                                    "versions": versions(), "argv": argv or sys.argv})
