@@ -90,11 +90,11 @@ def cell_spec(cell: Cell, args: argparse.Namespace, jitter: float) -> RunSpec:
 def run_cell_distributed(cell: Cell, args: argparse.Namespace, folder: Path, jitter: float) -> None:
     spec = cell_spec(cell, args, jitter)
     cmd = [sys.executable, "-m", "zswarm", "run", *spec.to_argv(), "--record", str(folder / "run.rrd"),
-           "--summary", str(folder / "run.json.part"), "--quiet"]
+           "--summary", str(folder / "run.part.json"), "--quiet"]
     res = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     if res.returncode != 0:
         raise RuntimeError(f"cell {cell.name}: zswarm run exited {res.returncode}: {res.stderr.strip()[-300:]}")
-    os.replace(folder / "run.json.part", folder / "run.json")  # the cell is finished only now
+    os.replace(folder / "run.part.json", folder / "run.json")  # the cell is finished only now
 
 
 def simulate_cell(cell: Cell, args: argparse.Namespace, jitter: float, **kw):

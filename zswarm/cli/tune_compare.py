@@ -69,12 +69,12 @@ def confirm(plan, args: argparse.Namespace, sets: dict[str, Params], faults, qui
                     print(f"confirm: {label} set, seed {seed}, distributed ({spec.scenario.duration:g} s) ...",
                           file=sys.stderr, flush=True)
                 cmd = [sys.executable, "-m", "zswarm", "run", *spec.to_argv(), "--record", str(folder / f"{name}.rrd"),
-                       "--summary", str(folder / f"{name}.json.part"), "--quiet"]
+                       "--summary", str(folder / f"{name}.part.json"), "--quiet"]
                 res = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
                 if res.returncode != 0:
                     raise RuntimeError(f"confirmation run {name}: zswarm run exited {res.returncode}: "
                                        f"{res.stderr.strip()[-300:]}")
-                os.replace(folder / f"{name}.json.part", summary)
+                os.replace(folder / f"{name}.part.json", summary)
             runs.append(json.loads(summary.read_text()))
         reasons = [disqualified(r["collisions"], r["obstacle_collisions"], r["min_obstacle_clearance"], params)
                    for r in runs]
