@@ -131,19 +131,30 @@ def test_killing_one_agent_leaves_the_others_running_and_is_recorded(tmp_path):
                                                      "--set", "n_agents=5", "--duration", "8")
         agents = [start_agent(kids, endpoint, "kill", "moving-prey", i, "--set", "n_agents=5")
                   for i in range(5)]
+        monitor = kids.spawn("monitor", ["-m", "zswarm", "monitor", "--run", "kill", "--connect", endpoint, "--json",
+                                         "--every", "0.25", "--duration", "30"], stdout=subprocess.PIPE)
         with Watch(endpoint, "kill") as watch:
             watch.reach_step(20)  # 1 s into the run
             agents[2].proc.send_signal(signal.SIGKILL)
             watch.until(lambda: 2 not in watch.alive, 10, "agent 2's departure")
             watch.reach_step(watch.step + 20)  # the run goes on for another second without it
             assert all(a.alive() for k, a in enumerate(agents) if k != 2)
+            agents[3].proc.send_signal(signal.SIGTERM)  # agent 3 is stopped cleanly: it leaves
+            watch.until(lambda: 3 not in watch.alive, 10, "agent 3's departure")
+            watch.reach_step(watch.step + 40)  # 2 s on: past the grace the monitor gives a final report
         assert wait_exit(world, 60) == 0
         assert all(wait_exit(a, 10) == 0 for k, a in enumerate(agents) if k != 2)
+        monitor.proc.send_signal(signal.SIGINT)
+        snapshots = [json.loads(line) for line in monitor.proc.communicate(timeout=30)[0].splitlines()]
+    gone = [snap["gone"] for snap in snapshots]
+    assert {"2": "crashed", "3": "left"} in gone, gone  # the monitor names who is gone, and how
+    assert set(gone[-1].values()) <= {"crashed", "left", "run ended"} and gone[-1]["2"] == "crashed"
     s = load_summary(summary_path)
-    assert [d["id"] for d in s["departures"] if d["t"] < 7.9] == [2]
+    assert {d["id"]: d["how"] for d in s["departures"]} == {2: "crashed", 3: "left"}
+    assert s["stopped_at_end"] == [0, 1, 4]  # the others stopped with the run: no departure
     assert s["agents_reporting"] == 5 and s["final_components"] >= 1
     run = load_run(record)
-    assert 2 in run.frames[1].ids and 2 not in run.frames[-1].ids and len(run.frames[-1].ids) == 4
+    assert 2 in run.frames[1].ids and run.frames[-1].ids.tolist() == [0, 1, 4]
 
 
 def test_launch_runs_a_swarm_and_leaves_nothing_behind(tmp_path):

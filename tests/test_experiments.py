@@ -35,7 +35,9 @@ def test_kill_restart_and_world_outage(tmp_path):
     assert max(gaps) > 1.0
     # and the recording's event log says what happened, on the timeline
     events = " | ".join(_events(tmp_path / "k.rrd"))
-    assert f"agent {victim} departed" in events and f"agent {victim} returned" in events, events
+    assert f"agent {victim} crashed" in events and f"agent {victim} returned" in events, events
+    assert early[0]["how"] == "crashed" and "run ended: 5 agents stopped with it" in events, events
+    assert "departed" not in events and "left" not in events  # the end of the run is no departure
     assert "world clock stalled" in events, events
 
 

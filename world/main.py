@@ -75,6 +75,7 @@ async def run_world(args: argparse.Namespace, spec: RunSpec, viewer: Viewer | No
         else:
             await world.run_free(spec.steps, args.progress)
         expected = set(world.census.alive)
+        world.ending = True
         world.publish(keys.tick, msg.Tick(world.clock.step + 1, time.time(), *map(float, world.prey), final=True))
         deadline = loop.time() + 3.0  # let the agents' final stats arrive
         while loop.time() < deadline and not all(world.stats.final(i) for i in expected):

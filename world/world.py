@@ -34,6 +34,7 @@ from zswarm.net.bridge import Bridge, Inbound
 from zswarm.net.keys import in_reach_counts
 from zswarm.net.poses import PoseTable, Rejections
 from zswarm.net.runspec import RunSpec
+from zswarm.net.watch import CRASH_GRACE_S
 
 STALL = 1.0  # seconds behind its clock at which the world logs a stall event
 
@@ -41,14 +42,18 @@ STALL = 1.0  # seconds behind its clock at which the world logs a stall event
 TICK_QOS = {"congestion_control": zenoh.CongestionControl.BLOCK, "priority": zenoh.Priority.INTERACTIVE_HIGH,
             "express": True}
 
+
 @dataclass
 class Census:
     """Who is alive (holds a liveliness token), and when agents came and went."""
 
     alive: set[int] = field(default_factory=set)
     arrivals: list[dict[str, Any]] = field(default_factory=list)
-    departures: list[dict[str, Any]] = field(default_factory=list)
+    departures: list[dict[str, Any]] = field(default_factory=list)  # each with "how": "crashed" or "left"
+    pending: dict[int, dict[str, Any]] = field(default_factory=dict)  # gone, not yet told apart
+    stopped_at_end: list[int] = field(default_factory=list)  # agents that stopped because the run ended
     all_alive_after: float | None = None  # wall seconds from the world's start
+
 
 
 @dataclass
@@ -95,6 +100,7 @@ class World:
         self.poses = PoseTable(3.0 * self.scenario.params.swarm.v_max * self.scenario.dt, spec.period)
         self.rejected = Rejections("world", self._event)
         self.census = Census()
+        self.ending = False  # set when the world announces the final tick: agents going now are not departures
         self.clock = Clock()
         self.stats = StatsBook(self.keys.agent_of, self.rejected)
         self.prey = np.array(self.scenario.prey_start, dtype=float)
@@ -166,9 +172,14 @@ class World:
         if deleted:
             c.alive.discard(who)
             self.poses.forget(who)
-            c.departures.append(event)
-            self._event(f"agent {who} departed")
+            if self.ending:  # the run is over and the agents stop: not a departure
+                c.stopped_at_end.append(who)
+            else:
+                c.pending[who] = {**event, "seen": time.monotonic()}
+                self.settle_departures()
         else:
+            if who in c.pending:  # back before its departure was told apart: tell it now
+                self.settle_departures(force=True, only=who)
             if self.clock.step > 0 and who not in c.alive:  # after the start: a restart, or a late joiner
                 returning = any(d["id"] == who for d in c.departures)
                 self._event(f"agent {who} {'returned' if returning else 'joined'}")
@@ -177,6 +188,22 @@ class World:
             if c.all_alive_after is None and len(c.alive) >= self.scenario.n_agents:
                 c.all_alive_after = time.time() - self.started_wall
 
+    def settle_departures(self, force: bool = False, only: int | None = None) -> None:
+        """Tell each gone agent's departure apart: it *left* (stopped cleanly: its final report came) or
+        it *crashed* (no final report within :data:`CRASH_GRACE_S`, or by the end of the run)."""
+        c, now = self.census, time.monotonic()
+        for who, event in list(c.pending.items()):
+            if only is not None and who != only:
+                continue
+            left = self.stats.final(who)
+            if not (left or force or now - event["seen"] >= CRASH_GRACE_S):
+                continue
+            del c.pending[who]
+            how = "left" if left else "crashed"
+            c.departures.append({k: v for k, v in event.items() if k != "seen"} | {"how": how})
+            self._event(f"agent {who} {how} at t = {event['t']:.2f} s"
+                        + ("" if left else " (no final report: killed or failed)"))
+
     def _event(self, text: str) -> None:
         self.recorder.log_event(self.clock.step, self.clock.t, text)
 
@@ -184,6 +211,8 @@ class World:
 
     def observe(self, poses: dict[int, msg.Pose]) -> dict[str, float] | None:
         """Measure and record the swarm as it is now (poses of the live agents)."""
+        if self.census.pending:
+            self.settle_departures()
         ids = np.array(sorted(poses), dtype=np.int64)
         if len(ids) == 0:
             return None
@@ -318,7 +347,11 @@ class World:
                   **transport_summary(self.stats.all(), self.rejected.counts)}
         result["messages_sent"] += self.sent
         result["messages_received"] += self.received
+        self.settle_departures(force=True)
+        if self.census.stopped_at_end:
+            self._event(f"run ended: {len(self.census.stopped_at_end)} agents stopped with it")
         result.update({"startup_s": self.census.all_alive_after, "departures": self.census.departures,
+                       "stopped_at_end": sorted(self.census.stopped_at_end),
                        "requested_faults": s.faults.requested(), "missed_lockstep_poses": c.missed_poses,
                        "world_late_ticks": c.late_ticks, "world_ticks": c.step + 1,
                        "poses_in_reach_per_s": self.reach.per_s(s.period),

@@ -40,8 +40,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def table(snap, run: str):
     from rich.table import Table
 
-    t = Table(title=f"zswarm run {run!r}: {len(snap.alive)} agents alive, "
-                    f"{snap.agents_reporting} reporting stats", title_justify="left")
+    crashed = [i for i, how in snap.gone.items() if how == "crashed"]
+    t = Table(title=f"zswarm run {run!r}: {len(snap.alive)} agents alive, {snap.agents_reporting} reporting stats"
+                    + (f", CRASHED: {', '.join(map(str, crashed))}" if crashed else ""), title_justify="left")
     t.add_column("figure")
     t.add_column("value", justify="right")
     rate = snap.mean_pose_rate
@@ -56,7 +57,15 @@ def table(snap, run: str):
     t.add_row("prey", "-" if snap.prey is None else f"({snap.prey[0]:.2f}, {snap.prey[1]:.2f}) at {snap.prey_rate:.1f} Hz")
     slow = [i for i in snap.alive if snap.pose_rate.get(i, 0.0) < 0.5 * (rate or 0.0)]
     t.add_row("agents at under half the mean rate", ", ".join(map(str, slow)) or "none")
+    slowest = sorted(snap.alive, key=lambda i: (snap.pose_rate.get(i, 0.0), i))[:SLOWEST]
+    t.add_row(f"pose rate, slowest {len(slowest)}" if len(snap.alive) > SLOWEST else "pose rate, each (slowest first)",
+              ", ".join(f"{i}: {snap.pose_rate.get(i, 0.0):.1f}" for i in slowest) or "-")
+    t.add_row("gone", ", ".join(f"{i} ({how})" for i, how in snap.gone.items()) or "none")
     return t
+
+
+#: The live view lists each agent's pose rate up to this many agents, else the slowest this many.
+SLOWEST = 8
 
 
 def run(args: argparse.Namespace) -> int:

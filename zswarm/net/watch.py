@@ -20,6 +20,10 @@ from zswarm.net.bridge import Bridge, teardown
 from zswarm.net.keys import Keys
 
 WINDOW = 2.0  # seconds over which pose rates are counted
+#: How long after an agent's token is gone a watcher (the world, a monitor) waits for its final report
+#: before it calls the departure a crash (the report and the token come on different channels, in
+#: either order).
+CRASH_GRACE_S = 1.0
 
 
 @dataclass
@@ -37,6 +41,7 @@ class Snapshot:
     prey: tuple[float, float] | None
     prey_rate: float
     agents_reporting: int
+    gone: dict[int, str] = field(default_factory=dict)  # id -> "crashed", "left", "run ended" or "going"
 
     @property
     def mean_pose_rate(self) -> float | None:
@@ -49,7 +54,7 @@ class Snapshot:
                 "latency_p50_ms": self.latency_p50_ms, "latency_p99_ms": self.latency_p99_ms,
                 "age_p50_ms": self.age_p50_ms, "age_p99_ms": self.age_p99_ms, "rejected": self.rejected,
                 "late_ticks": self.late_ticks, "ticks": self.ticks, "prey": self.prey, "prey_rate": self.prey_rate,
-                "agents_reporting": self.agents_reporting}
+                "agents_reporting": self.agents_reporting, "gone": {str(k): v for k, v in self.gone.items()}}
 
 
 @dataclass
@@ -64,6 +69,9 @@ class RunWatch:
     own_rejections: Counter = field(default_factory=Counter)
     declared: list = field(default_factory=list)
     started: float = 0.0
+    gone_at: dict[int, float] = field(default_factory=dict)  # id -> when its token went (it has not returned)
+    gone_after_end: set[int] = field(default_factory=set)
+    ended: bool = False  # the world announced the final tick
 
     def start(self, session) -> None:
         self.started = time.time()
@@ -71,7 +79,8 @@ class RunWatch:
         self.declared = [self.bridge.subscribe_liveliness(self.keys.all_alive, "alive"),
                          self.bridge.subscribe(self.keys.all_poses, "pose"),
                          self.bridge.subscribe(self.keys.all_stats, "stats"),
-                         self.bridge.subscribe(self.keys.prey, "prey")]
+                         self.bridge.subscribe(self.keys.prey, "prey"),
+                         self.bridge.subscribe(self.keys.tick, "tick")]
 
     def stop(self, session) -> None:
         if self.bridge is not None:
@@ -87,6 +96,13 @@ class RunWatch:
             agent = Keys.agent_of(key)
             if agent is not None:
                 (self.alive.discard if deleted else self.alive.add)(agent)
+                if deleted:
+                    self.gone_at[agent] = received
+                    if self.ended:
+                        self.gone_after_end.add(agent)
+                else:
+                    self.gone_at.pop(agent, None)
+                    self.gone_after_end.discard(agent)
             return
         try:
             message = msg.decode(payload)
@@ -97,6 +113,8 @@ class RunWatch:
             self.poses.setdefault(message.id, deque()).append(received)
         elif tag == "stats" and isinstance(message, msg.Stats):
             self.stats[message.id] = message
+        elif tag == "tick" and isinstance(message, msg.Tick):
+            self.ended = self.ended or message.final
         elif tag == "prey" and isinstance(message, msg.Prey):
             self.prey = (message.x, message.y)
             self.prey_times.append(received)
@@ -125,4 +143,14 @@ class RunWatch:
                         age_p50_ms=msg.percentile(age, 0.5), age_p99_ms=msg.percentile(age, 0.99),
                         rejected={k: v for k, v in sorted(rejected.items()) if v},
                         late_ticks=late, ticks=ticks, prey=self.prey, prey_rate=len(self.prey_times) / window,
-                        agents_reporting=len(self.stats))
+                        agents_reporting=len(self.stats), gone=self.gone(now))
+
+    def gone(self, now: float) -> dict[int, str]:
+        """Each agent whose token went and has not come back: *run ended* (after the final tick), *left*
+        (its final report came: stopped cleanly), *crashed* (none within the world's grace), or *going*."""
+        out = {}
+        for who, at in sorted(self.gone_at.items()):
+            s = self.stats.get(who)
+            out[who] = ("run ended" if who in self.gone_after_end else "left" if s is not None and s.final else
+                        "crashed" if now - at >= CRASH_GRACE_S else "going")
+        return out
