@@ -9,6 +9,7 @@ import time
 import pytest
 
 from conftest import ROOT, run_cli
+from swarm_procs import our_processes
 
 LAUNCH = str(ROOT / "launch.py")
 
@@ -243,3 +244,55 @@ def test_sweep_help_shows_every_default():
     for default in ("(default static- goal)", "(default 0,50,100,200ms)", "(default 0,0.2,0.5)", "(default 3)",
                     "(default: the scenario's)"):
         assert default.replace("- ", "-") in text.replace("- ", "-"), default
+
+
+def test_random_scenario_files_are_run_or_refused_in_one_line_leaving_nothing_behind(tmp_path):
+    """sim and launch.py on scenario files with NaN, infinities, negative and zero sizes, huge N,
+    overlapping obstacles and spawn areas too small for N: each is run (exit 0) or refused (one line,
+    exit 2), and neither leaves a process or, when refused, a file behind."""
+    from hypothesis import HealthCheck, given, settings
+    from hypothesis import strategies as st
+
+    def toml(v: float) -> str:
+        return "nan" if v != v else ("inf" if v == float("inf") else "-inf" if v == -float("inf") else repr(v))
+
+    specials = st.sampled_from([float("nan"), float("inf"), -float("inf"), 0.0, -1.0])
+    scenario = st.fixed_dictionaries({
+        "n": st.sampled_from([1, 3, 5, 500, 100000]),
+        "numbers": st.tuples(st.floats(-5, -2), st.floats(-2, -0.5), st.floats(-2, 0), st.floats(0.5, 2),  # spawn
+                             st.floats(-2, 2), st.floats(-2, 2),  # prey
+                             *[st.floats(-3, 3), st.floats(-3, 3), st.floats(0, 1.5)] * 2),  # two obstacles
+        "obstacles": st.integers(0, 2),
+        "poison": st.one_of(st.none(), st.tuples(st.integers(0, 11), specials)),  # one impossible number
+    })
+    seen: dict[int, int] = {}
+    cases = iter(range(10**6))
+
+    @settings(max_examples=8, deadline=None, database=None, derandomize=True, suppress_health_check=list(HealthCheck))
+    @given(scenario)
+    def one(case):
+        k = next(cases)
+        folder = tmp_path / f"case{k}"
+        folder.mkdir()
+        run = f"prop-{k}-{tmp_path.name[-12:]}"
+        v = list(case["numbers"])
+        if case["poison"] is not None:
+            v[case["poison"][0]] = case["poison"][1]
+        body = (f"spawn = [{', '.join(map(toml, v[0:4]))}]\nprey_start = [{', '.join(map(toml, v[4:6]))}]\n"
+                f"duration = 0.5\n[params]\nn_agents = {case['n']}\n"
+                + "".join(f"[[obstacles]]\nx = {toml(v[6 + 3 * j])}\ny = {toml(v[7 + 3 * j])}\n"
+                          f"radius = {toml(v[8 + 3 * j])}\n" for j in range(case["obstacles"])))
+        (folder / "s.toml").write_text(body)
+        for argv in (["-m", "zswarm", "sim", "--scenario", "s.toml", "--record", "sim.rrd"],
+                     [LAUNCH, "--scenario", "s.toml", "--record", "run.rrd", "--run", run]):
+            res = run_cli(*argv, timeout=120, cwd=folder)
+            seen[res.returncode] = seen.get(res.returncode, 0) + 1
+            assert res.returncode in (0, 2), (body, res.returncode, res.stderr[-1500:])
+            if res.returncode == 2:
+                lines = [line for line in res.stderr.strip().splitlines() if not line.startswith("warning:")]
+                assert len(lines) == 1 and "Traceback" not in res.stderr, (body, res.stderr)
+                assert sorted(p.name for p in folder.iterdir()) == ["s.toml"], body  # nothing that looks like a result
+        assert not our_processes(run), body
+
+    one()
+    assert seen.get(0) and seen.get(2), seen  # it reaches both runs and refusals
