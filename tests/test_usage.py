@@ -288,6 +288,7 @@ def test_random_scenario_files_are_run_or_refused_in_one_line_leaving_nothing_be
             res = run_cli(*argv, timeout=120, cwd=folder)
             seen[res.returncode] = seen.get(res.returncode, 0) + 1
             assert res.returncode in (0, 2), (body, res.returncode, res.stderr[-1500:])
+            assert "Traceback" not in res.stderr and "RuntimeWarning" not in res.stderr, (body, res.stderr[-1500:])
             if res.returncode == 2:
                 lines = [line for line in res.stderr.strip().splitlines() if not line.startswith("warning:")]
                 assert len(lines) == 1 and "Traceback" not in res.stderr, (body, res.stderr)
