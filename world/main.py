@@ -14,7 +14,7 @@ from typing import Sequence
 from world.recorder import WorldRecorder
 from world.world import World
 from zswarm.args import Parser, UsageError, run_main
-from zswarm.files import check_writable
+from zswarm.files import check_run_files
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Bridge, teardown
 from zswarm.net.config import add_zenoh_args, config_from_args, open_session
@@ -89,9 +89,7 @@ async def run_world(args: argparse.Namespace, spec: RunSpec, viewer: Viewer | No
 def _main(argv: Sequence[str] | None) -> int:
     args = build_parser().parse_args(argv)
     spec = spec_from_args(args)
-    for path, suffixes in ((args.record, (".rrd",)), (args.summary, (".json",)), (args.trajectory, (".npz",))):
-        if path is not None:
-            check_writable(path, suffixes)
+    check_run_files(args.record, args.summary, args.trajectory)
     viewer = viewer_from_args(args)  # an unreachable viewer is a usage error before anything starts
     if args.resume and spec.clock == "lockstep":
         raise UsageError("--resume works with the free clock only (a lockstep run cannot re-issue its ticks)")

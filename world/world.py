@@ -34,7 +34,7 @@ from zswarm.net.bridge import Bridge, Inbound
 from zswarm.net.keys import in_reach_counts
 from zswarm.net.poses import PoseTable, Rejections
 from zswarm.net.runspec import RunSpec
-from zswarm.net.watch import CRASH_GRACE_S
+from zswarm.net.watch import how_gone
 
 STALL = 1.0  # seconds behind its clock at which the world logs a stall event
 
@@ -53,7 +53,6 @@ class Census:
     pending: dict[int, dict[str, Any]] = field(default_factory=dict)  # gone, not yet told apart
     stopped_at_end: list[int] = field(default_factory=list)  # agents that stopped because the run ended
     all_alive_after: float | None = None  # wall seconds from the world's start
-
 
 
 @dataclass
@@ -189,20 +188,19 @@ class World:
                 c.all_alive_after = time.time() - self.started_wall
 
     def settle_departures(self, force: bool = False, only: int | None = None) -> None:
-        """Tell each gone agent's departure apart: it *left* (stopped cleanly: its final report came) or
-        it *crashed* (no final report within :data:`CRASH_GRACE_S`, or by the end of the run)."""
+        """Tell each gone agent's departure apart (:func:`zswarm.net.watch.how_gone`): it *left* or it
+        *crashed*; ``force`` settles the undecided as crashed (the run ends, or the agent is back)."""
         c, now = self.census, time.monotonic()
         for who, event in list(c.pending.items()):
             if only is not None and who != only:
                 continue
-            left = self.stats.final(who)
-            if not (left or force or now - event["seen"] >= CRASH_GRACE_S):
+            how = how_gone(self.stats.final(who), now - event["seen"], settle=force)
+            if how == "going":
                 continue
             del c.pending[who]
-            how = "left" if left else "crashed"
             c.departures.append({k: v for k, v in event.items() if k != "seen"} | {"how": how})
             self._event(f"agent {who} {how} at t = {event['t']:.2f} s"
-                        + ("" if left else " (no final report: killed or failed)"))
+                        + ("" if how == "left" else " (no final report: killed or failed)"))
 
     def _event(self, text: str) -> None:
         self.recorder.log_event(self.clock.step, self.clock.t, text)

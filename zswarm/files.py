@@ -38,6 +38,13 @@ def check_writable(path: Path, suffixes: tuple[str, ...] | None = None) -> Path:
     return path
 
 
+def check_run_files(record: Path | None, summary: Path | None, trajectory: Path | None) -> None:
+    """The files a run writes (``--record``, ``--summary``, ``--trajectory``), each with its extension."""
+    for path, suffix in ((record, ".rrd"), (summary, ".json"), (trajectory, ".npz")):
+        if path is not None:
+            check_writable(path, (suffix,))
+
+
 def read_toml(path: Path | str, what: str) -> dict[str, Any]:
     """A TOML file as a dict; a missing, unreadable or malformed file is one line naming ``what`` it is."""
     import tomllib

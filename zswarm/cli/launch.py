@@ -25,7 +25,7 @@ from typing import Sequence
 
 from zswarm.args import DEFAULT_VIEWER_URL, ConnectAction, Parser, UsageError, run_main
 from zswarm.cli.chaos import parse_crash, parse_kill, parse_outage
-from zswarm.files import check_writable
+from zswarm.files import check_run_files
 from zswarm.net.runspec import RunSpec, add_run_args, spec_from_args
 from zswarm.record.live import Viewer, add_viewer_args, viewer_from_args
 
@@ -144,16 +144,15 @@ def plan_from_args(args: argparse.Namespace) -> Plan:
     spec = spec_from_args(args, run=f"run-{args.seed}-{int(time.time())}",
                           extra={"n_agents": args.agents} if args.agents is not None else None)
     n = spec.scenario.n_agents
+    ids = tuple(args.ids if args.ids is not None else range(n))
     if "agents" in args.role:
-        check_capacity(len(args.ids) if args.ids is not None else n, args.fork)
+        check_capacity(len(ids), args.fork)
     spec.scenario.check_placement()  # every agent would fail to place itself, one by one
     design = None
     if "world" in args.role or args.require_design:
         design = judge_design(spec, args.require_design)
     if "world" in args.role:
-        for path, suffixes in ((args.record, (".rrd",)), (args.summary, (".json",)), (args.trajectory, (".npz",))):
-            if path is not None:
-                check_writable(path, suffixes)
+        check_run_files(args.record, args.summary, args.trajectory)
     if "router" not in args.role and args.connect is None:
         raise UsageError("without the router role, give --connect tcp/HOST:PORT of the router")
     for flag, endpoint in (("--listen", args.listen), ("--connect", args.connect)):
@@ -177,7 +176,6 @@ def plan_from_args(args: argparse.Namespace) -> Plan:
                          "without --secure")
     if args.restart_after is not None and not args.restart_after >= 0:
         raise UsageError(f"--restart-after must be >= 0 (got {args.restart_after})")
-    ids = tuple(args.ids if args.ids is not None else range(n))
     viewer = viewer_from_args(args) if "world" in args.role else Viewer()
     if (viewer.spawn or viewer.serve) and args.world_crash is not None and args.world_crash[1] is not None:
         raise UsageError("--world-crash T:S restarts the world; watch it with --connect to a viewer of your own "
@@ -216,7 +214,8 @@ def check_capacity(n_local: int, fork: bool) -> None:
     if have is not None and need > have:
         raise UsageError(f"{n_local} agent processes need about {need / 1024:,.0f} GiB of memory "
                          f"({AGENT_MIB[fork]} MiB each{', forked' if fork else ''}) and this machine has "
-                         f"{have / 1024:.1f} GiB available; run fewer agents, or spread them over machines (--role agents --ids A-B on each)")
+                         f"{have / 1024:.1f} GiB available; run fewer agents, or spread them over machines "
+                         "(--role agents --ids A-B on each)")
 
 
 #: CPU an agent's control step takes (ms): 0.5-0.8 on bench-field (docs/benchmarks.md), more in a dense swarm.

@@ -1,12 +1,19 @@
-"""Small numeric helpers shared by the design checks (no SciPy needed for 1-D roots and maxima)."""
+"""Small numeric helpers: 1-D roots and maxima for the design checks (no SciPy needed), and the
+finiteness check every model input goes through."""
 
 from __future__ import annotations
 
-from typing import Callable
+import math
+from typing import Callable, Iterable
 
 import numpy as np
 
 Fn = Callable[[np.ndarray], np.ndarray]
+
+
+def all_finite(values: Iterable[object]) -> bool:
+    """Every value a real, finite number (a TOML file may hold ``nan`` and ``inf``)."""
+    return all(isinstance(v, (int, float)) and math.isfinite(v) for v in values)
 
 
 def bisect(fn: Fn, a: float, b: float, iters: int = 100) -> float:

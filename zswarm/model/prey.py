@@ -13,6 +13,8 @@ from typing import Literal
 
 import numpy as np
 
+from zswarm.model.numeric import all_finite
+
 PreyKind = Literal["static", "straight", "circle", "evasive"]
 PREY_KINDS: tuple[PreyKind, ...] = ("static", "straight", "circle", "evasive")
 
@@ -41,11 +43,12 @@ class PreyMotion:
             raise ValueError(f"prey kind must be one of {', '.join(PREY_KINDS)} (got {self.kind!r})")
         for name in ("speed", "radius", "sense_radius"):
             value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0):
+            if not (all_finite((value,)) and value >= 0):
                 raise ValueError(f"prey {name} must be a finite number >= 0 (got {value!r})")
         for name, values in (("heading_deg", (self.heading_deg,)), ("center", self.center), ("bounds", self.bounds)):
-            if not all(math.isfinite(v) for v in values):
-                raise ValueError(f"prey {name} must hold finite numbers (got {values if len(values) > 1 else values[0]!r})")
+            if not all_finite(values):
+                shown = values if len(values) > 1 else values[0]
+                raise ValueError(f"prey {name} must hold finite numbers (got {shown!r})")
         if len(self.center) != 2:
             raise ValueError(f"prey center must be [x, y] (got {self.center!r})")
         if self.kind == "circle" and self.radius <= 0:

@@ -17,6 +17,7 @@ import numpy as np
 from zswarm.errors import UsageError
 from zswarm.model.neighbour_law import neighbour_law
 from zswarm.model.neighbours import ObstacleIndex
+from zswarm.model.numeric import all_finite
 from zswarm.model.params import DEFAULT_PARAMS, Params
 from zswarm.model.potentials import COMBINATIONS, Combination
 from zswarm.model.prey import PreyMotion
@@ -31,9 +32,9 @@ class Obstacle:
     radius: float = 0.0
 
     def __post_init__(self) -> None:
-        if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in (self.x, self.y)):
+        if not all_finite((self.x, self.y)):
             raise ValueError(f"an obstacle's x and y must be finite numbers (got x = {self.x!r}, y = {self.y!r})")
-        if not (isinstance(self.radius, (int, float)) and math.isfinite(self.radius) and self.radius >= 0):
+        if not (all_finite((self.radius,)) and self.radius >= 0):
             raise ValueError(f"an obstacle's radius must be a finite number >= 0 (got {self.radius!r} at "
                              f"({self.x:g}, {self.y:g}))")
 
@@ -62,14 +63,14 @@ class Scenario:
             raise ValueError(f"combination must be one of {', '.join(COMBINATIONS)} (got {self.combination!r})")
         for name in ("duration", "dt", "capture_radius"):
             value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+            if not (all_finite((value,)) and value > 0):
                 raise ValueError(f"scenario {name} must be a finite number > 0 (got {value!r})")
         if len(self.prey_start) != 2 or len(self.spawn) != 4 or any(len(p) != 2 for p in self.starts):
             raise ValueError(f"prey_start must be [x, y], spawn [x_min, y_min, x_max, y_max] and each start [x, y] "
                              f"(got prey_start {list(self.prey_start)}, spawn {list(self.spawn)})")
         for name, values in (("prey_start", self.prey_start), ("spawn", self.spawn),
                              *((f"starts[{k}]", p) for k, p in enumerate(self.starts))):
-            if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in values):
+            if not all_finite(values):
                 raise ValueError(f"scenario {name} must hold finite numbers (got {tuple(values)!r})")
         x0, y0, x1, y1 = self.spawn
         if not (x0 < x1 and y0 < y1):

@@ -26,6 +26,15 @@ WINDOW = 2.0  # seconds over which pose rates are counted
 CRASH_GRACE_S = 1.0
 
 
+def how_gone(final_report: bool, waited_s: float, settle: bool = False) -> str:
+    """How an agent whose liveliness token went has gone: *left* (its final report came: stopped
+    cleanly), *crashed* (no report after :data:`CRASH_GRACE_S`, or none by the time it must be
+    ``settle``\ d), or *going* (not yet told apart)."""
+    if final_report:
+        return "left"
+    return "crashed" if settle or waited_s >= CRASH_GRACE_S else "going"
+
+
 @dataclass
 class Snapshot:
     t: float
@@ -151,6 +160,5 @@ class RunWatch:
         out = {}
         for who, at in sorted(self.gone_at.items()):
             s = self.stats.get(who)
-            out[who] = ("run ended" if who in self.gone_after_end else "left" if s is not None and s.final else
-                        "crashed" if now - at >= CRASH_GRACE_S else "going")
+            out[who] = "run ended" if who in self.gone_after_end else how_gone(s is not None and s.final, now - at)
         return out

@@ -53,9 +53,7 @@ def run_outcome(scenario: Scenario, seed: int, stop_at_collision: bool = False) 
         if capture is None and centroid_distance <= scenario.capture_radius:
             capture = k * scenario.dt
         if stop_at_collision and collisions:
-            i, j = pairs_within(x, p.sensing_radius)
-            d = np.sqrt(np.einsum("ij,ij->i", x[i] - x[j], x[i] - x[j]))
-            break
+            break  # i, j, d are this step's pairs: the final figures below come from them
         if k < scenario.steps:
             _, v = sim.potential_and_velocity(x, sim.prey)
             sim.advance(v)
