@@ -19,7 +19,10 @@ import asyncio
 import time
 from typing import Any
 
+import numpy as np
+
 from agents.sensing import Body, Sensing
+from zswarm.model import body as bodies
 from zswarm.model.agent_law import agent_velocity
 from zswarm.model.neighbour_law import neighbour_law
 from zswarm.net import messages as msg
@@ -39,7 +42,9 @@ class Agent:
         self.potential, self.formation = p.potential, spec.scenario.formation
         self.combination = spec.combination
         self.law = neighbour_law(p)
-        self.body = Body(float(start[0]), float(start[1]))
+        self.body_spec = bodies.body_spec(p)
+        first = bodies.start(self.body_spec, np.array(start, dtype=float), np.asarray(spec.scenario.prey_start))
+        self.body = Body(float(start[0]), float(start[1]), heading=self._heading(first))
         self.sensing = Sensing(spec, agent_id, bridge, self.body)
         self.counters = self.sensing.counters
         self.staleness, self.lockstep_wait = staleness, lockstep_wait
@@ -57,11 +62,19 @@ class Agent:
     # --- control ---------------------------------------------------------------------------------------
 
     def move(self, goal: tuple[float, float], neighbours: list[tuple[float, float]]) -> None:
-        """P' = sat(-grad U_i) from what it sensed (eq 5 with the speed limit), one Euler step."""
+        """The command sat(-grad U_i) from what it sensed (eq 5 with the speed limit), and one step of its
+        body under it (:func:`zswarm.model.body.step`)."""
         b = self.body
-        b.vx, b.vy = agent_velocity(b.x, b.y, goal, self.sensing.obstacles, neighbours, self.sensing.radius,
-                                    self.potential, self.combination, self.formation, self.v_max, self.law)
-        b.x, b.y = b.x + self.dt * b.vx, b.y + self.dt * b.vy
+        command = agent_velocity(b.x, b.y, goal, self.sensing.obstacles, neighbours, self.sensing.radius,
+                                 self.potential, self.combination, self.formation, self.v_max, self.law)
+        state = bodies.BodyState(np.array([b.x, b.y]), np.array([b.vx, b.vy]),
+                                 np.array(np.nan if b.heading is None else b.heading))
+        moved = bodies.step(self.body_spec, state, np.array(command), self.dt)
+        (b.x, b.y), (b.vx, b.vy) = moved.position.tolist(), moved.velocity.tolist()
+        b.heading = self._heading(moved)
+
+    def _heading(self, state: bodies.BodyState) -> float | None:
+        return float(state.heading) if self.body_spec.headed else None
 
     # --- outbound --------------------------------------------------------------------------------------
 
@@ -75,7 +88,7 @@ class Agent:
             self.pose_key = self.keys.pose(cell, self.id)
         key = self.pose_key
         self.seq += 1
-        payload = msg.encode_pose(self.id, self.seq, time.time(), step, b.x, b.y, b.vx, b.vy)
+        payload = msg.encode_pose(self.id, self.seq, time.time(), step, b.x, b.y, b.vx, b.vy, b.heading)
         self.latest_reply = (key, payload)
         if step >= 0:
             self.replies_by_step = {s: r for s, r in self.replies_by_step.items() if s > step - 3}

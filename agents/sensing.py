@@ -24,13 +24,15 @@ from zswarm.net.runspec import RunSpec
 
 @dataclass
 class Body:
-    """The agent's own state: where it is, how it moves, how many control steps it took."""
+    """The agent's own state: where it is, the velocity it last moved with, its heading (a body with one:
+    :mod:`zswarm.model.body`), how many control steps it took."""
 
     x: float
     y: float
     vx: float = 0.0
     vy: float = 0.0
     step: int = 0
+    heading: float | None = None
 
 
 class Sensing:

@@ -56,3 +56,17 @@ def test_bench_interactions_runs_each_interaction_on_the_same_seeds(cli):
                 "--interactions", "paper", "--seeds", "1", "--duration-factor", "0.25", "--json", timeout=300)
     row = json.loads(short.stdout)["rows"][0]
     assert row["reached"] == 0 and row["final_distance"]["max"] > get_scenario("moving-prey").capture_radius
+
+
+def test_bench_bodies_reports_each_body_as_it_ran_and_its_check(cli):
+    res = cli("-m", "zswarm", "bench", "bodies", "--scenarios", "moving-prey", "--seeds", "1",
+              "--set", "accel=0.5", "--json", timeout=300)
+    assert res.returncode == 0, res.stderr
+    rows = {r["body"]: r for r in json.loads(res.stdout)["rows"]}
+    assert set(rows) == {"point", "unicycle", "double-integrator"}
+    alone = run_outcome(get_scenario("moving-prey", {"body": "double-integrator", "accel": 0.5}), 0)
+    row = rows["double-integrator"]
+    assert row["median_capture_time"] == alone.capture_time and row["collisions"] == alone.collisions
+    # the point body passes its check; a double integrator that needs 1.0 to stop does not (slack 0.658)
+    assert rows["point"]["body_check"] and not rows["double-integrator"]["body_check"]
+    assert rows["unicycle"]["median_capture_time"] != rows["point"]["median_capture_time"]

@@ -3,8 +3,10 @@ unknown options, bad values, unknown scenarios, unreadable files and occupied po
 
 from __future__ import annotations
 
+import os
 import socket
 import time
+from pathlib import Path
 
 import pytest
 
@@ -142,20 +144,43 @@ def busy_port():
         yield s.getsockname()[1]
 
 
-@pytest.mark.parametrize("argv,needle", CASES, ids=[" ".join(a[:4]).replace(LAUNCH, "launch.py") for a, _ in CASES])
-def test_user_mistakes_get_one_line_and_exit_2(argv, needle, busy_port, tmp_path):
-    junk = tmp_path / "junk"
+def _prepare(folder: Path) -> dict[str, str]:
+    """A case's own folder, with a file of garbage, a broken TOML file and a directory in it."""
+    folder.mkdir(parents=True)
+    junk = folder / "junk"
     junk.write_bytes(b"\x00\xff not what you think [[[ = \n")
-    (tmp_path / "junk.toml").write_bytes(b"[[[ = \n")
-    folder = tmp_path / "d"
-    folder.mkdir()
-    fill = {"busy": str(busy_port), "junk": str(junk), "dir": str(folder), "missing": str(tmp_path / "missing")}
-    args = [a.format(**fill) for a in argv]
-    res = run_cli(*args, timeout=60, cwd=tmp_path)
+    (folder / "junk.toml").write_bytes(b"[[[ = \n")
+    (folder / "d").mkdir()
+    return {"junk": str(junk), "dir": str(folder / "d"), "missing": str(folder / "missing")}
+
+
+@pytest.fixture(scope="module")
+def mistakes(tmp_path_factory, busy_port):
+    """Every case of CASES run once, each its own process in its own folder, as many at a time as there
+    are cores (each is an interpreter starting and stopping: the suite need not wait for them one by one).
+    Returns each case's result and folder, by index."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    root = tmp_path_factory.mktemp("mistakes")
+
+    def one(k: int) -> tuple[object, Path]:
+        folder = root / f"case{k}"
+        fill = {"busy": str(busy_port), **_prepare(folder)}
+        argv = [a.format(**fill) for a in CASES[k][0]]
+        return run_cli(*argv, timeout=60, cwd=folder), folder
+
+    with ThreadPoolExecutor(max_workers=max(2, os.cpu_count() or 2)) as pool:
+        return dict(enumerate(pool.map(one, range(len(CASES)))))
+
+
+@pytest.mark.parametrize("k", range(len(CASES)), ids=[" ".join(a[:4]).replace(LAUNCH, "launch.py") for a, _ in CASES])
+def test_user_mistakes_get_one_line_and_exit_2(k, mistakes):
+    res, folder = mistakes[k]
+    needle = CASES[k][1]
     assert res.returncode == 2, (res.returncode, res.stderr[-2000:])
     assert needle in res.stderr, res.stderr
     assert "Traceback" not in res.stderr and len(res.stderr.strip().splitlines()) == 1, res.stderr
-    assert not any(p.name not in ("junk", "junk.toml", "d") for p in tmp_path.iterdir()), "left files behind"
+    assert not any(p.name not in ("junk", "junk.toml", "d") for p in folder.iterdir()), "left files behind"
 
 
 def test_a_scenario_file_with_an_interaction_its_potential_cannot_use_is_refused_when_read(tmp_path):
@@ -250,6 +275,8 @@ def test_random_scenario_files_are_run_or_refused_in_one_line_leaving_nothing_be
     """sim and launch.py on scenario files with NaN, infinities, negative and zero sizes, huge N,
     overlapping obstacles and spawn areas too small for N: each is run (exit 0) or refused (one line,
     exit 2), and neither leaves a process or, when refused, a file behind."""
+    from concurrent.futures import ThreadPoolExecutor
+
     from hypothesis import HealthCheck, given, settings
     from hypothesis import strategies as st
 
@@ -268,7 +295,7 @@ def test_random_scenario_files_are_run_or_refused_in_one_line_leaving_nothing_be
     seen: dict[int, int] = {}
     cases = iter(range(10**6))
 
-    @settings(max_examples=8, deadline=None, database=None, derandomize=True, suppress_health_check=list(HealthCheck))
+    @settings(max_examples=5, deadline=None, database=None, derandomize=True, suppress_health_check=list(HealthCheck))
     @given(scenario)
     def one(case):
         k = next(cases)
@@ -282,17 +309,23 @@ def test_random_scenario_files_are_run_or_refused_in_one_line_leaving_nothing_be
                 f"duration = 0.5\n[params]\nn_agents = {case['n']}\n"
                 + "".join(f"[[obstacles]]\nx = {toml(v[6 + 3 * j])}\ny = {toml(v[7 + 3 * j])}\n"
                           f"radius = {toml(v[8 + 3 * j])}\n" for j in range(case["obstacles"])))
-        (folder / "s.toml").write_text(body)
-        for argv in (["-m", "zswarm", "sim", "--scenario", "s.toml", "--record", "sim.rrd"],
-                     [LAUNCH, "--scenario", "s.toml", "--record", "run.rrd", "--run", run]):
-            res = run_cli(*argv, timeout=120, cwd=folder)
+        commands = {"sim": ["-m", "zswarm", "sim", "--scenario", "s.toml", "--record", "sim.rrd"],
+                    "launch": [LAUNCH, "--scenario", "s.toml", "--record", "run.rrd", "--run", run]}
+        for name in commands:  # each in a folder of its own, both at once
+            (folder / name).mkdir()
+            (folder / name / "s.toml").write_text(body)
+        with ThreadPoolExecutor(max_workers=2) as pool:
+            results = dict(zip(commands, pool.map(lambda n: run_cli(*commands[n], timeout=120, cwd=folder / n),
+                                                  commands)))
+        for name, res in results.items():
             seen[res.returncode] = seen.get(res.returncode, 0) + 1
-            assert res.returncode in (0, 2), (body, res.returncode, res.stderr[-1500:])
-            assert "Traceback" not in res.stderr and "RuntimeWarning" not in res.stderr, (body, res.stderr[-1500:])
+            assert res.returncode in (0, 2), (name, body, res.returncode, res.stderr[-1500:])
+            assert "Traceback" not in res.stderr and "RuntimeWarning" not in res.stderr, (name, body, res.stderr[-1500:])
             if res.returncode == 2:
                 lines = [line for line in res.stderr.strip().splitlines() if not line.startswith("warning:")]
-                assert len(lines) == 1 and "Traceback" not in res.stderr, (body, res.stderr)
-                assert sorted(p.name for p in folder.iterdir()) == ["s.toml"], body  # nothing that looks like a result
+                assert len(lines) == 1 and "Traceback" not in res.stderr, (name, body, res.stderr)
+                # nothing that looks like a result
+                assert sorted(p.name for p in (folder / name).iterdir()) == ["s.toml"], (name, body)
         assert not our_processes(run), body
 
     one()

@@ -113,7 +113,7 @@ class WorldRecorder:
     # --- every step -----------------------------------------------------------------------------------
 
     def log_step(self, step: int, t: float, ids: np.ndarray, pos: np.ndarray, vel: np.ndarray, prey: np.ndarray,
-                 metrics: dict[str, float]) -> None:
+                 metrics: dict[str, float], heading: np.ndarray | None = None) -> None:
         self.keep_trajectory(ids, pos, prey)
         if self.rec is None:
             return
@@ -121,7 +121,7 @@ class WorldRecorder:
 
         swarm_log.set_time(self.rec, step, t)
         self.trail.append(prey.copy())
-        swarm_log.log_swarm(self.rec, t, ids, pos, vel)
+        swarm_log.log_swarm(self.rec, t, ids, pos, vel, headings=heading)
         swarm_log.log_prey(self.rec, prey, np.array(self.trail))
         swarm_log.log_metrics(self.rec, metrics, self.thresholds)
         if self.graph_radius is not None:

@@ -216,10 +216,13 @@ class World:
             return None
         pos = np.array([[poses[i].x, poses[i].y] for i in ids])
         vel = np.array([[poses[i].vx, poses[i].vy] for i in ids])
+        headed = any(poses[i].heading is not None for i in ids)
+        heading = (np.array([np.nan if poses[i].heading is None else poses[i].heading for i in ids])
+                   if headed else None)
         metrics = self.observer.observe(self.clock.t, ids, pos, vel, self.prey)
         self.reach.sample(pos, self.spec.subscription_radius, self.keys.cell_size)
         self.recorder.log_step(self.clock.step, self.clock.t, ids, pos, vel, self.prey,
-                               {**metrics, "agents_alive": float(len(self.census.alive))})
+                               {**metrics, "agents_alive": float(len(self.census.alive))}, heading)
         self._log_network()
         return metrics
 

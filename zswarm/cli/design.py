@@ -73,6 +73,8 @@ def render(report: DesignReport) -> str:
     ]
     if report.step is not None:
         rows.append(("Time step", report.step, f"2 v_max dt = {_fmt(report.step['step'])}"))
+    if report.body is not None:
+        rows.append(("Body", report.body, f"lag {_fmt(report.body['lag'])} vs slack {_fmt(report.body['slack'])}"))
     p = report.params.flat()
     lines = ["parameters: " + "  ".join(f"{k}={_fmt(v)}" for k, v in p.items()), "",
              f"the verdicts are for N = {report.params.swarm.n_agents} agents that sense within "

@@ -26,7 +26,8 @@ def module_command(sub: argparse._SubParsersAction, name: str, text: str, module
 
 
 def build_parser() -> Parser:
-    from zswarm.cli import bench_guidelines, bench_interactions, bench_net, certs, design, monitor, replay, sim, soak, tune
+    from zswarm.cli import (bench_bodies, bench_guidelines, bench_interactions, bench_net, certs, design, monitor,
+                            replay, sim, soak, tune)
 
     parser = Parser(prog="zswarm", description="Decentralized APF swarms (Kim, Wang & Shin 2006).")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
@@ -86,6 +87,7 @@ def build_parser() -> Parser:
                    bench_guidelines)
     module_command(bench_sub, "interactions", "each interaction on the same scenario, sizes and seeds",
                    bench_interactions)
+    module_command(bench_sub, "bodies", "what each body costs on the registered scenarios", bench_bodies)
 
     replay.add_arguments(sub)
 

@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from zswarm.model.design_body import body_check
 from zswarm.model.design_swarm import contact, prop4, prop5, swarm_rest, time_step
 from zswarm.model.formation import (
     closed_form_spacing,
@@ -218,6 +219,7 @@ class DesignReport:
     contact: dict[str, Any]
     swarm: dict[str, Any] | None  # None: not evaluated (the pair potential has no stable spacing)
     step: dict[str, Any] | None = None  # the time step check, when a dt was given
+    body: dict[str, Any] | None = None  # the body check (zswarm.model.design_body)
 
     def failures(self) -> list[str]:
         """The checks that fail and bind (Prop 3 binds only where it applies: see its docstring)."""
@@ -227,6 +229,7 @@ class DesignReport:
         out += [] if self.formation["stable"] else ["formation"]
         out += [] if self.contact["holds"] else ["contact"]
         out += [] if self.swarm is not None and self.swarm["holds"] else ["swarm"]
+        out += [] if self.body is None or self.body["holds"] else ["body"]
         return out + ([] if self.step is None or self.step["holds"] else ["step"])
 
     def paper_failures(self) -> list[str]:
@@ -242,7 +245,7 @@ class DesignReport:
         clean = lambda d: None if d is None else {k: _json_number(v) for k, v in d.items()}  # noqa: E731
         return {"params": self.params.flat(), **{f"prop{i}": clean(getattr(self, f"prop{i}"))
                 for i in range(1, 6)}, "formation": clean(self.formation), "contact": clean(self.contact),
-                "swarm": clean(self.swarm), "step": clean(self.step),
+                "swarm": clean(self.swarm), "step": clean(self.step), "body": clean(self.body),
                 "ok": self.ok, "failures": self.failures(), "paper_failures": self.paper_failures()}
 
 
@@ -267,7 +270,7 @@ def check(params: Params, swarm: bool = True, dt: float | None = None) -> Design
     swarm = swarm_rest(params, stable) if swarm and form["stable"] else None
     return DesignReport(params, prop1(params), prop2(params), prop3(params), prop4(params, stable),
                         prop5(params, spacing, gate_in), form, contact(params, stable), swarm,
-                        None if dt is None else time_step(params, dt))
+                        None if dt is None else time_step(params, dt), body_check(params, stable))
 
 
 def verdict(params: Params, dt: float | None = None) -> dict[str, Any]:

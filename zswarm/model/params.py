@@ -10,6 +10,8 @@ Symbols follow Kim, Wang & Shin (2006):
   ``d_m_ro``: the closest an agent may come to an obstacle (Prop 2).
 - ``interaction``: how an agent uses its neighbours (:mod:`zswarm.model.interaction`): ``paper``
   (eqs 26-28) or a variant that scales; ``gate`` and ``k_nearest`` set two of the variants.
+- ``body``: what a commanded velocity does (:mod:`zswarm.model.body`): ``point`` (the paper's),
+  ``unicycle`` (``turn_rate``, ``lookahead``) or ``double-integrator`` (``accel``).
 
 Every field has one spec in :data:`FIELDS`; :func:`validate` is the only place that checks them, and
 :meth:`Params.with_overrides` is how command lines (``--set NAME=VALUE``) reach them.
@@ -23,6 +25,7 @@ from dataclasses import dataclass, field
 from typing import Any, Mapping
 
 from zswarm.errors import ParamError
+from zswarm.model.body import parse_body
 from zswarm.model.interaction import Interaction, parse_interaction
 
 
@@ -70,7 +73,16 @@ FIELDS: dict[str, FieldSpec] = {
     "gate": FieldSpec("interaction", float, 0.0, True,
                       "gate: no goal pull with a neighbour ahead closer than gate x d^f", hi=10.0),
     "k_nearest": FieldSpec("interaction", int, 1, False, "nearest: how many nearest neighbours count"),
+    "body": FieldSpec("body", str, 0.0, False, "what a command does: point (the paper's), unicycle, "
+                      "double-integrator"),
+    "turn_rate": FieldSpec("body", float, 0.0, True, "unicycle: the largest turn rate (rad/s)"),
+    "lookahead": FieldSpec("body", float, 0.0, True,
+                           "unicycle: how far ahead of the axle the tracked point is"),
+    "accel": FieldSpec("body", float, 0.0, True, "double-integrator: the largest acceleration"),
 }
+
+#: How a name-valued field is read.
+_NAMES = {"interaction": lambda v: parse_interaction(v).name, "body": parse_body}
 
 
 Value = float | int | str
@@ -84,7 +96,7 @@ def validate(name: str, value: Any) -> Value:
     if isinstance(value, bool):
         raise ParamError(f"{name} must be {spec.describe()} (got {value!r})")
     if spec.kind is str:
-        return parse_interaction(value).name
+        return _NAMES[name](value)
     if spec.kind is int:
         if isinstance(value, float) and value.is_integer():
             value = int(value)
@@ -162,26 +174,39 @@ class InteractionParams:
         return parse_interaction(self.interaction)
 
 
+@dataclass(frozen=True)
+class BodyParams:
+    """What a commanded velocity does (:mod:`zswarm.model.body`): the body and its limits."""
+
+    body: str = "point"
+    turn_rate: float = 4.0
+    lookahead: float = 0.25
+    accel: float = 2.0
+
+    def __post_init__(self) -> None:
+        _check(self)
+
 
 @dataclass(frozen=True)
 class Params:
-    """A complete parameter set: potentials, swarm, design margins and interaction."""
+    """A complete parameter set: potentials, swarm, design margins, interaction and body."""
 
     potential: PotentialParams = field(default_factory=PotentialParams)
     swarm: SwarmParams = field(default_factory=SwarmParams)
     margins: DesignMargins = field(default_factory=DesignMargins)
     interaction: InteractionParams = field(default_factory=InteractionParams)
+    body: BodyParams = field(default_factory=BodyParams)
 
     def flat(self) -> dict[str, Value]:
         """Every effective value by field name (the keys of :data:`FIELDS`)."""
         out: dict[str, Value] = {}
-        for part in (self.potential, self.swarm, self.margins, self.interaction):
+        for part in (self.potential, self.swarm, self.margins, self.interaction, self.body):
             out.update(dataclasses.asdict(part))
         return out
 
     def with_values(self, values: Mapping[str, Any]) -> Params:
         """A copy with some fields replaced (already-typed values; validated)."""
-        groups: dict[str, dict[str, Any]] = {"potential": {}, "swarm": {}, "margins": {}, "interaction": {}}
+        groups: dict[str, dict[str, Any]] = {g: {} for g in ("potential", "swarm", "margins", "interaction", "body")}
         for name, value in values.items():
             groups[FIELDS[name].group if name in FIELDS else "potential"][name] = validate(name, value)
         return Params(
@@ -189,6 +214,7 @@ class Params:
             swarm=dataclasses.replace(self.swarm, **groups["swarm"]),
             margins=dataclasses.replace(self.margins, **groups["margins"]),
             interaction=dataclasses.replace(self.interaction, **groups["interaction"]),
+            body=dataclasses.replace(self.body, **groups["body"]),
         )
 
     def with_overrides(self, assignments: list[str]) -> Params:

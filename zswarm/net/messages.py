@@ -23,6 +23,7 @@ MAX_PAYLOAD = 256 * 1024
 MAX_OBSTACLES = 4096
 MAX_ID = 1_000_000
 MAX_COORD = 1e6  # |x|, |y| beyond this is rejected as impossible
+MAX_HEADING = 7.0  # |heading| in radians: an agent sends it in [-pi, pi)
 MAX_HIST_BINS = 20_000
 MAX_HEARD = 4096
 
@@ -36,7 +37,8 @@ class DecodeError(ValueError):
 
 
 class Pose(NamedTuple):
-    """An agent's state: id, sequence number, sender wall time, lockstep step (-1 if free), x, y, vx, vy.
+    """An agent's state: id, sequence number, sender wall time, lockstep step (-1 if free), x, y, vx, vy,
+    and its heading in radians where its body has one (:mod:`zswarm.model.body`; None otherwise).
 
     Immutable like the other messages, but a named tuple rather than a frozen dataclass: an agent
     builds one for every pose it hears, and a tuple is built in a sixth of the time."""
@@ -49,6 +51,7 @@ class Pose(NamedTuple):
     y: float
     vx: float
     vy: float
+    heading: float | None = None
 
 
 class Prey(NamedTuple):
@@ -125,10 +128,13 @@ def _pack(obj: dict[str, Any]) -> bytes:
     return msgpack.packb({"v": VERSION, **obj}, use_bin_type=True)
 
 
-def encode_pose(agent: int, seq: int, stamp: float, step: int, x: float, y: float, vx: float, vy: float) -> bytes:
+def encode_pose(agent: int, seq: int, stamp: float, step: int, x: float, y: float, vx: float, vy: float,
+                heading: float | None = None) -> bytes:
     """``encode(Pose(...))`` without building the Pose: an agent publishes one every tick."""
-    return msgpack.packb({"v": VERSION, "k": "pose", "id": agent, "seq": seq, "t": stamp, "s": step,
-                          "p": [x, y], "u": [vx, vy]}, use_bin_type=True)
+    pose = {"v": VERSION, "k": "pose", "id": agent, "seq": seq, "t": stamp, "s": step, "p": [x, y], "u": [vx, vy]}
+    if heading is not None:
+        pose["h"] = heading
+    return msgpack.packb(pose, use_bin_type=True)
 
 
 def encode(msg: Message) -> bytes:
@@ -294,11 +300,16 @@ def _pose(obj: dict) -> Pose:
                 and 0 <= i <= MAX_ID and 0 <= seq <= 2**62 and -1 <= s <= 2**62 and -1e12 <= t <= 1e12
                 and -MAX_COORD <= x <= MAX_COORD and -MAX_COORD <= y <= MAX_COORD
                 and -MAX_COORD <= vx <= MAX_COORD and -MAX_COORD <= vy <= MAX_COORD):  # NaN fails these
-            return Pose(i, seq, t, s, x, y, vx, vy)
+            h = obj.get("h")
+            if h is None:
+                return Pose(i, seq, t, s, x, y, vx, vy)
+            if type(h) is float and -MAX_HEADING <= h <= MAX_HEADING:
+                return Pose(i, seq, t, s, x, y, vx, vy, h)
     x, y = _vec(obj, "p")
     vx, vy = _vec(obj, "u")
+    h = obj.get("h")
     return Pose(_int(obj, "id", 0, MAX_ID), _int(obj, "seq"), _float(obj.get("t"), "t", 1e12),
-                _int(obj, "s", -1), x, y, vx, vy)
+                _int(obj, "s", -1), x, y, vx, vy, None if h is None else _float(h, "h", MAX_HEADING))
 
 
 def _other(obj: dict, kind: Any) -> Message:

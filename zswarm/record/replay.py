@@ -32,6 +32,7 @@ class Frame:
     positions: np.ndarray
     velocities: np.ndarray
     prey: np.ndarray | None
+    headings: np.ndarray | None = None  # radians, NaN where none; None: no agent had a heading
 
 
 @dataclass
@@ -128,7 +129,7 @@ def load_segment(path: Path) -> RunRecord:
         raise UsageError(f"cannot read {path} as a Rerun recording: {str(exc).splitlines()[0]}") from None
     config: dict[str, Any] = {}
     summary = None
-    states: dict[int, tuple[float, np.ndarray, np.ndarray, np.ndarray]] = {}
+    states: dict[int, tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]] = {}
     prey: dict[int, np.ndarray] = {}
     for chunk in chunks:
         entity = str(chunk.entity_path).lstrip("/")
@@ -148,12 +149,15 @@ def load_segment(path: Path) -> RunRecord:
                 ids = np.asarray(rb.column("id")[row].as_py(), dtype=np.int64)
                 xy = np.column_stack([rb.column("x")[row].as_py(), rb.column("y")[row].as_py()])
                 vel = np.column_stack([rb.column("vx")[row].as_py(), rb.column("vy")[row].as_py()])
-                states[step] = (t, ids, xy.reshape(-1, 2), vel.reshape(-1, 2))
+                heading = (np.asarray(rb.column("heading")[row].as_py(), dtype=float)
+                           if "heading" in cols and rb.column("heading")[row].as_py() is not None else None)
+                states[step] = (t, ids, xy.reshape(-1, 2), vel.reshape(-1, 2), heading)
         elif entity == PREY_STATE:
             for row in range(rb.num_rows):
                 step = int(rb.column("step")[row].as_py())
                 prey[step] = np.array([rb.column("x")[row].as_py()[0], rb.column("y")[row].as_py()[0]])
     if not states and not config:
         raise UsageError(f"{path} holds no agent states (is it a zswarm run recording?)")
-    frames = [Frame(step, t, ids, xy, vel, prey.get(step)) for step, (t, ids, xy, vel) in sorted(states.items())]
+    frames = [Frame(step, t, ids, xy, vel, prey.get(step), heading)
+              for step, (t, ids, xy, vel, heading) in sorted(states.items())]
     return RunRecord(config=config, summary=summary, frames=frames)

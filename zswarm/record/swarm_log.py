@@ -17,12 +17,13 @@ import rerun.blueprint as rrb
 MAP: Final = "map"
 AGENTS: Final = "map/agents"
 VELOCITIES: Final = "map/velocities"
+HEADINGS: Final = "map/headings"  # a body with a heading (zswarm.model.body): where each one faces
 SENSING: Final = "map/sensing"
 SENSING_GRAPH: Final = "map/sensing_graph"  # an edge between every two agents within the sensing radius
 OBSTACLES: Final = "map/obstacles"
 PREY: Final = "map/prey"
 PREY_TRAIL: Final = "map/prey_trail"
-STATE: Final = "state/agents"  # float64 x, y, vx, vy, id per agent
+STATE: Final = "state/agents"  # float64 x, y, vx, vy, id (and heading, for a headed body) per agent
 PREY_STATE: Final = "state/prey"
 METRICS: Final = "metrics"
 THRESHOLDS: Final = "thresholds"
@@ -31,6 +32,9 @@ EVENTS: Final = "run/events"
 CONFIG: Final = "run/config"
 SUMMARY: Final = "run/summary"
 TIMELINE: Final = "sim_time"
+
+#: How long a heading stroke is drawn (map units).
+HEADING_LENGTH: Final = 0.3
 
 #: The lines a reader measures the metrics against (``SwarmObserver.thresholds``), by plot.
 THRESHOLD_NAMES = {"capture_radius": "capture radius", "collision_distance": "2 d^r (collision)",
@@ -95,18 +99,26 @@ def set_time(rec: rr.RecordingStream, step: int, t: float) -> None:
 
 
 def log_swarm(rec: rr.RecordingStream, t: float, ids: np.ndarray, positions: np.ndarray,
-              velocities: np.ndarray, sensing_radius: float | None = None) -> None:
-    """Agents (with id labels), their velocity arrows, optional sensing discs and exact float64 state."""
+              velocities: np.ndarray, sensing_radius: float | None = None,
+              headings: np.ndarray | None = None) -> None:
+    """Agents (with id labels), their velocity arrows, optional sensing discs and exact float64 state;
+    ``headings`` (radians, NaN where none): a short white arrow from each agent the way it faces."""
     labels = [str(int(i)) for i in ids]
     rec.log(AGENTS, rr.Points2D(positions, radii=0.05, labels=labels, class_ids=ids,
                                 show_labels=len(ids) <= 30))
     rec.log(VELOCITIES, rr.Arrows2D(origins=positions, vectors=velocities))
     if sensing_radius is not None:
         rec.log(SENSING, rr.Points2D(positions, radii=sensing_radius, colors=(120, 160, 255, 25)))
+    state = {}
+    if headings is not None:
+        has = np.isfinite(headings)
+        facing = HEADING_LENGTH * np.column_stack([np.cos(headings[has]), np.sin(headings[has])])
+        rec.log(HEADINGS, rr.Arrows2D(origins=positions[has], vectors=facing, colors=(240, 240, 240), radii=0.012))
+        state["heading"] = np.asarray(headings, dtype=np.float64)
     rec.log(STATE, rr.AnyValues(t=np.array([t], dtype=np.float64), id=np.asarray(ids, dtype=np.int64),
                                 x=positions[:, 0].astype(np.float64),
                                 y=positions[:, 1].astype(np.float64), vx=velocities[:, 0].astype(np.float64),
-                                vy=velocities[:, 1].astype(np.float64)))
+                                vy=velocities[:, 1].astype(np.float64), **state))
 
 
 def log_prey(rec: rr.RecordingStream, prey: np.ndarray, trail: np.ndarray) -> None:

@@ -5,6 +5,8 @@ dt) are held as (B, N, 2) arrays and stepped by the equations of :mod:`zswarm.si
 
     v_k = sat(-grad U_i(P_k), v_max),  P_{k+1} = P_k + dt v_k,  prey_{k+1} = prey.step(prey_k, P_k)
 
+(each run's body moving as :mod:`zswarm.model.body` says; the point body is the line above)
+
 with every sum over neighbours and obstacles dense (all pairs within a run, masked by the sensing
 radius) instead of a cell grid: for the swarm sizes a tuning search simulates (N of 10 to a few
 hundred) one dense program over all runs costs far less than B grid searches. Faults go through
@@ -26,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from zswarm.model import body as bodies
 from zswarm.model.faults import FaultModel
 from zswarm.model.metrics import components
 from zswarm.model.formation import pair_gain
@@ -108,6 +111,18 @@ def _variant_groups(scen: list[Scenario]) -> list[tuple[np.ndarray, NeighbourLaw
     return out
 
 
+def _body_groups(scen: list) -> list[tuple[np.ndarray, bodies.BodySpec]]:
+    """The runs of each body kind, with their limits as (runs, 1) columns."""
+    out = []
+    for kind in bodies.KINDS:
+        rows = np.flatnonzero([s.params.body.body == kind for s in scen])
+        if len(rows):
+            col = lambda f: np.array([f(scen[r].params) for r in rows])[:, None]  # noqa: E731
+            out.append((rows, bodies.BodySpec(kind, col(lambda p: p.swarm.v_max), col(lambda p: p.body.turn_rate),
+                                              col(lambda p: p.body.lookahead), col(lambda p: p.body.accel))))
+    return out
+
+
 class BatchSimulator:
     """State of B runs and their common step (see the module doc)."""
 
@@ -132,9 +147,13 @@ class BatchSimulator:
         self.formation = _column([float(s.formation) for s in scen], 3)
         self.radius = np.array([s.params.swarm.sensing_radius for s in scen])
         self.v_max = np.array([s.params.swarm.v_max for s in scen])
-        self.positions = np.stack([s.initial_positions(np.random.default_rng(m.seed))
-                                   for s, m in zip(scen, members)])
+        positions = np.stack([s.initial_positions(np.random.default_rng(m.seed)) for s, m in zip(scen, members)])
         self.prey = np.array([s.prey_start for s in scen], dtype=float)
+        self.bodies = _body_groups(scen)
+        self.state = bodies.BodyState(positions, np.zeros_like(positions), np.full(positions.shape[:2], np.nan))
+        for rows, spec in self.bodies:
+            start = bodies.start(spec, positions[rows], self.prey[rows][:, None, :])
+            self.state.velocity[rows], self.state.heading[rows] = start.velocity, start.heading
         m_obs = max(len(s.obstacles) for s in scen)
         self.centers = np.zeros((b, m_obs, 2))
         self.radii = np.zeros((b, m_obs))
@@ -204,10 +223,19 @@ class BatchSimulator:
             v[blind] = 0.0
         return v
 
+    @property
+    def positions(self) -> np.ndarray:
+        return self.state.position
+
     def advance(self, v: np.ndarray) -> None:
-        """Move each run's prey (from the agents' current positions), then the agents."""
+        """Move each run's prey (from the agents' current positions), then the agents' bodies under the
+        commands ``v``."""
         self.prey = self._prey_step()
-        self.positions = self.positions + self.dt * v
+        x, u, h = self.state.position.copy(), self.state.velocity.copy(), self.state.heading.copy()
+        for rows, spec in self.bodies:
+            moved = bodies.step(spec, bodies.BodyState(x[rows], u[rows], h[rows]), v[rows], self.dt)
+            x[rows], u[rows], h[rows] = moved
+        self.state = bodies.BodyState(x, u, h)
         self.step_index += 1
 
     def _prey_step(self) -> np.ndarray:

@@ -3,7 +3,8 @@
 Each step (explicit Euler, step ``dt``):
 
     v_k     = sat(-grad U_i(P_k), v_max)      (eq 5 / eq 36 with the speed limit)
-    P_{k+1} = P_k + dt v_k
+    P_{k+1} = P_k + dt v_k                    (the point body; another body moves as
+                                               :mod:`zswarm.model.body` says)
     prey_{k+1} = prey.step(prey_k, P_k)
 
 where agent i's potential uses only the obstacles and neighbours within its sensing radius, found with
@@ -21,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from zswarm.model import body as bodies
 from zswarm.model import prey as prey_motion
 from zswarm.model.faults import FaultModel
 from zswarm.model.metrics import Summary
@@ -44,8 +46,9 @@ class Simulator:
         p = scenario.params
         self.controller = make_controller(p.potential, self.combination, scenario.formation, neighbour_law(p))
         self.rng = np.random.default_rng(seed)
-        self.positions = scenario.initial_positions(self.rng)
-        self.ids = np.arange(len(self.positions))
+        self.body = bodies.body_spec(p)
+        self.state = bodies.start(self.body, scenario.initial_positions(self.rng), np.asarray(scenario.prey_start))
+        self.ids = np.arange(len(self.state.position))
         self.prey = np.array(scenario.prey_start, dtype=float)
         centers, radii = scenario.obstacle_arrays()
         self.obstacles = ObstacleIndex(centers, radii, p.swarm.sensing_radius)
@@ -53,6 +56,15 @@ class Simulator:
         self.channel = (FaultyChannel(len(self.positions), faults, scenario.dt, p.swarm.sensing_radius,
                                       seed=faults.seed)
                         if faults is not None and faults.active else None)
+
+    @property
+    def positions(self) -> np.ndarray:
+        return self.state.position
+
+    @property
+    def headings(self) -> np.ndarray | None:
+        """Each body's heading, for a body that has one."""
+        return self.state.heading if self.body.headed else None
 
     @property
     def t(self) -> float:
@@ -72,11 +84,15 @@ class Simulator:
             v[blind] = 0.0
         return u, v
 
-    def advance(self, velocities: np.ndarray) -> None:
-        """Move the prey (from the agents' current positions), then the agents."""
+    def moving(self, commands: np.ndarray) -> np.ndarray:
+        """The velocity each body moves with this step under ``commands`` (the point body: the commands)."""
+        return bodies.velocity(self.body, self.state, commands, self.scenario.dt)
+
+    def advance(self, commands: np.ndarray) -> None:
+        """Move the prey (from the agents' current positions), then the agents' bodies under ``commands``."""
         dt = self.scenario.dt
         self.prey = prey_motion.step(self.scenario.prey, self.prey, dt, self.positions)
-        self.positions = self.positions + dt * velocities
+        self.state = bodies.step(self.body, self.state, commands, dt)
         self.step_index += 1
 
 
@@ -123,7 +139,8 @@ def simulate(scenario: Scenario, seed: int, *, combination: Combination | None =
     graph = sensing_graph if sensing_graph is not None else len(sim.positions) <= 100
     trail: list[np.ndarray] = []
     for k in range(steps + 1):
-        u, v = sim.potential_and_velocity(sim.positions, sim.prey)
+        u, command = sim.potential_and_velocity(sim.positions, sim.prey)
+        v = sim.moving(command)
         if traj is not None:
             traj[k], prey_traj[k] = sim.positions, sim.prey
         if k % metrics_every == 0 or k == steps:
@@ -134,7 +151,7 @@ def simulate(scenario: Scenario, seed: int, *, combination: Combination | None =
                 _log_step(rec, sim, v, metrics, trail, p.swarm.sensing_radius if sensing_discs else None,
                           observer.thresholds(), p.swarm.sensing_radius if graph else None)
         if k < steps:
-            sim.advance(v)
+            sim.advance(command)
     result = {**header, **observer.summary.result()}
     if sim.channel is not None:
         result["requested_faults"] = faults.requested()
@@ -155,7 +172,7 @@ def _log_step(rec, sim: Simulator, v: np.ndarray, metrics: dict[str, float], tra
 
     swarm_log.set_time(rec, sim.step_index, sim.t)
     trail.append(sim.prey.copy())
-    swarm_log.log_swarm(rec, sim.t, sim.ids, sim.positions, v, sensing_radius)
+    swarm_log.log_swarm(rec, sim.t, sim.ids, sim.positions, v, sensing_radius, sim.headings)
     swarm_log.log_prey(rec, sim.prey, np.array(trail[-400:]))
     swarm_log.log_metrics(rec, metrics, thresholds)
     if graph_radius is not None:

@@ -1,0 +1,128 @@
+"""What a commanded velocity does: the body an agent moves, written once for every runner.
+
+The control law (eq 5 / eq 36 with the speed limit) is pure: what an agent sensed in, a desired
+velocity ``v_d`` out. The paper's agent is "the omni-directional robot without nonholonomic
+constraints", so its body moves exactly as commanded. Real robots do not, and a body says how:
+
+- ``point`` (the paper's, the default): the velocity is the command, ``P_{k+1} = P_k + dt v_d``.
+- ``unicycle``: a differential-drive robot with heading theta. It tracks ``v_d`` with the point
+  ``lookahead`` ahead of its axle (feedback linearization, Oriolo, De Luca & Vendittelli 2002):
+
+      u     = cos(theta) v_dx + sin(theta) v_dy             forward speed, |u| <= v_max
+      omega = (-sin(theta) v_dx + cos(theta) v_dy) / l      turn rate, |omega| <= turn_rate
+
+  and moves along its heading only: ``P_{k+1} = P_k + dt u (cos theta, sin theta)``,
+  ``theta_{k+1} = theta_k + dt omega``. It never moves sideways.
+- ``double-integrator``: a mass (a drone): its velocity changes by at most ``accel`` per second,
+  toward the command: ``v_{k+1} = v_k + dt clip((v_d - v_k) / dt, accel)``, ``P_{k+1} = P_k + dt v_{k+1}``.
+  With an unbounded ``accel`` it would be the point body; with a finite one it cannot stop at once.
+
+Every function is pure and vectorized over any leading shape (one agent, a swarm, a batch of swarms);
+the body's parameters may be scalars or arrays that broadcast over the leading shape. The agent
+process, the reference simulator and the batched simulator all move through :func:`step`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from zswarm.errors import ParamError
+
+KINDS: tuple[str, ...] = ("point", "unicycle", "double-integrator")
+#: Bodies whose pose carries a heading (on the wire, in the recording).
+HEADED: frozenset[str] = frozenset({"unicycle"})
+
+
+def parse_body(text: object) -> str:
+    """A body's name, checked; raises :class:`ParamError`."""
+    if not isinstance(text, str) or text.strip() not in KINDS:
+        raise ParamError(f"body must be one of {', '.join(KINDS)} (got {text!r})")
+    return text.strip()
+
+
+@dataclass(frozen=True)
+class BodySpec:
+    """A body and its limits. Arrays (one value per run of a batch) broadcast over the leading shape."""
+
+    kind: str = "point"
+    v_max: float | np.ndarray = 1.0
+    turn_rate: float | np.ndarray = 4.0  # unicycle: rad/s
+    lookahead: float | np.ndarray = 0.25  # unicycle: distance of the tracked point ahead of the axle
+    accel: float | np.ndarray = 2.0  # double-integrator: the largest |dv/dt|
+
+    @property
+    def headed(self) -> bool:
+        return self.kind in HEADED
+
+
+def body_spec(params) -> BodySpec:
+    """The body of a parameter set (:class:`zswarm.model.params.Params`)."""
+    b = params.body
+    return BodySpec(b.body, params.swarm.v_max, b.turn_rate, b.lookahead, b.accel)
+
+
+class BodyState(NamedTuple):
+    """Where the bodies are, the velocity each last moved with, and each one's heading (NaN: none)."""
+
+    position: np.ndarray  # (..., 2)
+    velocity: np.ndarray  # (..., 2)
+    heading: np.ndarray  # (...,)
+
+
+def start(spec: BodySpec, positions: np.ndarray, facing: np.ndarray) -> BodyState:
+    """Bodies at rest at ``positions``; a headed body faces the point ``facing`` (its first goal)."""
+    positions = np.asarray(positions, dtype=float)
+    if spec.headed:
+        d = np.asarray(facing, dtype=float) - positions
+        heading = np.arctan2(d[..., 1], d[..., 0])
+    else:
+        heading = np.full(positions.shape[:-1], np.nan)
+    return BodyState(positions, np.zeros_like(positions), heading)
+
+
+def velocity(spec: BodySpec, state: BodyState, v_d: np.ndarray, dt: float) -> np.ndarray:
+    """The velocity each body moves with this step when commanded ``v_d`` (the point body: ``v_d``)."""
+    if spec.kind == "point":
+        return v_d
+    if spec.kind == "unicycle":
+        u, _ = _unicycle_inputs(spec, state.heading, v_d)
+        return u[..., None] * np.stack([np.cos(state.heading), np.sin(state.heading)], axis=-1)
+    if spec.kind == "double-integrator":
+        return state.velocity + dt * _limit((v_d - state.velocity) / dt, spec.accel)
+    raise ParamError(f"unknown body {spec.kind!r}")
+
+
+def step(spec: BodySpec, state: BodyState, v_d: np.ndarray, dt: float) -> BodyState:
+    """One explicit Euler step of every body under the command ``v_d``."""
+    v = velocity(spec, state, v_d, dt)
+    heading = state.heading
+    if spec.kind == "unicycle":
+        _, omega = _unicycle_inputs(spec, heading, v_d)
+        heading = wrap(heading + dt * omega)
+    return BodyState(state.position + dt * v, v, heading)
+
+
+def wrap(angle: np.ndarray) -> np.ndarray:
+    """An angle in [-pi, pi)."""
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def _unicycle_inputs(spec: BodySpec, heading: np.ndarray, v_d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Forward speed u and turn rate omega that steer the point ``lookahead`` ahead along ``v_d``, each
+    clipped to its limit."""
+    c, s = np.cos(heading), np.sin(heading)
+    v_max, w_max = np.asarray(spec.v_max), np.asarray(spec.turn_rate)
+    u = np.clip(c * v_d[..., 0] + s * v_d[..., 1], -v_max, v_max)
+    omega = np.clip((-s * v_d[..., 0] + c * v_d[..., 1]) / np.asarray(spec.lookahead), -w_max, w_max)
+    return u, omega
+
+
+def _limit(a: np.ndarray, bound: float | np.ndarray) -> np.ndarray:
+    """Each vector of ``a`` shortened to at most ``bound`` (its direction kept)."""
+    norm = np.sqrt(np.einsum("...k,...k->...", a, a))
+    scale = np.minimum(1.0, np.asarray(bound) / np.where(norm > 0.0, norm, 1.0))
+    return a * scale[..., None]
