@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from zswarm.net import histogram
 from zswarm.net import messages as msg
 from zswarm.net.poses import Rejections
 
@@ -30,7 +31,7 @@ class Counters:
 
     @staticmethod
     def add(hist: dict[int, int], ms: float) -> None:
-        b = msg.to_bin(ms)
+        b = histogram.to_bin(ms)
         hist[b] = hist.get(b, 0) + 1
 
     def stats(self, agent: int, injected: tuple[int, int] = (0, 0), final: bool = False) -> msg.Stats:

@@ -1,9 +1,11 @@
 """What one agent senses: the neighbours within its radius, the obstacles near it and the prey.
 
-Neighbours' poses arrive from the spatial cells its sensing disc (grown by 2 v_max dt) overlaps and
-pass the shared acceptance rules of :class:`~zswarm.net.poses.PoseTable`. Obstacles are asked of the
-world's queryable within 2R of where the agent is, again after it moved R. Only agents that hold a
-liveliness token are used as neighbours.
+Neighbours' poses arrive from the spatial cells its sensing disc (grown by 2 v_max dt) overlaps
+(:mod:`agents.cell_view`) and pass the shared acceptance rules of :class:`~zswarm.net.poses.PoseTable`.
+Obstacles are asked of the world's queryable within 2R of where the agent is, again after it moved R
+(:mod:`agents.obstacle_view`). Only agents that hold a liveliness token are used as neighbours. The
+transport latency is timed on one of them (:mod:`agents.probe`). This module takes every sample in
+and says which neighbours the law may use.
 """
 
 from __future__ import annotations
@@ -13,11 +15,14 @@ import math
 import time
 from dataclasses import dataclass
 
+from agents.cell_view import CellView
 from agents.counters import Counters
+from agents.obstacle_view import ObstacleView
+from agents.probe import LatencyProbe
 from zswarm.model.faults import OBSTACLE_SOURCE, PREY_SOURCE
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Bridge, Inbound
-from zswarm.net.keys import cells_in_disc, cells_in_disc_margin
+from zswarm.net.keys import cells_in_disc
 from zswarm.net.poses import PoseTable, Rejections
 from zswarm.net.runspec import RunSpec
 
@@ -49,14 +54,29 @@ class Sensing:
         self.prey: tuple[float, float] | None = None
         self.ticks: asyncio.Queue[msg.Tick] = asyncio.Queue()
         self.pose_arrived = asyncio.Event()
-        self.obstacles: list[tuple[float, float, float]] = []  # centre x, y and radius of each known one
-        self.obstacle_query_at: tuple[float, float] | None = None
-        self.obstacle_query: tuple[float, float, float] | None = None  # (x, y, sent at): a query in flight
         self.final_tick = False
-        self.cells: dict[tuple[int, int], object] = {}
-        self.cell_since: dict[tuple[int, int], int] = {}  # step at which each cell was subscribed
-        self.cells_at: tuple[float, float, float] | None = None  # where they were chosen, and the margin
-        self.probe: tuple[int, object] | None = None  # the neighbour whose poses are stamped on arrival
+        self.obstacle_view = ObstacleView(self.keys, bridge, body, self.radius, self.counters)
+        self.cell_view = CellView(self.keys, bridge, body, self.subscription_radius)
+        self.latency_probe = LatencyProbe(self.keys, bridge, body, self.subscription_radius, self.neighbours,
+                                          self.alive, self.counters)
+
+    # --- what the law and the tests read ---------------------------------------------------------------
+
+    @property
+    def obstacles(self) -> list[tuple[float, float, float]]:
+        return self.obstacle_view.obstacles
+
+    @property
+    def obstacle_query_at(self) -> tuple[float, float] | None:
+        return self.obstacle_view.query_at
+
+    @property
+    def cells(self) -> dict[tuple[int, int], object]:
+        return self.cell_view.cells
+
+    @property
+    def probe(self) -> tuple[int, object] | None:
+        return self.latency_probe.probe
 
     @property
     def latency_from_probe(self) -> bool:
@@ -82,7 +102,7 @@ class Sensing:
             self.last_seq.pop(who, None)
             return
         if tag == "probe":
-            self._on_probe(payload, received)
+            self.latency_probe.heard(payload, received)
             return
         self.counters.received += 1
         who = self.keys.agent_of(key) if tag == "pose" else None
@@ -100,48 +120,15 @@ class Sensing:
         elif tag == "tick" and isinstance(m, msg.Tick):
             self.final_tick = self.final_tick or m.final
             self.ticks.put_nowait(m)
-        elif tag == "obstacles" and isinstance(m, msg.Obstacles) and self.obstacle_query is not None:
-            self._know_obstacles(m, self.obstacle_query[:2])
-            self.obstacle_query = None
+        elif tag == "obstacles" and isinstance(m, msg.Obstacles) and self.obstacle_view.query is not None:
+            self.obstacle_view.answered(m)
         else:
             self.counters.rejections.add("kind", f"{type(m).__name__} on {tag} key")
 
-    def _on_probe(self, payload: bytes, received: float) -> None:
-        """A pose of the probed neighbour with its arrival time: one publish -> router -> subscriber
-        trip, the path every neighbour's pose takes (ring-channel inbox only). The same bytes reach
-        the agent through its cells too, where they are taken in, and rejected and counted if bad."""
-        try:
-            m = msg.decode(payload)
-        except msg.DecodeError:
-            return
-        if isinstance(m, msg.Pose):
-            self.counters.add(self.counters.latency, (received - m.stamp) * 1000.0)
-
     def follow_probe(self) -> None:
-        """Ring-channel inbox: keep a stamped subscription to one neighbour's poses, the nearest one
-        heard within the subscription radius, for as long as it stays there and alive.
-
-        Its poses reach this session for the cells anyway, so the router sends nothing more. Not the
-        agent's own pose: Zenoh hands a publication to a subscriber of the same session directly,
-        without the router, so an echo would time the session, not the transport.
-        """
-        if not self.latency_from_probe:
-            return
-        reach = self.subscription_radius
-        if self.probe is not None:
-            who, sub = self.probe
-            nb = self.neighbours.get(who)
-            if who in self.alive and nb is not None and self._distance(nb.latest.x, nb.latest.y) <= reach:
-                return
-            self.bridge.unsubscribe(sub)
-            self.probe = None
-        best: tuple[float, int] | None = None
-        for who, nb in self.neighbours.entries.items():
-            d = self._distance(nb.latest.x, nb.latest.y)
-            if d <= reach and who in self.alive and (best is None or d < best[0]):
-                best = (d, who)
-        if best is not None:
-            self.probe = (best[1], self.bridge.subscribe(self.keys.any_cell_pose(best[1]), "probe", stamped=True))
+        """Ring-channel inbox: keep the latency probe on the nearest live neighbour (:mod:`agents.probe`)."""
+        if self.latency_from_probe:
+            self.latency_probe.follow()
 
     def fault_source(self, tag: str, key: str, payload: bytes) -> tuple[int, float | None] | None:
         """The link a message arrives on, and (poses) its sender's distance over the sensing radius."""
@@ -206,77 +193,19 @@ class Sensing:
     # --- what the agent senses -------------------------------------------------------------------------
 
     async def refresh_obstacles(self, timeout: float = 2.0) -> bool:
-        """Ask the world for the obstacles within 2R; re-ask after moving R from the last question."""
-        x, y = self.body.x, self.body.y
-        if self._obstacles_current():
-            return True
-        try:
-            replies = await self.bridge.get(self.keys.obstacle_query(x, y, 2.0 * self.radius), timeout)
-        except Exception:
-            replies = []
-        for _, payload in replies:
-            try:
-                m = msg.decode(payload)
-            except msg.DecodeError as exc:
-                self.counters.rejections.add(exc.reason, str(exc))
-                continue
-            if isinstance(m, msg.Obstacles):
-                self._know_obstacles(m, (x, y))
-                return True
-        self.counters.obstacle_queries_failed += 1
-        return False  # keep what it knew (world away)
-
-    def _obstacles_current(self) -> bool:
-        """It knows the obstacles around it: asked less than R from where it is now."""
-        at = self.obstacle_query_at
-        return at is not None and math.dist((self.body.x, self.body.y), at) < self.radius
-
-    def _know_obstacles(self, m: msg.Obstacles, asked_at: tuple[float, float]) -> None:
-        """The world's answer to a query made at ``asked_at``: the obstacles within 2R of there."""
-        self.obstacles = [(cx, cy, r) for (cx, cy), r in zip(m.centers, m.radii)]
-        self.obstacle_query_at = asked_at
+        return await self.obstacle_view.refresh(timeout)
 
     def request_obstacles(self, now: float, timeout: float = 2.0) -> None:
-        """Without an event loop: ask the world for the obstacles within 2R when it has moved R from
-        the last answer (or has none); the answer is taken in with the next samples. An unanswered
-        query counts as failed after ``timeout`` seconds and is asked again."""
-        x, y = self.body.x, self.body.y
-        if self.obstacle_query is not None:
-            if now - self.obstacle_query[2] < timeout:
-                return
-            self.counters.obstacle_queries_failed += 1
-            self.obstacle_query = None
-        if self._obstacles_current():
-            return
-        self.obstacle_query = (x, y, now)
-        self.bridge.get_into_inbox(self.keys.obstacle_query(x, y, 2.0 * self.radius), "obstacles", timeout)
+        self.obstacle_view.request(now, timeout)
 
     def follow_cells(self) -> None:
         """Without an event loop: :meth:`update_cells`, the new cells' answers taken in later."""
-        for cell in self._move_cells():
+        for cell in self.cell_view.move():
             self.bridge.get_into_inbox(self.keys.cell_poses(cell), "pose", 1.0)
-
-    def _move_cells(self) -> list[tuple[int, int]]:
-        """Subscribe to the cells the sensing disc overlaps, leave the others; returns the new ones."""
-        x, y = self.body.x, self.body.y
-        at = self.cells_at
-        if at is not None and math.hypot(x - at[0], y - at[1]) < at[2]:
-            return []  # not yet moved far enough to change which cells its disc meets
-        wanted, margin = cells_in_disc_margin(self.keys, x, y, self.subscription_radius)
-        self.cells_at = (x, y, margin)
-        for cell in [c for c in self.cells if c not in wanted]:
-            self.bridge.unsubscribe(self.cells.pop(cell))
-            self.cell_since.pop(cell, None)
-        new = [c for c in wanted if c not in self.cells]
-        for cell in new:
-            # its own pose is published into one of them: not handed back to it
-            self.cells[cell] = self.bridge.subscribe(self.keys.cell_poses(cell), "pose", remote=True)
-            self.cell_since[cell] = self.body.step
-        return new
 
     async def update_cells(self) -> None:
         """Subscribe to the cells the sensing disc overlaps; ask new cells for their agents at once."""
-        for cell in self._move_cells():
+        for cell in self.cell_view.move():
             for key, payload in await self.bridge.get(self.keys.cell_poses(cell), timeout=1.0):
                 self.handle(("pose", key, payload, False, time.time()))
 
@@ -320,7 +249,7 @@ class Sensing:
             except asyncio.TimeoutError:
                 break
             expected = [nb for nb in expected if step not in nb.by_step]
-        cells = {c for c, since in self.cell_since.items() if since >= step}
+        cells = {c for c, since in self.cell_view.since.items() if since >= step}
         for nb in expected:
             cells |= cells_in_disc(self.keys, nb.latest.x, nb.latest.y, 2.0 * self.v_max * self.dt)
         replies = await asyncio.gather(*(self.bridge.get(f"{self.keys.cell_poses(c)}?step={step}", timeout=1.0)

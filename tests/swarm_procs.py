@@ -51,7 +51,7 @@ def start_agent(kids: Children, endpoint: str, run: str, scenario: str, agent: i
 
 def with_reference(summary_path: Path, run: str, scenario: str, *extra: str) -> dict:
     """The world's summary with the reference simulation beside it (as ``zswarm run`` adds it)."""
-    from zswarm.cli.reference import add_reference
+    from zswarm.launch.reference import add_reference
 
     load_summary(summary_path)
     return add_reference(summary_path, split_spec(run, scenario, *extra)[0])

@@ -1,7 +1,10 @@
 """The tree's layers, kept by a check: every import of every module goes down (or sideways where
-allowed), never up, and the two engines never import each other.
+allowed), never up, the two engines never import each other, and no module imports itself back
+through others (a circle).
 
-    cli            every command                                  may import anything
+    cli            every command: arguments in, a report out      may import anything; no module over 150 lines
+    bench          the benchmarks' measurements (net, soak, ...)   launch, net, sim, record, model, base
+    launch         starting and supervising runs (plan, chaos)     net, sim, record, model, base
     tune           searching parameter sets (zswarm tune)         sim, record, model, base
     agents, world  the two process programs                       net, record (world only), model, base
     sim | net      the engines: reference simulator | runtime     model, record (sim only), base
@@ -30,7 +33,9 @@ ALLOWED: dict[str, set[str]] = {
     "agents": {"base", "model", "net", "agents"},
     "world": {"base", "model", "net", "record", "world"},
     "tune": {"base", "model", "record", "sim", "tune"},
-    "cli": {"base", "model", "record", "sim", "net", "tune", "cli"},
+    "launch": {"base", "model", "record", "sim", "net", "launch"},
+    "bench": {"base", "model", "record", "sim", "net", "launch", "bench"},
+    "cli": {"base", "model", "record", "sim", "net", "tune", "launch", "bench", "cli"},
     "api": {"base", "model", "record", "sim"},  # zswarm/__init__: the notebook API
 }
 
@@ -114,6 +119,10 @@ def test_every_import_respects_the_layers():
     ("zswarm/model/params.py", "from zswarm.cli import main"),
     ("zswarm/tune/search.py", "from zswarm.net.runspec import RunSpec"),
     ("zswarm/sim/batch.py", "from zswarm.tune.space import Space"),
+    ("zswarm/launch/plan.py", "from zswarm.cli.launch import build_parser"),
+    ("zswarm/launch/supervisor.py", "from zswarm.bench.net import start_routers"),
+    ("zswarm/bench/net.py", "from zswarm.cli import bench_net"),
+    ("zswarm/tune/pipeline.py", "from zswarm.launch.run_once import run_once"),
 ])
 def test_the_check_catches_an_import_against_the_layers(tmp_path, where, line):
     """The same check on a copy of a module with one forbidden import added fails."""
@@ -122,6 +131,80 @@ def test_the_check_catches_an_import_against_the_layers(tmp_path, where, line):
     copy.write_text((ROOT / where).read_text() + f"\n\ndef _sneaky():\n    {line}\n")
     assert violations([(module, copy)]) != []
     assert violations([(module, ROOT / where)]) == []
+
+
+#: The most lines a command module may hold: a command reads its arguments and reports; the work is in
+#: the layers below it.
+CLI_MAX_LINES = 150
+
+
+def oversized(paths: list[Path]) -> list[str]:
+    """The command modules (zswarm/cli/) over :data:`CLI_MAX_LINES` lines."""
+    return [f"{p}: {n} lines" for p in paths if (n := len(p.read_text().splitlines())) > CLI_MAX_LINES]
+
+
+def circles(modules: list[tuple[str, Path]]) -> list[list[str]]:
+    """Every circle of imports between project modules (lazy imports count: they only hide one), as the
+    modules of each strongly connected group of more than one."""
+    names = {m for m, _ in modules}
+    graph = {m: sorted({t for _, t in imports(p, m) if t in names and t != m}) for m, p in modules}
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    out = []
+
+    def visit(v: str) -> None:  # Tarjan's strongly connected components
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            group = []
+            while True:
+                w = stack.pop()
+                group.append(w)
+                if w == v:
+                    break
+            if len(group) > 1:
+                out.append(sorted(group))
+
+    for v in graph:
+        if v not in index:
+            visit(v)
+    return out
+
+
+def cli_modules() -> list[Path]:
+    return sorted((ROOT / "zswarm" / "cli").glob("*.py"))
+
+
+def test_no_two_modules_import_each_other():
+    assert circles(project_modules()) == []
+
+
+def test_every_command_module_is_small():
+    assert len(cli_modules()) > 10
+    assert oversized(cli_modules()) == []
+
+
+def test_the_checks_catch_a_circle_and_a_big_command(tmp_path):
+    """A copy of zswarm/launch/plan.py that imports the supervisor back makes a circle; a command module
+    of 151 lines is caught."""
+    modules = project_modules()
+    plan = tmp_path / "plan.py"
+    plan.write_text((ROOT / "zswarm/launch/plan.py").read_text()
+                    + "\n\ndef _back():\n    from zswarm.launch.supervisor import Launch\n")
+    looped = [(m, plan if m == "zswarm.launch.plan" else p) for m, p in modules]
+    assert ["zswarm.launch.plan", "zswarm.launch.supervisor"] in circles(looped)
+    big = tmp_path / "big.py"
+    big.write_text("\n".join(["x = 1"] * (CLI_MAX_LINES + 1)) + "\n")
+    small = tmp_path / "small.py"
+    small.write_text("\n".join(["x = 1"] * CLI_MAX_LINES) + "\n")
+    assert oversized([big, small]) == [f"{big}: {CLI_MAX_LINES + 1} lines"]
 
 
 @pytest.mark.parametrize("modules", ["agents.main, agents.agent, agents.free", "world.main, world.world"])

@@ -1,6 +1,6 @@
 """The network benchmark's bookkeeping: repeats folded into medians, every repeat's ratio kept."""
 
-from zswarm.cli.bench_net import _medians
+from zswarm.bench.net import _medians
 
 
 def test_repeats_fold_into_medians_key_by_key():

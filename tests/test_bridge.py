@@ -8,7 +8,7 @@ import time
 import zenoh
 
 from conftest import free_port
-from zswarm.cli.measure import rss_mb
+from zswarm.bench.measure import rss_mb
 from zswarm.net.bridge import Bridge
 from zswarm.net.config import zenoh_config
 from zswarm.net.rings import CELL_CAPACITY, WIDE_CAPACITY

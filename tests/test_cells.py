@@ -53,9 +53,9 @@ def test_an_agent_listens_to_exactly_the_cells_its_disc_meets_along_a_walk():
         chosen = 0
         for _ in range(400):
             body.x, body.y = body.x + rng.normal(0, 0.04), body.y + rng.normal(0, 0.04)
-            at = s.cells_at
+            at = s.cell_view.chosen_at
             s.follow_cells()
-            chosen += s.cells_at is not at
+            chosen += s.cell_view.chosen_at is not at
             assert set(s.cells) == cells_in_disc(spec.keys, body.x, body.y, s.subscription_radius)
             assert {sub for _, sub in bridge.channels} == set(s.cells.values())
         assert chosen < 300  # most ticks keep the cells without working them out again

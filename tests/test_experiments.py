@@ -93,7 +93,7 @@ def test_the_sweep_figure_says_when_nothing_was_caught_and_frames_a_single_laten
     import re
     import warnings
 
-    from zswarm.cli.sweep_figure import save_figure
+    from zswarm.record.sweep_figure import save_figure
 
     cell = {"dropout": 0.0, "latency_ms": 0.0, "capture_time_mean": None, "capture_rate": 0.0}
     rows = [{**cell, "source": "distributed", "min_obstacle_clearance": 0.30},

@@ -7,6 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from zswarm.net import histogram
 from zswarm.net import messages as msg
 
 finite = st.floats(-1e5, 1e5, allow_nan=False)
@@ -97,9 +98,9 @@ def test_oversized_and_truncated_payloads():
 def test_histogram_percentiles():
     h = {}
     for ms in range(1, 101):  # 1..100 ms
-        b = msg.to_bin(float(ms))
+        b = histogram.to_bin(float(ms))
         h[b] = h.get(b, 0) + 1
-    assert msg.percentile(h, 0.5) == pytest.approx(50.75, abs=1.0)
-    assert msg.percentile(h, 0.99) == pytest.approx(99.75, abs=1.0)
-    assert msg.percentile({}, 0.5) is None
-    assert msg.merge([{1: 2}, {1: 3, 4: 1}]) == {1: 5, 4: 1}
+    assert histogram.percentile(h, 0.5) == pytest.approx(50.75, abs=1.0)
+    assert histogram.percentile(h, 0.99) == pytest.approx(99.75, abs=1.0)
+    assert histogram.percentile({}, 0.5) is None
+    assert histogram.merge([{1: 2}, {1: 3, 4: 1}]) == {1: 5, 4: 1}

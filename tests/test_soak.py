@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from zswarm.cli.soak import FLAT_MB_PER_MIN, run_soak
+from zswarm.bench.soak import FLAT_MB_PER_MIN, run_soak
 
 pytestmark = pytest.mark.slow
 

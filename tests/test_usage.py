@@ -206,7 +206,7 @@ def test_a_scenario_file_with_an_interaction_its_potential_cannot_use_is_refused
 def test_launch_warns_when_the_machine_cannot_step_the_agents_in_real_time():
     import re
 
-    from zswarm.cli.launch import AGENT_SHARE, AGENT_TICK_MS, pace_warning
+    from zswarm.launch.plan import AGENT_SHARE, AGENT_TICK_MS, pace_warning
 
     fits = int(AGENT_SHARE * 2 * 0.05 / (AGENT_TICK_MS / 1000.0))  # agents 2 cores step at 20 Hz
     assert pace_warning(fits, 0.05, 1.0, cores=2) is None

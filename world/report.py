@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Any, Callable
 
+from zswarm.net import histogram
 from zswarm.net import messages as msg
 from zswarm.net.poses import Rejections
 
@@ -15,8 +16,8 @@ def _ratio(a: float, b: float) -> float | None:
 def transport_summary(stats: list[msg.Stats], world_rejected: dict[str, int]) -> dict[str, Any]:
     """Traffic, rejections, latency and age percentiles, ticks on time, observed loss and who heard
     whom, merged over every agent's latest stats message (and the world's own rejections)."""
-    ages = msg.merge([s.age_hist for s in stats])
-    lat = msg.merge([s.latency_hist for s in stats])
+    ages = histogram.merge([s.age_hist for s in stats])
+    lat = histogram.merge([s.latency_hist for s in stats])
     ticks = sum(s.ticks for s in stats)
     late = sum(s.late_ticks for s in stats)
     rejected: dict[str, int] = dict(world_rejected)
@@ -30,12 +31,12 @@ def transport_summary(stats: list[msg.Stats], world_rejected: dict[str, int]) ->
         "messages_sent": sum(s.sent for s in stats),
         "messages_received": sum(s.received for s in stats),
         "messages_rejected": sum(rejected.values()), "rejected_by_reason": rejected,
-        "pose_age_ms": {"p50": msg.percentile(ages, 0.5), "p99": msg.percentile(ages, 0.99)},
-        "pose_latency_ms": {"p50": msg.percentile(lat, 0.5), "p99": msg.percentile(lat, 0.99)},
+        "pose_age_ms": {"p50": histogram.percentile(ages, 0.5), "p99": histogram.percentile(ages, 0.99)},
+        "pose_latency_ms": {"p50": histogram.percentile(lat, 0.5), "p99": histogram.percentile(lat, 0.99)},
         "poses_received": sum(s.health.poses for s in stats),
         "ticks": ticks, "late_ticks": late, "on_time_ratio": (1 - late / ticks) if ticks else None,
         "observed_dropout": _ratio(float(lost), float(counted)),
-        "observed_latency_ms": msg.percentile(lat, 0.5),
+        "observed_latency_ms": histogram.percentile(lat, 0.5),
         "heard": {str(s.id): list(s.heard) for s in stats},
         "neighbour_departures": {str(s.id): {str(k): v for k, v in (s.departed or {}).items()} for s in stats},
         "neighbour_returns": {str(s.id): {str(k): v for k, v in (s.returned or {}).items()} for s in stats},

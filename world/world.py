@@ -29,6 +29,7 @@ from world.report import StatsBook, transport_summary
 from zswarm.model.design import verdict
 from zswarm.model import prey as prey_motion
 from zswarm.model.observer import SwarmObserver
+from zswarm.net import histogram
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Bridge, Inbound
 from zswarm.net.keys import in_reach_counts
@@ -238,9 +239,9 @@ class World:
                    "agents_alive": float(len(self.census.alive))}
         if now - self.network_agents_logged >= agents_every:
             stats = self.stats.all()
-            lat, ages = msg.merge([s.latency_hist for s in stats]), msg.merge([s.age_hist for s in stats])
-            figures.update(latency_p50_ms=msg.percentile(lat, 0.5), latency_p99_ms=msg.percentile(lat, 0.99),
-                           age_p50_ms=msg.percentile(ages, 0.5), age_p99_ms=msg.percentile(ages, 0.99))
+            lat, ages = histogram.merge([s.latency_hist for s in stats]), histogram.merge([s.age_hist for s in stats])
+            figures.update(latency_p50_ms=histogram.percentile(lat, 0.5), latency_p99_ms=histogram.percentile(lat, 0.99),
+                           age_p50_ms=histogram.percentile(ages, 0.5), age_p99_ms=histogram.percentile(ages, 0.99))
             self.network_agents_logged = now
         self.recorder.log_network(self.clock.step, self.clock.t, figures)
         self.network_logged, self.network_received = now, self.received

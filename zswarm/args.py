@@ -7,6 +7,7 @@ found after parsing raise :class:`UsageError`, which :func:`run_main` turns into
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from typing import Callable, NoReturn, Sequence
 
@@ -110,6 +111,16 @@ def seed_arg(text: str) -> int:
         raise argparse.ArgumentTypeError(f"invalid int value {text!r}: a seed is an integer in [0, 2^63)") from None
     if not 0 <= value < MAX_SEED:
         raise argparse.ArgumentTypeError(f"a seed is an integer in [0, 2^63) (got {text!r})")
+    return value
+
+
+def non_negative(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"expected a finite number >= 0, got {text!r}")
     return value
 
 

@@ -15,19 +15,13 @@ every child is reaped.
 from __future__ import annotations
 
 import argparse
-import math
-import os
-import sys
-import time
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
 
-from zswarm.args import DEFAULT_VIEWER_URL, ConnectAction, Parser, UsageError, run_main
-from zswarm.cli.chaos import parse_crash, parse_kill, parse_outage
-from zswarm.files import check_run_files
-from zswarm.net.runspec import RunSpec, add_run_args, spec_from_args
-from zswarm.record.live import Viewer, add_viewer_args, viewer_from_args
+from zswarm.args import DEFAULT_VIEWER_URL, ConnectAction, Parser, run_main
+from zswarm.launch.chaos import parse_crash, parse_kill, parse_outage
+from zswarm.net.runspec import add_run_args
+from zswarm.record.live import add_viewer_args
 
 ROLES = ("router", "world", "agents")
 
@@ -102,189 +96,9 @@ def build_parser(prog: str = "zswarm run") -> Parser:
     return p
 
 
-def endpoint_host_port(endpoint: str) -> tuple[str, int]:
-    try:
-        _, rest = endpoint.split("/", 1)
-        host, port = rest.rsplit(":", 1)
-        return host.strip("[]"), int(port)
-    except ValueError:
-        raise UsageError(f"endpoint {endpoint!r} must look like tcp/HOST:PORT (or tls/HOST:PORT)") from None
-
-
-@dataclass(frozen=True)
-class Plan:
-    """Everything ``zswarm run`` was asked to do, checked: the run itself and where its parts run."""
-
-    spec: RunSpec
-    roles: tuple[str, ...]
-    routers: int
-    ids: tuple[int, ...]  # the agents this machine runs
-    record: Path
-    summary: Path
-    trajectory: Path | None
-    connect: str | None
-    listen: str | None
-    secure: Path | None
-    config: Path | None
-    router_config: Path | None
-    quiet: bool
-    fork: bool
-    kill: tuple[int, float] | None
-    restart_after: float | None
-    world_outage: tuple[float, float] | None
-    world_crash: tuple[float, float | None] | None
-    viewer: Viewer = Viewer()
-    design: dict | None = None  # the design verdict of the set this run uses (None: not judged here)
-
-
-def plan_from_args(args: argparse.Namespace) -> Plan:
-    """Check everything a child would reject, before any child starts."""
-    if args.agents is not None and args.agents < 1:
-        raise UsageError(f"--agents must be >= 1 (got {args.agents})")
-    spec = spec_from_args(args, run=f"run-{args.seed}-{int(time.time())}",
-                          extra={"n_agents": args.agents} if args.agents is not None else None)
-    n = spec.scenario.n_agents
-    ids = tuple(args.ids if args.ids is not None else range(n))
-    if "agents" in args.role:
-        check_capacity(len(ids), args.fork)
-    spec.scenario.check_placement()  # every agent would fail to place itself, one by one
-    design = None
-    if "world" in args.role or args.require_design:
-        design = judge_design(spec, args.require_design)
-    if "world" in args.role:
-        check_run_files(args.record, args.summary, args.trajectory)
-    if "router" not in args.role and args.connect is None:
-        raise UsageError("without the router role, give --connect tcp/HOST:PORT of the router")
-    for flag, endpoint in (("--listen", args.listen), ("--connect", args.connect)):
-        if endpoint is not None:
-            endpoint_host_port(endpoint)
-            if args.secure is not None and not endpoint.startswith("tls/"):
-                raise UsageError(f"with --secure, {flag} must be a tls/HOST:PORT endpoint (got {endpoint!r})")
-    for flag, path in (("--config", args.config), ("--router-config", args.router_config)):
-        if path is not None:
-            if args.secure is not None:
-                raise UsageError(f"{flag} and --secure both set the Zenoh configuration; give one")
-            from zswarm.net.config import zenoh_config
-
-            zenoh_config(None, config=path)  # a missing or unreadable file fails here, not in a child
-    if not 1 <= args.routers <= 64:
-        raise UsageError(f"--routers must be between 1 and 64 (got {args.routers})")
-    if args.routers > 1 and "router" not in args.role:
-        raise UsageError("--routers K starts K routers: give the router role too (or leave --role alone)")
-    if args.routers > 1 and args.secure is not None:
-        raise UsageError("--routers K with --secure is not supported yet: run one secure router, or several "
-                         "without --secure")
-    if args.restart_after is not None and not args.restart_after >= 0:
-        raise UsageError(f"--restart-after must be >= 0 (got {args.restart_after})")
-    viewer = viewer_from_args(args) if "world" in args.role else Viewer()
-    if (viewer.spawn or viewer.serve) and args.world_crash is not None and args.world_crash[1] is not None:
-        raise UsageError("--world-crash T:S restarts the world; watch it with --connect to a viewer of your own "
-                         "(--spawn and --serve live in the world process)")
-    if args.secure is not None:
-        _check_secure_dir(args.secure, ids if "agents" in args.role else ())
-    if "agents" in args.role and spec.clock == "free":  # last: a usage error above comes alone
-        line = pace_warning(len(ids), spec.scenario.dt, spec.time_scale, available_cores())
-        if line:
-            print(f"warning: {line}", file=sys.stderr, flush=True)
-    return Plan(spec=spec, roles=tuple(args.role), routers=args.routers, ids=ids, record=args.record,
-                summary=args.summary or args.record.with_suffix(".json"), trajectory=args.trajectory,
-                connect=args.connect, listen=args.listen, secure=args.secure, config=args.config,
-                router_config=args.router_config, quiet=args.quiet, fork=args.fork, kill=args.kill, restart_after=args.restart_after,
-                world_outage=args.world_outage, world_crash=args.world_crash, viewer=viewer, design=design)
-
-
-#: Memory an agent process holds, with margin (PSS in docs/benchmarks.md: 10-12 MB forked, 22-25 MB not).
-AGENT_MIB = {True: 16, False: 32}
-
-
-def available_mib() -> float | None:
-    """MemAvailable from /proc/meminfo, in MiB (None where there is no such file)."""
-    try:
-        for line in Path("/proc/meminfo").read_text().splitlines():
-            if line.startswith("MemAvailable:"):
-                return int(line.split()[1]) / 1024.0
-    except (OSError, ValueError, IndexError):
-        return None
-    return None
-
-
-def check_capacity(n_local: int, fork: bool) -> None:
-    """Refuse, before anything starts, a number of agent processes this machine cannot hold."""
-    need, have = n_local * AGENT_MIB[fork], available_mib()
-    if have is not None and need > have:
-        raise UsageError(f"{n_local} agent processes need about {need / 1024:,.0f} GiB of memory "
-                         f"({AGENT_MIB[fork]} MiB each{', forked' if fork else ''}) and this machine has "
-                         f"{have / 1024:.1f} GiB available; run fewer agents, or spread them over machines "
-                         "(--role agents --ids A-B on each)")
-
-
-#: CPU an agent's control step takes (ms): 0.5-0.8 on bench-field (docs/benchmarks.md), more in a dense swarm.
-AGENT_TICK_MS = 1.0
-#: The share of the machine the agents may use in real time; the router, the world and the OS need the rest.
-AGENT_SHARE = 0.5
-
-
-def available_cores() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):
-        return os.cpu_count() or 1
-
-
-def pace_warning(n_local: int, dt: float, time_scale: float, cores: int) -> str | None:
-    """A free-clock run whose agents need more CPU than the machine has falls behind: poses arrive late,
-    agents act on stale neighbours and collide, whatever the design says. The warning names a time scale
-    that fits (measured: large-swarm, 100 agents at dt = 0.025 on 2 cores: 0.25 on time, 0.5 not)."""
-    need = n_local * (time_scale / dt) * AGENT_TICK_MS / 1000.0  # cores, for the control steps alone
-    budget = AGENT_SHARE * cores
-    if need <= budget:
-        return None
-    fits = math.floor(20.0 * time_scale * budget / need) / 20.0
-    advice = f"--time-scale {fits:g}" if fits >= 0.05 else "fewer agents on this machine (--ids)"
-    return (f"{n_local} agents stepping {time_scale / dt:g} times a second need about {need:.2g} cores "
-            f"({AGENT_TICK_MS:g} ms a step) and this machine has {cores}: the run may fall behind and act on "
-            f"stale poses; use {advice}")
-
-
-def design_command(spec: RunSpec) -> str:
-    """The command that explains a run's design verdict."""
-    sets = " ".join(f"--set {k}={v}" for k, v in spec.overrides)
-    return f"zswarm design --scenario {spec.scenario_name}" + (f" {sets}" if sets else "")
-
-
-def judge_design(spec: RunSpec, required: bool) -> dict:
-    """The design verdict of the set the run will use; one warning line when it fails, or (with
-    ``required``) a usage error before anything starts."""
-    from zswarm.model.design import verdict, warning_line
-
-    result = verdict(spec.scenario.params, spec.scenario.dt)
-    if not result["ok"]:
-        line = warning_line(result, design_command(spec))
-        if required:
-            raise UsageError(line + " (--require-design)")
-        print(f"warning: {line}", file=sys.stderr, flush=True)
-    return result
-
-
-def _check_secure_dir(directory: Path, ids: Sequence[int]) -> None:
-    from zswarm.net.security import agent_config, agent_name, is_secure_dir
-
-    if directory.exists() and not directory.is_dir():
-        raise UsageError(f"--secure {directory} is not a directory")
-    if directory.is_dir() and any(directory.iterdir()) and not is_secure_dir(directory):
-        raise UsageError(f"--secure {directory} has no router/world/agent .json5 configs; "
-                         f"make them with: zswarm certs {directory}")
-    if ids and is_secure_dir(directory):
-        own = [i for i in ids if agent_config(directory, i).name == f"{agent_name(i)}.json5"]
-        if own and len(own) < len(ids):
-            lacking = sorted(set(ids) - set(own))
-            raise UsageError(f"--secure {directory} gives agents their own identities, but none to agent "
-                             f"{lacking[0]}{' and others' if len(lacking) > 1 else ''}; remake it with: "
-                             f"zswarm certs {directory} --force --agents {max(ids) + 1}")
-
-
 def _launch(argv: Sequence[str] | None, prog: str) -> int:
-    from zswarm.cli.supervise import Launch
+    from zswarm.launch.plan import plan_from_args
+    from zswarm.launch.supervisor import Launch
 
     plan = plan_from_args(build_parser(prog).parse_args(argv))
     return Launch(plan).run()

@@ -8,11 +8,10 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 from types import ModuleType
 from typing import Sequence
 
-from zswarm.args import Parser, positive_float, positive_int, run_main, seed_arg
+from zswarm.args import Parser, run_main
 
 DELEGATED = {"run": "start a swarm: router, world and N agent processes (zswarm run --help)",
              "sweep": "sweep latency x dropout, distributed and simulated (zswarm sweep --help)"}
@@ -57,32 +56,8 @@ def build_parser() -> Parser:
     bs = bench_sub.add_parser("sim", help="simulator steps per second for growing N")
     sim.add_bench_sim_arguments(bs)
     bs.set_defaults(run=sim.run_bench_sim)
-    bn = bench_sub.add_parser("net", help="distributed swarm: latency, ticks on time, load, memory")
-    bn.add_argument("--agents", type=lambda t: [positive_int(x) for x in t.split(",")],
-                    default=[10], help="N, or a comma-separated list (default 10)")
-    bn.add_argument("--duration", type=positive_float, default=15.0,
-                    help="simulated = wall seconds per run (default 15)")
-    bn.add_argument("--routers", type=positive_int, default=1, metavar="K",
-                    help="K meshed routers, agent i on router i mod K (default 1)")
-    bn.add_argument("--floor", action="store_true",
-                    help="also run N bare Zenoh processes with the same traffic and report the agents' CPU "
-                         "as a ratio to theirs")
-    bn.add_argument("--repeat", type=positive_int, default=1, metavar="K",
-                    help="measure each N K times in turn (swarm, floors, swarm, ...) and report medians (default 1)")
-    bn.add_argument("--record", type=Path, default=None, metavar="FILE.rrd",
-                    help="also write the curves (cost and latency against N) as a Rerun recording")
-    bn.add_argument("--json", action="store_true")
-    bn.set_defaults(run=bench_net.main_bench)
-    so = bench_sub.add_parser("soak", help="a long run under loss: memory flat? backlog growing?",
-                              description="N agents on bench-field with seeded loss for several minutes; "
-                                          "samples every process's memory and the agents' inbound queues "
-                                          "and tick lag. Exit 1 when memory or backlog grows.")
-    so.add_argument("--agents", type=positive_int, default=30, help="N (default 30)")
-    so.add_argument("--dropout", type=float, default=0.2, help="loss probability per message (default 0.2)")
-    so.add_argument("--duration", type=positive_float, default=300.0, help="seconds (default 300)")
-    so.add_argument("--seed", type=seed_arg, default=0)
-    so.add_argument("--json", action="store_true")
-    so.set_defaults(run=soak.main_soak)
+    module_command(bench_sub, "net", "distributed swarm: latency, ticks on time, load, memory", bench_net)
+    module_command(bench_sub, "soak", "a long run under loss: memory flat? backlog growing?", soak)
     module_command(bench_sub, "guidelines", "do the design checks predict the swarm? (false-safe sets)",
                    bench_guidelines)
     module_command(bench_sub, "interactions", "each interaction on the same scenario, sizes and seeds",

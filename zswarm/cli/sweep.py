@@ -11,38 +11,15 @@ curves of every cell).
 from __future__ import annotations
 
 import argparse
-import csv
-import json
-import math
-import os
-import subprocess
 import sys
 import time
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Sequence
-
-import numpy as np
+from typing import Sequence
 
 from zswarm.args import Parser, UsageError, seed_arg
 from zswarm.files import write_json
+from zswarm.launch.sweep import Cell, aggregate, cell_spec, run_cell_distributed, simulate_cell, write_curves, write_tables
 from zswarm.model.faults import FaultModel, parse_duration_list
-from zswarm.net.runspec import RunSpec
-
-OUTCOMES = ("capture_time", "collisions", "min_obstacle_clearance", "max_components", "final_components",
-            "observed_dropout", "observed_latency_ms")
-
-
-@dataclass(frozen=True)
-class Cell:
-    latency: float
-    dropout: float
-    repeat: int
-
-    @property
-    def name(self) -> str:
-        return f"lat{round(self.latency * 1000)}ms_drop{self.dropout:g}_rep{self.repeat}"
-
 
 def build_parser(prog: str = "zswarm sweep") -> Parser:
     p = Parser(prog=prog, description="Sweep latency x dropout, distributed and simulated.")
@@ -76,121 +53,6 @@ def parse_lists(args: argparse.Namespace) -> tuple[list[float], list[float]]:
     if not lat or not drop or args.repeats < 1:
         raise UsageError("give at least one latency, one dropout and --repeats >= 1")
     return lat, drop
-
-
-def cell_spec(cell: Cell, args: argparse.Namespace, jitter: float) -> RunSpec:
-    """The run of one cell: the sweep's scenario under the cell's faults, seed + repeat."""
-    seed = args.seed + cell.repeat
-    return RunSpec(run=f"sweep-{cell.name}".replace(".", "_"), scenario_name=args.scenario,
-                   overrides=(("n_agents", args.agents),) if args.agents is not None else (), seed=seed,
-                   duration=args.duration, faults=FaultModel(latency=cell.latency, jitter=jitter, dropout=cell.dropout,
-                                                             burst=args.burst, seed=seed))
-
-
-def run_cell_distributed(cell: Cell, args: argparse.Namespace, folder: Path, jitter: float) -> None:
-    spec = cell_spec(cell, args, jitter)
-    cmd = [sys.executable, "-m", "zswarm", "run", *spec.to_argv(), "--record", str(folder / "run.rrd"),
-           "--summary", str(folder / "run.part.json"), "--quiet"]
-    res = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    if res.returncode != 0:
-        raise RuntimeError(f"cell {cell.name}: zswarm run exited {res.returncode}: {res.stderr.strip()[-300:]}")
-    os.replace(folder / "run.part.json", folder / "run.json")  # the cell is finished only now
-
-
-def simulate_cell(cell: Cell, args: argparse.Namespace, jitter: float, **kw):
-    from zswarm.sim.simulator import simulate
-
-    spec = cell_spec(cell, args, jitter)
-    return simulate(spec.scenario, spec.seed, duration=spec.duration, faults=spec.faults, **kw)
-
-
-def _stats(values: list[Any]) -> tuple[float | None, float | None]:
-    nums = [float(v) for v in values if isinstance(v, (int, float)) and math.isfinite(v)]
-    if not nums:
-        return None, None
-    return float(np.mean(nums)), float(np.std(nums))
-
-
-def aggregate(cells: list[Cell], out: Path, sources: Sequence[str]) -> list[dict[str, Any]]:
-    rows = []
-    keys = sorted({(c.latency, c.dropout) for c in cells})
-    for source in sources:
-        fname = "run.json" if source == "distributed" else "sim.json"
-        for lat, drop in keys:
-            summaries = [json.loads((out / "cells" / c.name / fname).read_text()) for c in cells
-                         if (c.latency, c.dropout) == (lat, drop) and (out / "cells" / c.name / fname).exists()]
-            if not summaries:
-                continue
-            row: dict[str, Any] = {"source": source, "latency_ms": lat * 1000, "dropout": drop,
-                                   "runs": len(summaries),
-                                   "capture_rate": np.mean([s["capture_time"] is not None for s in summaries])}
-            for k in OUTCOMES:
-                vals = [s.get(k) for s in summaries]
-                if k == "min_obstacle_clearance":
-                    finite = [v for v in vals if v is not None]
-                    row[k] = min(finite) if finite else None
-                elif k == "max_components":
-                    row[k] = max(v for v in vals if v is not None)
-                else:
-                    row[f"{k}_mean"], row[f"{k}_std"] = _stats(vals)
-            rows.append(row)
-    return rows
-
-
-def _fmt(v: Any, digits: int = 3) -> str:
-    if v is None:
-        return "-"
-    if isinstance(v, float):
-        return f"{v:.{digits}g}"
-    return str(v)
-
-
-def write_tables(rows: list[dict[str, Any]], out: Path) -> None:
-    if not rows:
-        return
-    fields = list(dict.fromkeys(k for r in rows for k in r))
-    with open(out / "results.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=fields)
-        w.writeheader()
-        w.writerows(rows)
-    lines = ["| source | latency ms | dropout | runs | captured | capture time s | collisions | min clearance "
-             "| max components | observed loss | observed delay ms |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
-    for r in rows:
-        ct = "-" if r["capture_time_mean"] is None else f"{r['capture_time_mean']:.1f} ± {r['capture_time_std']:.1f}"
-        lines.append(f"| {r['source']} | {r['latency_ms']:g} | {r['dropout']:g} | {r['runs']} | "
-                     f"{r['capture_rate'] * 100:.0f} % | {ct} | {_fmt(r['collisions_mean'])} | "
-                     f"{_fmt(r['min_obstacle_clearance'])} | {r['max_components']} | "
-                     f"{_fmt(r['observed_dropout_mean'])} | {_fmt(r['observed_latency_ms_mean'])} |")
-    (out / "results.md").write_text("\n".join(lines) + "\n")
-
-
-def write_curves(cells: list[Cell], args: argparse.Namespace, out: Path, jitter: float) -> None:
-    """sweep.rrd: per cell, the centroid-prey distance and the closest pair over time."""
-    import rerun as rr
-    import rerun.blueprint as rrb
-
-    from zswarm.record.recording import close_recording, open_recording
-    from zswarm.record.replay import load_run
-
-    bp = rrb.Blueprint(rrb.Vertical(rrb.TimeSeriesView(origin="centroid_goal_distance"),
-                                    rrb.TimeSeriesView(origin="min_pair_distance")), collapse_panels=True)
-    rec = open_recording(out / "sweep.rrd", "zswarm-sweep", bp)
-    rec.log("config", rr.TextDocument(json.dumps(vars(args), default=str, indent=2)), static=True)
-    for cell in cells:
-        sim = simulate_cell(cell, args, jitter).metrics
-        t = np.asarray(sim.times)
-        for metric in ("centroid_goal_distance", "min_pair_distance"):
-            rec.send_columns(f"{metric}/sim/{cell.name}", indexes=[rr.TimeColumn("sim_time", duration=t)],
-                             columns=rr.Scalars.columns(scalars=np.asarray(sim.series[metric])))
-        run_path = out / "cells" / cell.name / "run.rrd"
-        if (out / "cells" / cell.name / "run.json").exists():
-            frames = [f for f in load_run(run_path).frames if f.prey is not None and len(f.ids)]
-            t = np.array([f.t for f in frames])
-            cd = np.array([np.linalg.norm(f.positions.mean(axis=0) - f.prey) for f in frames])
-            rec.send_columns(f"centroid_goal_distance/distributed/{cell.name}",
-                             indexes=[rr.TimeColumn("sim_time", duration=t)], columns=rr.Scalars.columns(scalars=cd))
-    close_recording(rec)
 
 
 def main(argv: Sequence[str] | None, prog: str = "zswarm sweep") -> int:
@@ -240,7 +102,7 @@ def main(argv: Sequence[str] | None, prog: str = "zswarm sweep") -> int:
     rows = aggregate(cells, args.out, sources)
     write_tables(rows, args.out)
     write_curves(cells, args, args.out, jitter)
-    from zswarm.cli.sweep_figure import save_figure
+    from zswarm.record.sweep_figure import save_figure
 
     d_m_ro = cell_spec(cells[0], args, jitter).scenario.params.margins.d_m_ro if cells else None
     save_figure(rows, args.out / "sweep.png", args.scenario, d_m_ro)

@@ -224,36 +224,6 @@ def _bins(counts: dict) -> dict[int, int]:
     return {int(k): int(v) for k, v in counts.items() if isinstance(k, int) and 0 <= k < MAX_HIST_BINS}
 
 
-BIN_MS = 0.5
-
-
-def to_bin(ms: float) -> int:
-    """Histogram bin of a duration in milliseconds (0.5 ms bins, clamped to the last bin)."""
-    return min(max(int(ms / BIN_MS), 0), MAX_HIST_BINS - 1)
-
-
-def percentile(hist: dict[int, int], q: float) -> float | None:
-    """The q-quantile (0..1) of a binned histogram, in milliseconds (bin centre); None if empty."""
-    total = sum(hist.values())
-    if total == 0:
-        return None
-    rank = q * (total - 1)
-    seen = 0
-    for b in sorted(hist):
-        seen += hist[b]
-        if seen > rank:
-            return (b + 0.5) * BIN_MS
-    return (max(hist) + 0.5) * BIN_MS
-
-
-def merge(hists: list[dict[int, int]]) -> dict[int, int]:
-    out: dict[int, int] = {}
-    for h in hists:
-        for b, c in h.items():
-            out[b] = out.get(b, 0) + c
-    return out
-
-
 def decode(data: bytes) -> Message:
     """Parse and validate one message; raises :class:`DecodeError` for anything unacceptable."""
     if len(data) > MAX_PAYLOAD:
@@ -346,29 +316,3 @@ def _other(obj: dict, kind: Any) -> Message:
                      health, tuple(heard),
                      _times(obj.get("dep", {}), "dep"), _times(obj.get("ret", {}), "ret"))
     raise DecodeError("kind", f"unknown kind {kind!r}")
-
-
-def implausible_jump(old: Pose, new: Pose, max_step: float, elapsed_steps: float | None = None) -> bool:
-    """``new`` lies farther from ``old`` than ``max_step`` per elapsed step could carry an agent.
-
-    Steps are counted by lockstep step numbers when both have them, else by sequence numbers (one
-    pose per control tick), at least one; ``elapsed_steps`` (the receiver's own clock) caps the
-    count, so a forged sequence number cannot buy a forged pose an arbitrarily long way.
-    """
-    if new.step >= 0 and old.step >= 0:
-        steps = max(new.step - old.step, 1)
-    else:
-        steps = max(new.seq - old.seq, 1)
-    if elapsed_steps is not None:
-        steps = min(steps, max(elapsed_steps, 1.0))
-    return math.hypot(new.x - old.x, new.y - old.y) > max_step * steps + 1e-9
-
-
-SEQ_RESTART = 1000
-
-
-def supersedes(old: Pose, new: Pose) -> bool:
-    """``new`` replaces ``old``: a newer sequence number, or one so far behind that the sender must
-    have restarted (a restarted agent counts from 1 again, and may be anywhere: no jump check then;
-    so a forged huge number cannot lock the real sender out)."""
-    return new.seq > old.seq or old.seq - new.seq > SEQ_RESTART

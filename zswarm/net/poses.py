@@ -14,11 +14,38 @@ Every pose that arrives passes the same acceptance rules (:meth:`PoseTable.accep
 
 from __future__ import annotations
 
+import math
 import sys
 from dataclasses import dataclass, field
 from typing import Callable
 
 from zswarm.net import messages as msg
+
+
+def implausible_jump(old: msg.Pose, new: msg.Pose, max_step: float, elapsed_steps: float | None = None) -> bool:
+    """``new`` lies farther from ``old`` than ``max_step`` per elapsed step could carry an agent.
+
+    Steps are counted by lockstep step numbers when both have them, else by sequence numbers (one
+    pose per control tick), at least one; ``elapsed_steps`` (the receiver's own clock) caps the
+    count, so a forged sequence number cannot buy a forged pose an arbitrarily long way.
+    """
+    if new.step >= 0 and old.step >= 0:
+        steps = max(new.step - old.step, 1)
+    else:
+        steps = max(new.seq - old.seq, 1)
+    if elapsed_steps is not None:
+        steps = min(steps, max(elapsed_steps, 1.0))
+    return math.hypot(new.x - old.x, new.y - old.y) > max_step * steps + 1e-9
+
+
+SEQ_RESTART = 1000
+
+
+def supersedes(old: msg.Pose, new: msg.Pose) -> bool:
+    """``new`` replaces ``old``: a newer sequence number, or one so far behind that the sender must
+    have restarted (a restarted agent counts from 1 again, and may be anywhere: no jump check then;
+    so a forged huge number cannot lock the real sender out)."""
+    return new.seq > old.seq or old.seq - new.seq > SEQ_RESTART
 
 
 @dataclass
@@ -76,9 +103,9 @@ class PoseTable:
             old = self.entries[pose.id] = Entry(pose, now)
         else:
             elapsed = (now - old.received) / self.period + 2.0 if pose.step < 0 else None
-            if pose.seq > old.latest.seq and msg.implausible_jump(old.latest, pose, self.max_step, elapsed):
+            if pose.seq > old.latest.seq and implausible_jump(old.latest, pose, self.max_step, elapsed):
                 return "jump"
-            if msg.supersedes(old.latest, pose):
+            if supersedes(old.latest, pose):
                 old.latest, old.received = pose, now
         if pose.step >= 0:
             old.by_step[pose.step] = pose

@@ -219,15 +219,35 @@ def start_router(kids: Children, host: str = "127.0.0.1", proto: str = "tcp", ex
     """A router child listening on a free port of ``host`` (``extra``: more router arguments, e.g.
     ``--config``, or ``--connect`` to join another router); returns its endpoint once the port accepts
     connections."""
-    port = free_port(host)
-    endpoint = f"{proto}/{host}:{port}"
-    router = kids.spawn(name, ["-m", ROUTER_MODULE, "--listen", endpoint, *extra], stdout=subprocess.DEVNULL)
-    if not wait_for_port(host, port, 10.0, router):
-        raise RuntimeError(f"the router did not start on {endpoint}")
+    endpoint = f"{proto}/{host}:{free_port(host)}"
+    _spawn_router(kids, name, endpoint, None, extra)
     return endpoint
 
 
 ROUTER_MODULE = "zswarm.net.router"
+
+
+def local_host(host: str) -> str:
+    """Where to check a listening port: a wildcard address is reached on loopback."""
+    return "127.0.0.1" if host in ("0.0.0.0", "::") else host
+
+
+def start_mesh(kids: Children, endpoints: Sequence[str], join: str | None = None, extra: Sequence[str] = ()) -> None:
+    """Routers listening on ``endpoints`` (``proto/HOST:PORT``), meshed: the first joins ``join`` (another
+    machine's router, if any), every other joins the first (``zswarm run --routers K``). ``extra``: more
+    router arguments (``--config``). Returns once each accepts connections; RuntimeError if one does not."""
+    for k, endpoint in enumerate(endpoints):
+        _spawn_router(kids, "router" if k == 0 else f"router-{k}", endpoint, endpoints[0] if k > 0 else join, extra)
+
+
+def _spawn_router(kids: Children, name: str, endpoint: str, join: str | None, extra: Sequence[str]) -> Child:
+    """One router on ``endpoint`` (joining ``join``), once it accepts connections."""
+    router = kids.spawn(name, ["-m", ROUTER_MODULE, "--listen", endpoint, *(["--connect", join] if join else []),
+                               *extra], stdout=subprocess.DEVNULL)
+    host, port = endpoint.split("/", 1)[1].rsplit(":", 1)
+    if not wait_for_port(local_host(host.strip("[]")), int(port), 10.0, router):
+        raise RuntimeError(f"the router did not start on {endpoint} (port taken? address not local?)")
+    return router
 
 
 def world_argv(spec: RunSpec, connect: str, *extra: str) -> list[str]:

@@ -15,6 +15,7 @@ from collections import Counter, deque
 from dataclasses import dataclass, field
 from typing import Any
 
+from zswarm.net import histogram
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Bridge, teardown
 from zswarm.net.keys import Keys
@@ -148,8 +149,8 @@ class RunWatch:
             ticks += s.ticks
         return Snapshot(t=now, alive=sorted(self.alive),
                         pose_rate={i: len(t) / window for i, t in sorted(self.poses.items())},
-                        latency_p50_ms=msg.percentile(latency, 0.5), latency_p99_ms=msg.percentile(latency, 0.99),
-                        age_p50_ms=msg.percentile(age, 0.5), age_p99_ms=msg.percentile(age, 0.99),
+                        latency_p50_ms=histogram.percentile(latency, 0.5), latency_p99_ms=histogram.percentile(latency, 0.99),
+                        age_p50_ms=histogram.percentile(age, 0.5), age_p99_ms=histogram.percentile(age, 0.99),
                         rejected={k: v for k, v in sorted(rejected.items()) if v},
                         late_ticks=late, ticks=ticks, prey=self.prey, prey_rate=len(self.prey_times) / window,
                         agents_reporting=len(self.stats), gone=self.gone(now))

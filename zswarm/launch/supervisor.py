@@ -1,7 +1,7 @@
 """A launched run, from the first child to the last reaped: start, supervise, stage the chaos, end.
 
 :class:`Launch` holds the run's state (its children, the current world, what chaos has done) in its
-own fields; the plan it carries out is the checked, immutable :class:`~zswarm.cli.launch.Plan`.
+own fields; the plan it carries out is the checked, immutable :class:`~zswarm.launch.plan.Plan`.
 """
 
 from __future__ import annotations
@@ -14,18 +14,21 @@ import time
 
 import numpy as np
 
-from zswarm.args import UsageError
-from zswarm.cli.chaos import Event, schedule
-from zswarm.cli.launch import Plan, endpoint_host_port
+from zswarm.errors import UsageError
+from zswarm.launch.chaos import Event, schedule
+from zswarm.launch.configs import agent_config_args, role_configs
+from zswarm.launch.ending import finish_recording
+from zswarm.launch.plan import Plan, endpoint_host_port
+from zswarm.launch.world_lines import DONE, follow_world
 from zswarm.net.procs import (
-    ROUTER_MODULE,
     Child,
     Children,
     Fleet,
     agent_argv,
     free_port,
+    local_host,
     port_in_use,
-    wait_for_port,
+    start_mesh,
     world_argv,
 )
 
@@ -57,11 +60,11 @@ class Launch:
     # --- start ----------------------------------------------------------------------------------------
 
     def run(self) -> int:
-        self.configs = self._zenoh_configs()
+        self.configs = role_configs(self.plan, self.spec.scenario.n_agents, _say)
         if "router" in self.plan.roles:
             self.endpoint = self.plan.listen or f"{'tls' if self.plan.secure else 'tcp'}/127.0.0.1:{free_port()}"
             host, port = endpoint_host_port(self.endpoint)
-            if port_in_use(_local(host), port):
+            if port_in_use(local_host(host), port):
                 raise UsageError(f"port {port} on {host} is already in use; pick another with --listen")
         interrupted = False
 
@@ -77,7 +80,7 @@ class Launch:
         except KeyboardInterrupt:
             _say("stopping (agents, then the world, then the router)")
             self.kids.stop_all()
-            self._finish_recording(None)
+            self._finish_recording()
             return 143 if interrupted else 130
         finally:
             self.kids.stop_all()
@@ -88,15 +91,10 @@ class Launch:
         if "router" in plan.roles:
             proto = self.endpoint.split("/", 1)[0]
             self.endpoints += [f"{proto}/127.0.0.1:{free_port()}" for _ in range(plan.routers - 1)]
-            for k, endpoint in enumerate(self.endpoints):
-                joins = self.endpoints[0] if k > 0 else plan.connect  # the others join the first
-                router = self.kids.spawn("router" if k == 0 else f"router-{k}",
-                                         ["-m", ROUTER_MODULE, "--listen", endpoint,
-                                          *(["--connect", joins] if joins else []), *self.configs.get("router", [])],
-                                         stdout=subprocess.DEVNULL)
-                host, port = endpoint_host_port(endpoint)
-                if not wait_for_port(_local(host), port, 10.0, router):
-                    raise UsageError(f"the router did not start on {endpoint} (port taken? address not local?)")
+            try:
+                start_mesh(self.kids, self.endpoints, plan.connect, self.configs.get("router", []))
+            except RuntimeError as exc:
+                raise UsageError(str(exc)) from None
         if "world" in plan.roles:
             self._spawn_world(resume=False)
         if "agents" in plan.roles:
@@ -107,32 +105,8 @@ class Launch:
                 f"{len(self.endpoints)} routers {', '.join(self.endpoints)}"
             _say(f"run {self.spec.run!r}, {len(self.kids.named('agent'))} agent processes, {routers}", err=False)
 
-    def _zenoh_configs(self) -> dict[str, list[str]]:
-        """``--config`` arguments by role: --config/--router-config as given, or --secure DIR's files
-        (made there if DIR has none: one identity per agent, see :meth:`_agent_config`)."""
-        plan = self.plan
-        if plan.secure is None:
-            out = {}
-            if plan.config is not None:
-                out["world"] = out["agent"] = ["--config", str(plan.config)]
-            if plan.router_config is not None:
-                out["router"] = ["--config", str(plan.router_config)]
-            return out
-        from zswarm.net.security import is_secure_dir, write_secure_dir
-
-        if not is_secure_dir(plan.secure):
-            write_secure_dir(plan.secure, agents=self.spec.scenario.n_agents)
-            if not plan.quiet:
-                _say(f"made a CA, certificates (one per agent) and configs in {plan.secure}", err=False)
-        return {role: ["--config", str(plan.secure / f"{role}.json5")] for role in ("router", "world")}
-
     def _agent_config(self, agent: int) -> list[str]:
-        """Agent ``agent``'s config: under --secure, its own identity's if DIR has one."""
-        if self.plan.secure is None:
-            return self.configs.get("agent", [])
-        from zswarm.net.security import agent_config
-
-        return ["--config", str(agent_config(self.plan.secure, agent))]
+        return agent_config_args(self.plan, self.configs, agent)
 
     def router_of(self, agent: int) -> int:
         return agent % len(self.endpoints)
@@ -168,18 +142,13 @@ class Launch:
             extra.append("--resume")
         extra += self._viewer().to_argv()
         self.world = self.kids.spawn("world", world_argv(self.spec, self.endpoint, *extra), stdout=subprocess.PIPE)
-        self.world_started = threading.Event()
-        threading.Thread(target=self._forward, args=(self.world, self.world_started), daemon=True).start()
+        self.world_started = follow_world(self.world, self._forward)
 
-    def _forward(self, world: Child, started: threading.Event) -> None:
-        """Pass the world's lines through, and note when its clock starts."""
-        for line in world.proc.stdout:
-            text = line.decode(errors="replace") if isinstance(line, bytes) else line
-            if text.startswith("world: started"):
-                started.set()
-            if not self.plan.quiet or text.startswith("world: done"):
-                sys.stdout.write(text)
-                sys.stdout.flush()
+    def _forward(self, text: str) -> None:
+        """Pass the world's lines through (quiet: only its last)."""
+        if not self.plan.quiet or text.startswith(DONE):
+            sys.stdout.write(text)
+            sys.stdout.flush()
 
     # --- while it runs --------------------------------------------------------------------------------
 
@@ -201,12 +170,12 @@ class Launch:
             if dead:
                 _say(f"the router died ({', '.join(dead)}); stopping the run")
                 self.kids.stop_all()
-                self._finish_recording(None)
+                self._finish_recording()
                 return 1
             time.sleep(0.1)
         Children.stop(self.kids.named("agent"), 5.0)  # they end on the world's final tick; this reaps them
         code = self.world.proc.returncode
-        self._finish_recording(code)
+        self._finish_recording()
         if self.world_crash_for_good:
             return 0  # the run ended where it was asked to (--world-crash T)
         return 0 if code == 0 else (2 if code == 2 else 1)
@@ -254,34 +223,10 @@ class Launch:
 
     # --- end ------------------------------------------------------------------------------------------
 
-    def _finish_recording(self, code: int | None) -> None:
-        """Every run ends with a recording and a summary: a world that wrote its summary gets the
-        reference simulation beside it; one that died without has its recording repaired and the
-        summary recomputed from it."""
-        plan, world = self.plan, self.world
-        if "world" not in plan.roles or world is None or world.alive():
+    def _finish_recording(self) -> None:
+        """Every run ends with a recording and a summary (:func:`zswarm.launch.ending.finish_recording`)."""
+        if "world" not in self.plan.roles or self.world is None or self.world.alive():
             return
-        fresh = plan.summary.exists() and plan.summary.stat().st_mtime >= self.started_at
-        if fresh and world.proc.returncode == 0:
-            from zswarm.cli.reference import add_reference
-
-            add_reference(plan.summary, self.spec, {
-                "routers": self.endpoints,
-                "agent_router": {str(i): self.router_of(i) for i in plan.ids} if "agents" in plan.roles else {}})
-        elif world.proc.returncode != 2 and plan.record.exists():
-            from zswarm.record.salvage import salvage_summary
-
-            try:
-                salvage_summary(plan.record, plan.summary)
-                _say(f"the world ended with code {world.proc.returncode}; its recording was made whole and "
-                     f"the summary recomputed from it (\"salvaged\": true)")
-            except UsageError as exc:
-                _say(f"the world ended with code {world.proc.returncode} and its recording cannot be "
-                     f"salvaged: {exc}")
-        if not plan.quiet and plan.record.exists():
-            _say(f"recording {plan.record} (open with: rerun {plan.record}); summary {plan.summary}", err=False)
-
-
-def _local(host: str) -> str:
-    """Where to check a listening port: a wildcard address is reached on loopback."""
-    return "127.0.0.1" if host in ("0.0.0.0", "::") else host
+        agent_router = {str(i): self.router_of(i) for i in self.plan.ids} if "agents" in self.plan.roles else {}
+        finish_recording(self.plan, self.world.proc.returncode, self.started_at,
+                         {"routers": self.endpoints, "agent_router": agent_router}, _say)

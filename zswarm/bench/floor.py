@@ -1,4 +1,4 @@
-"""``python -m zswarm.cli.floor``: a bare Zenoh process with an agent's traffic and nothing else.
+"""``python -m zswarm.bench.floor``: a bare Zenoh process with an agent's traffic and nothing else.
 
 The floor of ``zswarm bench net --floor``: what the middleware alone costs for one agent's traffic.
 Like agent ``--id`` of the same run, it holds a liveliness token, subscribes to the cells within
@@ -29,7 +29,7 @@ from zswarm.net.runspec import add_run_args, spec_from_args
 
 
 def build_parser() -> Parser:
-    parser = Parser(prog="zswarm.cli.floor", description="A bare Zenoh process with one agent's traffic.")
+    parser = Parser(prog="zswarm.bench.floor", description="A bare Zenoh process with one agent's traffic.")
     parser.add_argument("--id", type=int, default=0, help="the agent whose traffic it carries")
     parser.add_argument("--handler", choices=("ring", "callback", "direct"), default="ring",
                         help="how samples reach Python (default ring: a channel drained once per tick)")
@@ -91,7 +91,7 @@ def run_floor(args: argparse.Namespace) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    return run_main(lambda a: run_floor(build_parser().parse_args(a)), argv, prog="zswarm.cli.floor")
+    return run_main(lambda a: run_floor(build_parser().parse_args(a)), argv, prog="zswarm.bench.floor")
 
 
 if __name__ == "__main__":

@@ -1,0 +1,89 @@
+"""What ``zswarm tune`` prints: its progress line and its result."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from typing import Any
+
+from zswarm.tune.pipeline import Plan, _fmt, faults_text
+
+
+class Bar:
+    """One progress line on stderr, redrawn in place on a terminal (a line per generation otherwise)."""
+
+    def __init__(self, quiet: bool) -> None:
+        self.quiet, self.tty = quiet, sys.stderr.isatty()
+
+    def __call__(self, p) -> None:
+        if self.quiet:
+            return
+        width = 24
+        filled = int(width * min(p.evaluated / p.budget, 1.0))
+        eta = "ETA " + _clock(p.eta) if p.eta is not None else "ETA -"
+        best = f"best {p.best:.2f}" if p.best is not None else "best -"
+        line = (f"[{'#' * filled}{'.' * (width - filled)}] {p.evaluated}/{p.budget} simulated  gen {p.generation}  "
+                f"{p.checked} checked ({p.rejected} rejected)  {best}  {eta}")
+        print(("\r" + line) if self.tty else line, end="" if self.tty else "\n", file=sys.stderr, flush=True)
+
+    def done(self) -> None:
+        if self.tty and not self.quiet:
+            print(file=sys.stderr)
+
+
+def _clock(seconds: float) -> str:
+    seconds = int(round(seconds))
+    return f"{seconds // 60}m{seconds % 60:02d}s"
+
+
+def _replayed(out: dict[str, Any]) -> str:
+    return f" ({out['replayed']} of them taken from the history of an earlier run)" if out["replayed"] else ""
+
+
+def print_failure(out: dict[str, Any], args: argparse.Namespace) -> None:
+    if args.json:
+        print(json.dumps(out, default=str))
+        return
+    print(f"no set was found: {out['stop']} ({out['checked']} candidates checked, {out['evaluated']} simulated)")
+    print("candidates failing each check: " + ", ".join(f"{k} {n}" for k, n in out["failed_checks"].items())
+          + " (the swarm squeeze runs only for a set that passes every other check)")
+    closest = out.get("closest")
+    if closest:
+        print(f"closest to passing: fails {', '.join(closest['failures']) or '-'} (violation {closest['violation']:.3g}): "
+              + "  ".join(f"{k}={v:.4g}" for k, v in closest["values"].items()))
+    print(f"the starting set fails: {', '.join(out['start']['design_failures']) or 'nothing'}; "
+          "see zswarm design, and --waive for a check your setting cannot meet")
+
+
+def print_result(out: dict[str, Any], plan: Plan, faults) -> None:
+    b = out["best"]
+    print(f"{out['evaluated']} candidates simulated ({out['checked']} checked, {out['rejected']} rejected by the design "
+          f"checks) in {out['seconds']:.0f} s{_replayed(out)}; stopped: {out['stop']}")
+    print("candidates failing each check: " + (", ".join(f"{k} {n}" for k, n in out["failed_checks"].items()) or "none")
+          + (f" (waived: {', '.join(out['waived'])})" if out["waived"] else ""))
+    fin = out["finalists"]
+    print(f"the {len(fin)} best re-run on {len(plan.validation)} validation seeds: chosen the search's #{fin[0]['search_rank'] + 1} "
+          f"(validation {fin[0]['validation_objective']:.3f} s; "
+          f"{sum(r['validation_disqualified'] > 0 for r in fin)} of {len(fin)} finalists collided there)")
+    print(f"best objective {b['objective']:.3f} s on the tuning seeds (start {_fmt(out['start']['objective'], '.3f')} s); "
+          f"design: {'all checks hold' if not b['design_failures'] else 'fails ' + ', '.join(b['design_failures'])}")
+    print("best set: " + "  ".join(f"{k}={v:.4g}" for k, v in b["values"].items()))
+    sections = [("as_tuned", faults_text(faults))] + ([("fault_free", "none")] if "fault_free" in out["comparison"] else [])
+    for key, text in sections:
+        print(f"\nheld-out seeds {plan.holdout[0]}..{plan.holdout[-1]}, simulated, faults {text}:")
+        _table(out["comparison"][key])
+    if "confirm" in out:
+        print(f"\ndistributed (zswarm run), faults {faults_text(faults)}:")
+        _table(out["confirm"])
+    print(f"\nwrote {plan.out}/best.toml (use: --params {plan.out}/best.toml), design.txt, comparison.json, "
+          f"tune.png, tune.rrd, result.json")
+
+
+def _table(rows: dict[str, dict[str, Any]]) -> None:
+    print(f"  {'set':<7} {'captured':>9} {'mean capture':>13} {'collisions':>11} {'contacts':>9} "
+          f"{'min clearance':>14} {'disqualified':>13}")
+    for label, r in rows.items():
+        print(f"  {label:<7} {r['captured']:>4}/{r['runs']:<4} {_fmt(r['mean_capture_time'], '.2f'):>12}s "
+              f"{r['collisions']:>11} {r['obstacle_collisions']:>9} {_fmt(r['min_obstacle_clearance']):>14} "
+              f"{r['disqualified']:>13}")

@@ -1,0 +1,36 @@
+"""The Zenoh configuration each process of a run is started with (``--config`` arguments, by role):
+``--config`` / ``--router-config`` as given, or a ``--secure DIR``'s files, made there if it has none
+(a CA, a certificate per agent and the configs: :mod:`zswarm.net.security`)."""
+
+from __future__ import annotations
+
+from typing import Callable
+
+from zswarm.launch.plan import Plan
+
+
+def role_configs(plan: Plan, n_agents: int, say: Callable[..., None]) -> dict[str, list[str]]:
+    """``--config`` arguments for the router, the world and (without --secure) the agents."""
+    if plan.secure is None:
+        out = {}
+        if plan.config is not None:
+            out["world"] = out["agent"] = ["--config", str(plan.config)]
+        if plan.router_config is not None:
+            out["router"] = ["--config", str(plan.router_config)]
+        return out
+    from zswarm.net.security import is_secure_dir, write_secure_dir
+
+    if not is_secure_dir(plan.secure):
+        write_secure_dir(plan.secure, agents=n_agents)
+        if not plan.quiet:
+            say(f"made a CA, certificates (one per agent) and configs in {plan.secure}", err=False)
+    return {role: ["--config", str(plan.secure / f"{role}.json5")] for role in ("router", "world")}
+
+
+def agent_config_args(plan: Plan, configs: dict[str, list[str]], agent: int) -> list[str]:
+    """Agent ``agent``'s config: under --secure, its own identity's if the directory has one."""
+    if plan.secure is None:
+        return configs.get("agent", [])
+    from zswarm.net.security import agent_config
+
+    return ["--config", str(agent_config(plan.secure, agent))]
