@@ -28,7 +28,7 @@ CRASH_GRACE_S = 1.0
 
 
 def how_gone(final_report: bool, waited_s: float, settle: bool = False) -> str:
-    """How an agent whose liveliness token went has gone: *left* (its final report came: stopped
+    r"""How an agent whose liveliness token went has gone: *left* (its final report came: stopped
     cleanly), *crashed* (no report after :data:`CRASH_GRACE_S`, or none by the time it must be
     ``settle``\ d), or *going* (not yet told apart)."""
     if final_report:
