@@ -199,7 +199,7 @@ def test_the_checks_catch_a_circle_and_a_big_command(tmp_path):
     plan.write_text((ROOT / "zswarm/launch/plan.py").read_text()
                     + "\n\ndef _back():\n    from zswarm.launch.supervisor import Launch\n")
     looped = [(m, plan if m == "zswarm.launch.plan" else p) for m, p in modules]
-    assert ["zswarm.launch.plan", "zswarm.launch.supervisor"] in circles(looped)
+    assert any({"zswarm.launch.plan", "zswarm.launch.supervisor"} <= set(group) for group in circles(looped))
     big = tmp_path / "big.py"
     big.write_text("\n".join(["x = 1"] * (CLI_MAX_LINES + 1)) + "\n")
     small = tmp_path / "small.py"

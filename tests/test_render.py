@@ -55,3 +55,18 @@ def test_the_design_view_opens_with_the_figure_left_and_the_verdicts_right(tmp_p
     rows = slice(int(0.1 * h), int(0.9 * h))
     assert gray[rows, int(0.05 * w):int(0.7 * w)].mean() > 150, "the (white) design figure is not on the left"
     assert gray[rows, int(0.8 * w):].mean() < 100, "the verdict and report panels are not on the right"
+
+
+def test_a_3d_run_opens_in_a_3d_view_with_the_plots_right(tmp_path):
+    """moving-prey-3d: the map is a 3-D view (its ground grid, the spheres, the agents), the plots beside it."""
+    rec = tmp_path / "run3d.rrd"
+    assert run_cli("-m", "zswarm", "sim", "--scenario", "moving-prey-3d", "--duration", "3", "--record", str(rec),
+                   cwd=tmp_path).returncode == 0
+    image = _render(rec, tmp_path / "run3d.png")
+    h, w, _ = image.shape
+    band = image[int(0.08 * h):int(0.92 * h)]
+    left = band[:, :int(0.55 * w)]
+    assert _colored(left) > 500, "no agents in the 3-D map"
+    grey = (left.max(-1) - left.min(-1) < 20) & (left.mean(-1) > 120)  # the lit spheres
+    assert grey.sum() > 5000, "no obstacles (grey spheres) in the 3-D map"
+    assert _colored(band[:, int(0.62 * w):]) > 500, "no plotted series (right 2/5 of the window)"

@@ -133,6 +133,12 @@ CASES = [
     (["-m", "world", "--config", "{dir}"], "cannot read zenoh config"),
     (["-m", "world", "--record", "{missing}/w.rrd"], "does not exist"),
     (["-m", "world", "--resume", "--clock", "lockstep"], "free clock only"),
+    # 3-D: the simulators only, so far
+    ([LAUNCH, "--scenario", "moving-prey-3d"], "3-D swarms run in the simulators so far"),
+    (["-m", "world", "--scenario", "window-3d"], "3-D swarms run in the simulators so far"),
+    (["-m", "zswarm", "sweep", "--scenario", "window-3d", "--out", "{dir}/sw"], "add --sim-only"),
+    (["-m", "zswarm", "sim", "--scenario", "moving-prey-3d", "--set", "body=unicycle"], "drives on the ground"),
+    (["-m", "zswarm", "sim", "--scenario", "moving-prey", "--set", "dimensions=3"], "in 3-D, prey_start must be"),
 ]
 
 

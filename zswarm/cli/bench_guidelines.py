@@ -1,13 +1,10 @@
 """``zswarm bench guidelines``: do the design checks predict what the swarm does?
 
-For each scenario and N: the scenario's own (scaled) set, the same with the paper's interaction, and
-K random sets around it (each potential value times a factor drawn log-uniformly in [1/S, S], a
-random interaction, gate and k). Each set is judged by ``zswarm design`` (the checks for that N, R,
-interaction and time step) and simulated on a few seeds. A set *collides* if any of its runs has a
-collision. The number that matters is **false-safe**: sets the checker passes that collide (target 0).
-How conservative the checker is: sets it fails that never collide.
+Random parameter sets around each scenario's own, at each N, judged by ``zswarm design`` and simulated
+on a few seeds: how many sets the checks pass that collide anyway (false-safe, the number that must be
+0) and how many they fail that never collide (how conservative they are).
 
-The study itself is :mod:`zswarm.bench.guidelines`.
+The study itself, and how its sets are drawn, is :mod:`zswarm.bench.guidelines`.
 """
 
 from __future__ import annotations

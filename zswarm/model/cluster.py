@@ -4,7 +4,7 @@ Props 3-5 reason about one pair, or bound forces one at a time. A swarm adds up 
 every agent, and the goal's pull presses the whole swarm against an obstacle that lies on its way
 (Fig 10, the case Prop 4 is about). With soft (bounded) repulsion the sum can squeeze neighbours far
 closer than the pair spacing d^f, or onto each other. This module runs exactly that case with the full
-control law (eq 36, speed limit, sensing radius, interaction): N agents start in a disc 1 behind a
+control law (eq 36, speed limit, sensing radius, interaction): N agents start in a disc (in 3-D, a ball) 1 behind a
 point obstacle that sits on the straight line to a static goal, where the goal pulls hardest
 (l_g/sqrt2 from it, at least 1), and it records the closest any two agents and any agent and the
 obstacle come during the run.
@@ -43,6 +43,16 @@ def _disc(n: int, spacing: float) -> np.ndarray:
     return np.column_stack([r * np.cos(theta), r * np.sin(theta)])
 
 
+def _ball(n: int, spacing: float) -> np.ndarray:
+    """``n`` points filling a ball at about ``spacing`` apart: a cubic lattice of that pitch, the ``n``
+    nearest its centre (the 3-D counterpart of :func:`_disc`)."""
+    side = int(math.ceil(n ** (1.0 / 3.0))) + 2
+    axis = spacing * (np.arange(side) - (side - 1) / 2.0)
+    grid = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), axis=-1).reshape(-1, 3)
+    order = np.argsort(np.einsum("ij,ij->i", grid, grid), kind="stable")
+    return grid[order[:n]]
+
+
 @lru_cache(maxsize=512)
 def squeeze(params: Params, n: int, seed: int = 2006, duration: float = 60.0, dt: float = 0.05) -> Squeeze:
     """``n`` agents of the set ``params`` (its potentials, sensing radius, speed and interaction)."""
@@ -51,9 +61,13 @@ def squeeze(params: Params, n: int, seed: int = 2006, duration: float = 60.0, dt
     # the obstacle where the goal pulls hardest (|psi_g| = l_g/sqrt2, eq 8's peak; at least 1 away), the
     # swarm 1 behind it: the press of Fig 10 at its strongest, whatever the goal's range
     reach = max(1.0, p.l_g / math.sqrt(2.0))
-    x = _disc(n, 0.5) + np.array([-reach - 1.0 - 0.5 * math.sqrt(n) / 1.5, 0.0])
+    if params.swarm.dimensions == 2:
+        x = _disc(n, 0.5) + np.array([-reach - 1.0 - 0.5 * math.sqrt(n) / 1.5, 0.0])
+    else:  # a ball of agents behind a point obstacle, pressed the same way
+        x = _ball(n, 0.5) + np.array([-reach - 1.0 - 0.5 * math.ceil(n ** (1.0 / 3.0)) / 2.0, 0.0, 0.0])
     x = x + np.random.default_rng(seed).uniform(-0.02, 0.02, x.shape)  # no exact symmetry
-    obstacle = np.array([[-reach, 0.0]])
+    obstacle = np.zeros((1, x.shape[1]))
+    obstacle[0, 0] = -reach
     c_f = formation_offset(p)
     min_pair = min_obs = math.inf
     nearest = np.full(n, math.inf)

@@ -196,9 +196,11 @@ def formation(params: Params) -> dict[str, Any]:
         why = "the pair potential has no stable spacing"
     if closed is not None and eq.spacing is not None:
         why += f"; eq 27's closed form, which ignores c'_a, gives {closed:.4g}"
-    hs = h_stable(p)
+    dims = params.swarm.dimensions
+    hs = h_stable(p, dims)
     if not hs:
-        why += (f"; not H-stable (c_r l_r^2 = {p.c_r * p.l_r**2:.3g} vs c_a l_a^2 = {p.c_a * p.l_a**2:.3g}, "
+        why += (f"; not H-stable in {dims}-D (c_r l_r^{dims} = {p.c_r * p.l_r**dims:.3g} vs c_a l_a^{dims} = "
+                f"{p.c_a * p.l_a**dims:.3g}, "
                 f"l_r = {p.l_r:g} vs l_a = {p.l_a:g}): without the sensing radius, the more agents, the "
                 f"tighter they would pack")
     return {"equilibrium_spacing": eq.spacing, "closed_form_spacing": closed,

@@ -30,7 +30,8 @@ def body_check(params: Params, spacing: float | None) -> dict[str, Any]:
     b, s = params.body, params.swarm
     kind = b.body
     if kind == "point":
-        return {"holds": True, "body": kind, "lag": 0.0, "slack": None,
+        slack = None if spacing is None else spacing - 2.0 * s.robot_radius
+        return {"holds": True, "body": kind, "lag": 0.0, "slack": slack,
                 "detail": "the paper's body (moves as commanded): every check above is for it"}
     slack = None if spacing is None else spacing - 2.0 * s.robot_radius
     if kind == "unicycle":

@@ -69,16 +69,17 @@ def min_spacing(params: Params, spacing: float | None) -> float:
     return max(2.0 * params.swarm.robot_radius, spacing / 10.0 if spacing else 0.0)
 
 
-def packing_bound(radius: float, d_min: float) -> int:
+def packing_bound(radius: float, d_min: float, dimensions: int = 2) -> int:
     """At most this many agents, pairwise at least ``d_min`` apart, lie within ``radius`` of a point
-    other than the one there: (1 + 2R/d_min)^2 - 1."""
-    return int(math.floor((1.0 + 2.0 * radius / d_min) ** 2)) - 1
+    other than the one there: (1 + 2R/d_min)^D - 1 (discs, or balls, of radius d_min/2 around each lie in
+    the one of radius R + d_min/2, and do not overlap)."""
+    return int(math.floor((1.0 + 2.0 * radius / d_min) ** dimensions)) - 1
 
 
 def pulling_count(params: Params, spacing: float | None) -> tuple[int, str]:
     """How many neighbours' pulls add up on one agent, and why."""
     spec, n = params.interaction.spec, params.swarm.n_agents
-    packed = packing_bound(params.swarm.sensing_radius, min_spacing(params, spacing))
+    packed = packing_bound(params.swarm.sensing_radius, min_spacing(params, spacing), params.swarm.dimensions)
     if spec.mean:
         return 1, "the cohesion is a mean: all pull no harder than one"
     count = min(n - 1, packed)

@@ -109,17 +109,21 @@ def equilibria(p: PotentialParams, samples: int = 40_001) -> Equilibria:
     )
 
 
-def fourier_gaussian_part(k: np.ndarray, p: PotentialParams) -> np.ndarray:
-    """u_hat(k) of the two Gaussians of eq 26 (2-D Fourier transform)."""
+def fourier_gaussian_part(k: np.ndarray, p: PotentialParams, dimensions: int = 2) -> np.ndarray:
+    """u_hat(k) of the two Gaussians of eq 26 (the D-dimensional Fourier transform: c exp(-r^2/l^2) has
+    c (sqrt(pi) l)^D exp(-k^2 l^2/4))."""
     k2 = np.square(k)
-    return np.pi * (p.c_r * p.l_r**2 * np.exp(-k2 * p.l_r**2 / 4.0)
-                    - p.c_a * p.l_a**2 * np.exp(-k2 * p.l_a**2 / 4.0))
+    sp = np.sqrt(np.pi)
+    return (p.c_r * (sp * p.l_r) ** dimensions * np.exp(-k2 * p.l_r**2 / 4.0)
+            - p.c_a * (sp * p.l_a) ** dimensions * np.exp(-k2 * p.l_a**2 / 4.0))
 
 
-def h_stable(p: PotentialParams) -> bool:
-    """The Gaussian part of eq 26 is positive definite (no catastrophic collapse as N grows)."""
+def h_stable(p: PotentialParams, dimensions: int = 2) -> bool:
+    """The Gaussian part of eq 26 is positive definite in D dimensions (no catastrophic collapse as N
+    grows): its Fourier transform is nowhere negative."""
     k = np.linspace(0.0, 60.0 / min(p.l_r, p.l_a), 20_001)
-    return bool(np.all(fourier_gaussian_part(k, p) >= -1e-12 * (p.c_r * p.l_r**2 + p.c_a * p.l_a**2)))
+    scale = np.pi ** (dimensions / 2) * (p.c_r * p.l_r**dimensions + p.c_a * p.l_a**dimensions)
+    return bool(np.all(fourier_gaussian_part(k, p, dimensions) >= -1e-12 * scale))
 
 
 def formation_offset(p: PotentialParams) -> float:

@@ -1,19 +1,35 @@
 """Who senses whom: a uniform cell grid, so finding pairs costs O(N k), not O(N^2).
 
-Points are bucketed into square cells of side ``cell``; a query looks only at the 3 x 3 block of cells
-around each query point, which holds every target within ``cell`` of it. Everything is vectorized
-(sorting, ``searchsorted`` and ``repeat``); there is no Python loop over agents.
+Points (in 2-D or 3-D: the dimension is the last axis) are bucketed into square cells (cubes) of side
+``cell``; a query looks only at the 3 x 3 (3 x 3 x 3) block of cells around each query point, which
+holds every target within ``cell`` of it. Everything is vectorized (sorting, ``searchsorted`` and
+``repeat``); there is no Python loop over agents.
 """
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
-_OFFSET = np.int64(1 << 30)
+#: Cell indices are offset by this per dimension and packed into one int64 key (2-D: 2^31 cells a side;
+#: 3-D: 2^21).
+_OFFSET = {2: np.int64(1 << 30), 3: np.int64(1 << 20)}
 
 
 def _keys(cells: np.ndarray) -> np.ndarray:
-    return (cells[:, 0] + _OFFSET) * (2 * _OFFSET) + (cells[:, 1] + _OFFSET)
+    off = _OFFSET[cells.shape[1]]
+    key = cells[:, 0] + off
+    for d in range(1, cells.shape[1]):
+        key = key * (2 * off) + (cells[:, d] + off)
+    return key
+
+
+def _points(points: np.ndarray, dims: int | None = None) -> np.ndarray:
+    """Points as an (N, D) float array (D from the array, or ``dims`` for an empty one)."""
+    a = np.asarray(points, dtype=float)
+    d = dims or (a.shape[-1] if a.ndim >= 2 and a.shape[-1] in (2, 3) else 2)
+    return a.reshape(-1, d)
 
 
 class CellIndex:
@@ -22,7 +38,8 @@ class CellIndex:
     def __init__(self, targets: np.ndarray, cell: float) -> None:
         if not cell > 0:
             raise ValueError(f"cell size must be > 0 (got {cell})")
-        self.targets = np.asarray(targets, dtype=float).reshape(-1, 2)
+        self.targets = _points(targets)
+        self.dims = self.targets.shape[1]
         self.cell = float(cell)
         keys = _keys(np.floor(self.targets / self.cell).astype(np.int64))
         self.order = np.argsort(keys, kind="stable")
@@ -30,22 +47,21 @@ class CellIndex:
 
     def candidates(self, query: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(query index, target index) for every target in the 3 x 3 cells around each query point."""
-        query = np.asarray(query, dtype=float).reshape(-1, 2)
+        query = _points(query, self.dims)
         base = np.floor(query / self.cell).astype(np.int64)
         q_parts, t_parts = [], []
-        for dx in (-1, 0, 1):
-            for dy in (-1, 0, 1):
-                keys = _keys(base + np.array([dx, dy], dtype=np.int64))
-                lo = np.searchsorted(self.sorted_keys, keys, side="left")
-                hi = np.searchsorted(self.sorted_keys, keys, side="right")
-                counts = hi - lo
-                total = int(counts.sum())
-                if total == 0:
-                    continue
-                q = np.repeat(np.arange(len(query)), counts)
-                first = np.repeat(lo - (np.cumsum(counts) - counts), counts)
-                t_parts.append(self.order[first + np.arange(total)])
-                q_parts.append(q)
+        for shift in itertools.product((-1, 0, 1), repeat=self.dims):
+            keys = _keys(base + np.array(shift, dtype=np.int64))
+            lo = np.searchsorted(self.sorted_keys, keys, side="left")
+            hi = np.searchsorted(self.sorted_keys, keys, side="right")
+            counts = hi - lo
+            total = int(counts.sum())
+            if total == 0:
+                continue
+            q = np.repeat(np.arange(len(query)), counts)
+            first = np.repeat(lo - (np.cumsum(counts) - counts), counts)
+            t_parts.append(self.order[first + np.arange(total)])
+            q_parts.append(q)
         if not q_parts:
             empty = np.zeros(0, dtype=np.intp)
             return empty, empty
@@ -54,7 +70,7 @@ class CellIndex:
 
 def pairs_within(points: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
     """Ordered pairs (i, j), i != j, with |p_i - p_j| <= radius; each unordered pair appears twice."""
-    points = np.asarray(points, dtype=float).reshape(-1, 2)
+    points = _points(points)
     i, j = CellIndex(points, radius).candidates(points)
     d = points[i] - points[j]
     keep = (i != j) & (np.einsum("ij,ij->i", d, d) <= radius * radius)
@@ -62,10 +78,11 @@ def pairs_within(points: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndar
 
 
 class ObstacleIndex:
-    """Static circular obstacles, indexed once; ``sensed`` finds those whose boundary is within reach."""
+    """Static circular (spherical) obstacles, indexed once; ``sensed`` finds those whose boundary is within
+    reach."""
 
     def __init__(self, centers: np.ndarray, radii: np.ndarray, sensing_radius: float) -> None:
-        self.centers = np.asarray(centers, dtype=float).reshape(-1, 2)
+        self.centers = _points(centers)
         self.radii = np.asarray(radii, dtype=float).reshape(-1)
         self.sensing_radius = float(sensing_radius)
         reach = self.sensing_radius + (float(self.radii.max()) if len(self.radii) else 0.0)

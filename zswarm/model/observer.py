@@ -38,7 +38,7 @@ def swarm_field(controller: Controller, obstacles: ObstacleIndex, positions: np.
     """
     c = controller
     if not c.formation:
-        i, psi_f = _NO_PAIRS, np.zeros((0, 2))
+        i, psi_f = _NO_PAIRS, np.zeros((0, positions.shape[1]))
     elif pairs is None:
         i, j = pairs_within(positions, obstacles.sensing_radius)
         psi_f = positions[i] - positions[j]

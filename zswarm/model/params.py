@@ -65,6 +65,7 @@ FIELDS: dict[str, FieldSpec] = {
     "v_max": FieldSpec("swarm", float, 0.0, True, "agent speed limit (velocity saturation)"),
     "sensing_radius": FieldSpec("swarm", float, 0.0, True, "range within which obstacles/agents are sensed"),
     "robot_radius": FieldSpec("swarm", float, 0.0, True, "physical radius d^r of an agent (Prop 5)"),
+    "dimensions": FieldSpec("swarm", int, 2, False, "2 (the paper's plane) or 3", hi=3),
     "d_m_go": FieldSpec("margins", float, 0.0, False, "permissible goal-region radius d_m^go (Prop 1)"),
     "d_m_ro": FieldSpec("margins", float, 0.0, True, "minimum robot-obstacle distance d_m^ro (Prop 2)"),
     "interaction": FieldSpec("interaction", str, 0.0, False,
@@ -136,12 +137,14 @@ class PotentialParams:
 
 @dataclass(frozen=True)
 class SwarmParams:
-    """The agents themselves: how many, how fast, how far they sense, how big they are."""
+    """The agents themselves: how many, how fast, how far they sense, how big they are, in how many
+    dimensions they move."""
 
     n_agents: int = 10
     v_max: float = 1.0
     sensing_radius: float = 12.0
     robot_radius: float = 0.05
+    dimensions: int = 2
 
     def __post_init__(self) -> None:
         _check(self)

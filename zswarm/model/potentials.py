@@ -61,9 +61,9 @@ def formation_terms(
 
 def _per_agent(n: int, idx: np.ndarray, u: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     total_u = np.bincount(idx, weights=u, minlength=n)
-    total_f = np.empty((n, 2))
-    total_f[:, 0] = np.bincount(idx, weights=f[:, 0], minlength=n)
-    total_f[:, 1] = np.bincount(idx, weights=f[:, 1], minlength=n)
+    total_f = np.empty((n, f.shape[1]))
+    for d in range(f.shape[1]):
+        total_f[:, d] = np.bincount(idx, weights=f[:, d], minlength=n)
     return total_u, total_f
 
 
@@ -150,9 +150,10 @@ def sense_one(
     sensing_radius: float,
 ) -> Sensed:
     """Keep the obstacles whose nearest boundary point, and the neighbours, within ``sensing_radius``."""
-    pos = np.broadcast_to(position, (len(obstacle_centers), 2))
-    psi_o = obstacle_offsets(pos, obstacle_centers.reshape(-1, 2), obstacle_radii.reshape(-1))
-    psi_f = position - neighbour_positions.reshape(-1, 2)
+    dims = len(position)
+    pos = np.broadcast_to(position, (len(obstacle_centers), dims))
+    psi_o = obstacle_offsets(pos, obstacle_centers.reshape(-1, dims), obstacle_radii.reshape(-1))
+    psi_f = position - neighbour_positions.reshape(-1, dims)
     keep_o = np.einsum("ij,ij->i", psi_o, psi_o) <= sensing_radius**2
     keep_f = np.einsum("ij,ij->i", psi_f, psi_f) <= sensing_radius**2
     return Sensed(psi_o=psi_o[keep_o], psi_f=psi_f[keep_f])
@@ -170,7 +171,7 @@ class Controller:
 
     def velocity(self, position: np.ndarray, goal: np.ndarray, sensed: Sensed, v_max: float) -> np.ndarray:
         """Commanded velocity of a single agent from its own state and what it sensed."""
-        psi_f = sensed.psi_f if self.formation else np.zeros((0, 2))
+        psi_f = sensed.psi_f if self.formation else np.zeros((0, len(position)))
         _, f = field(
             (position - goal)[None, :],
             np.zeros(len(sensed.psi_o), dtype=np.intp),

@@ -24,19 +24,27 @@ class PreyMotion:
     """How the prey moves.
 
     - ``static``: stays at its start (Fig 13).
-    - ``straight``: constant ``speed`` along ``heading_deg``.
-    - ``circle``: constant ``speed`` on a circle of ``radius`` about ``center`` (counter-clockwise).
+    - ``straight``: constant ``speed`` along ``heading_deg`` (in 3-D, climbing at ``climb_deg``).
+    - ``circle``: constant ``speed`` on a circle of ``radius`` about ``center`` (counter-clockwise). In
+      3-D the circle is horizontal, about ``center`` = (x, y, z), and the prey flies it rising and
+      falling by ``bob``: z = z_c + bob sin(angle).
     - ``evasive``: flees the nearest agent it senses within ``sense_radius`` at ``speed``; it stays
-      inside ``bounds`` (x_min, y_min, x_max, y_max), sliding along the edge it meets.
+      inside ``bounds`` (x_min, y_min, x_max, y_max), sliding along the edge it meets (in 3-D, any
+      height).
+
+    The dimension is the prey's own (its position's length): a 2-D run ignores ``climb_deg``, ``bob``
+    and a third ``center`` coordinate.
     """
 
     kind: PreyKind = "static"
     speed: float = 0.0
     heading_deg: float = 0.0
-    center: tuple[float, float] = (0.0, 0.0)
+    center: tuple[float, ...] = (0.0, 0.0)
     radius: float = 1.0
     sense_radius: float = 1.5
     bounds: tuple[float, float, float, float] = (-5.0, -5.0, 5.0, 5.0)
+    climb_deg: float = 0.0
+    bob: float = 0.0
 
     def __post_init__(self) -> None:
         if self.kind not in PREY_KINDS:
@@ -45,12 +53,13 @@ class PreyMotion:
             value = getattr(self, name)
             if not (all_finite((value,)) and value >= 0):
                 raise ValueError(f"prey {name} must be a finite number >= 0 (got {value!r})")
-        for name, values in (("heading_deg", (self.heading_deg,)), ("center", self.center), ("bounds", self.bounds)):
+        for name, values in (("heading_deg", (self.heading_deg,)), ("center", self.center), ("bounds", self.bounds),
+                             ("climb_deg", (self.climb_deg,)), ("bob", (self.bob,))):
             if not all_finite(values):
                 shown = values if len(values) > 1 else values[0]
                 raise ValueError(f"prey {name} must hold finite numbers (got {shown!r})")
-        if len(self.center) != 2:
-            raise ValueError(f"prey center must be [x, y] (got {self.center!r})")
+        if len(self.center) not in (2, 3):
+            raise ValueError(f"prey center must be [x, y] or [x, y, z] (got {self.center!r})")
         if self.kind == "circle" and self.radius <= 0:
             raise ValueError("prey radius must be > 0 for a circular prey")
         x0, y0, x1, y1 = self.bounds
@@ -63,16 +72,24 @@ def step(motion: PreyMotion, prey: np.ndarray, dt: float, agents: np.ndarray) ->
     prey = np.asarray(prey, dtype=float)
     if motion.kind == "static" or motion.speed == 0.0:
         return prey.copy()
+    dims = len(prey)
     if motion.kind == "straight":
         h = math.radians(motion.heading_deg)
-        return prey + motion.speed * dt * np.array([math.cos(h), math.sin(h)])
+        if dims == 2:
+            return prey + motion.speed * dt * np.array([math.cos(h), math.sin(h)])
+        c = math.radians(motion.climb_deg)
+        return prey + motion.speed * dt * np.array([math.cos(c) * math.cos(h), math.cos(c) * math.sin(h), math.sin(c)])
     if motion.kind == "circle":
-        c = np.asarray(motion.center, dtype=float)
-        rel = prey - c
+        c = np.asarray(motion.center[:2], dtype=float)
+        rel = prey[:2] - c
         angle = math.atan2(rel[1], rel[0]) + motion.speed * dt / motion.radius
-        return c + motion.radius * np.array([math.cos(angle), math.sin(angle)])
+        flat = c + motion.radius * np.array([math.cos(angle), math.sin(angle)])
+        if dims == 2:
+            return flat
+        z_c = motion.center[2] if len(motion.center) == 3 else 0.0
+        return np.array([flat[0], flat[1], z_c + motion.bob * math.sin(angle)])
     # evasive
-    agents = np.asarray(agents, dtype=float).reshape(-1, 2)
+    agents = np.asarray(agents, dtype=float).reshape(-1, dims)
     if len(agents) == 0:
         return prey.copy()
     away = prey - agents
@@ -82,4 +99,4 @@ def step(motion: PreyMotion, prey: np.ndarray, dt: float, agents: np.ndarray) ->
         return prey.copy()
     moved = prey + motion.speed * dt * away[k] / dist[k]
     x0, y0, x1, y1 = motion.bounds
-    return np.array([min(max(moved[0], x0), x1), min(max(moved[1], y0), y1)])
+    return np.array([min(max(moved[0], x0), x1), min(max(moved[1], y0), y1), *moved[2:]])

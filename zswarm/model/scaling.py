@@ -47,19 +47,22 @@ def run_time(distance: float, v_max: float) -> float:
 
 
 def start_distance(scenario: Scenario) -> float:
-    x0, y0, x1, y1 = scenario.spawn
-    return math.hypot((x0 + x1) / 2 - scenario.prey_start[0], (y0 + y1) / 2 - scenario.prey_start[1])
+    d = scenario.dimensions
+    lo, hi = scenario.spawn[:d], scenario.spawn[d:]
+    return math.hypot(*((lo[k] + hi[k]) / 2 - scenario.prey_start[k] for k in range(d)))
 
 
 def scale_to(scenario: Scenario, n_agents: int) -> Scenario:
     """``scenario`` grown (or shrunk) to ``n_agents`` by the rule of this module."""
-    n0 = scenario.params.swarm.n_agents
-    x0, y0, x1, y1 = scenario.spawn
-    f = math.sqrt(n_agents / n0)
-    gx, gy = scenario.prey_start
+    n0, d = scenario.params.swarm.n_agents, scenario.dimensions
+    f = math.sqrt(n_agents / n0) if d == 2 else math.cbrt(n_agents / n0)  # constant density in d dimensions
+    g = scenario.prey_start
+    spawn = tuple(g[k % d] + f * (c - g[k % d]) for k, c in enumerate(scenario.spawn))
+    gz = g[2] if d == 3 else 0.0
     grown = dataclasses.replace(
-        scenario, spawn=(gx + f * (x0 - gx), gy + f * (y0 - gy), gx + f * (x1 - gx), gy + f * (y1 - gy)),
-        obstacles=tuple(dataclasses.replace(o, x=gx + f * (o.x - gx), y=gy + f * (o.y - gy))
+        scenario, spawn=spawn,
+        obstacles=tuple(dataclasses.replace(o, x=g[0] + f * (o.x - g[0]), y=g[1] + f * (o.y - g[1]),
+                                            z=gz + f * (o.z - gz) if d == 3 else o.z)
                         for o in scenario.obstacles),
         capture_radius=scenario.capture_radius * max(f, 1.0))
     p = scenario.params.potential

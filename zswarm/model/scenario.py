@@ -1,5 +1,10 @@
 """What a scenario is: obstacles, the prey's motion, where agents spawn, N and the parameters.
 
+A scenario is 2-D (the paper's plane, the default) or 3-D (``dimensions = 3``: positions (x, y, z),
+spherical obstacles, a box to spawn in, a prey that flies). Every coordinate a scenario holds has
+that many components; an obstacle's ``z`` is ignored in 2-D. The dimension is a parameter of the
+set (``dimensions``), since the design checks that count neighbours depend on it.
+
 A scenario is a frozen description; everything random about a run (the spawn positions) is drawn from
 the run's seed by :meth:`Scenario.initial_positions`. The registered ones and TOML files are in
 :mod:`zswarm.model.scenarios`.
@@ -25,21 +30,24 @@ from zswarm.model.prey import PreyMotion
 
 @dataclass(frozen=True)
 class Obstacle:
-    """A circular obstacle; radius 0 is the paper's point obstacle (eq 9)."""
+    """A circular (in 3-D, spherical) obstacle; radius 0 is the paper's point obstacle (eq 9)."""
 
     x: float
     y: float
     radius: float = 0.0
+    z: float = 0.0
 
     def __post_init__(self) -> None:
         if not all_finite((self.x, self.y)):
             raise ValueError(f"an obstacle's x and y must be finite numbers (got x = {self.x!r}, y = {self.y!r})")
+        if not all_finite((self.z,)):
+            raise ValueError(f"an obstacle's z must be a finite number (got z = {self.z!r})")
         if not (all_finite((self.radius,)) and self.radius >= 0):
             raise ValueError(f"an obstacle's radius must be a finite number >= 0 (got {self.radius!r} at "
                              f"({self.x:g}, {self.y:g}))")
 
 
-Box = tuple[float, float, float, float]  # x_min, y_min, x_max, y_max
+Box = tuple[float, ...]  # x_min, y_min, x_max, y_max (3-D: x_min, y_min, z_min, x_max, y_max, z_max)
 
 
 @dataclass(frozen=True)
@@ -48,10 +56,10 @@ class Scenario:
     description: str
     params: Params = DEFAULT_PARAMS
     obstacles: tuple[Obstacle, ...] = ()
-    prey_start: tuple[float, float] = (0.0, 0.0)
+    prey_start: tuple[float, ...] = (0.0, 0.0)
     prey: PreyMotion = field(default_factory=PreyMotion)
     spawn: Box = (-4.5, -1.5, -2.5, 1.5)
-    starts: tuple[tuple[float, float], ...] = ()  # explicit start positions (override spawn)
+    starts: tuple[tuple[float, ...], ...] = ()  # explicit start positions (override spawn)
     duration: float = 30.0
     dt: float = 0.05
     combination: Combination = "multiplicative"
@@ -59,27 +67,38 @@ class Scenario:
     capture_radius: float = 0.5
 
     def __post_init__(self) -> None:
+        d = self.dimensions
         if self.combination not in COMBINATIONS:
             raise ValueError(f"combination must be one of {', '.join(COMBINATIONS)} (got {self.combination!r})")
         for name in ("duration", "dt", "capture_radius"):
             value = getattr(self, name)
             if not (all_finite((value,)) and value > 0):
                 raise ValueError(f"scenario {name} must be a finite number > 0 (got {value!r})")
-        if len(self.prey_start) != 2 or len(self.spawn) != 4 or any(len(p) != 2 for p in self.starts):
-            raise ValueError(f"prey_start must be [x, y], spawn [x_min, y_min, x_max, y_max] and each start [x, y] "
-                             f"(got prey_start {list(self.prey_start)}, spawn {list(self.spawn)})")
+        if len(self.prey_start) != d or len(self.spawn) != 2 * d or any(len(p) != d for p in self.starts):
+            shape = ("[x, y], spawn [x_min, y_min, x_max, y_max] and each start [x, y]" if d == 2 else
+                     "[x, y, z], spawn [x_min, y_min, z_min, x_max, y_max, z_max] and each start [x, y, z]")
+            raise ValueError(f"in {d}-D, prey_start must be {shape} (got prey_start {list(self.prey_start)}, "
+                             f"spawn {list(self.spawn)})")
         for name, values in (("prey_start", self.prey_start), ("spawn", self.spawn),
                              *((f"starts[{k}]", p) for k, p in enumerate(self.starts))):
             if not all_finite(values):
                 raise ValueError(f"scenario {name} must hold finite numbers (got {tuple(values)!r})")
-        x0, y0, x1, y1 = self.spawn
-        if not (x0 < x1 and y0 < y1):
-            raise ValueError(f"spawn must be (x_min, y_min, x_max, y_max) with min < max (got {self.spawn})")
+        if not all(lo < hi for lo, hi in zip(self.spawn[:d], self.spawn[d:])):
+            raise ValueError(f"spawn must be the minimum corner then the maximum corner, min < max (got {self.spawn})")
         if self.formation:
             neighbour_law(self.params)  # an interaction this potential cannot use fails here, in one line
-        if self.prey.speed >= self.params.swarm.v_max:
+        bob = self.prey.bob / self.prey.radius if d == 3 and self.prey.kind == "circle" else 0.0
+        prey_speed = self.prey.speed * math.sqrt(1.0 + bob * bob)  # a flying circle rises and falls too
+        if prey_speed >= self.params.swarm.v_max:
             raise ValueError(f"the prey must be slower than the agents (Section 5): prey speed "
-                             f"{self.prey.speed} >= v_max {self.params.swarm.v_max}")
+                             f"{prey_speed:g} >= v_max {self.params.swarm.v_max}")
+        if d == 3 and self.params.body.body == "unicycle":
+            raise ValueError("a unicycle drives on the ground: use body = point or double-integrator in 3-D")
+
+    @property
+    def dimensions(self) -> int:
+        """2 (the paper's plane) or 3: the parameter ``dimensions`` of its set."""
+        return self.params.swarm.dimensions
 
     @property
     def n_agents(self) -> int:
@@ -90,7 +109,9 @@ class Scenario:
         return int(round(self.duration / self.dt))
 
     def obstacle_arrays(self) -> tuple[np.ndarray, np.ndarray]:
-        centers = np.array([(o.x, o.y) for o in self.obstacles], dtype=float).reshape(-1, 2)
+        """Centres (M, D) and radii (M,)."""
+        centers = np.array([(o.x, o.y, o.z)[:self.dimensions] for o in self.obstacles],
+                           dtype=float).reshape(-1, self.dimensions)
         return centers, np.array([o.radius for o in self.obstacles], dtype=float)
 
     def initial_positions(self, rng: np.random.Generator) -> np.ndarray:
@@ -105,8 +126,9 @@ class Scenario:
         where its motion can take it (its circle, its straight path over the run, the evasive prey's
         bounds), widened by ``margin``. What a map view should frame. A prey farther from the rest than
         twice the rest's size (``bench-field``'s, out of reach on purpose) is left out of the frame."""
-        xs = [self.spawn[0], self.spawn[2]] + [p[0] for p in self.starts]
-        ys = [self.spawn[1], self.spawn[3]] + [p[1] for p in self.starts]
+        d = self.dimensions
+        xs = [self.spawn[0], self.spawn[d]] + [p[0] for p in self.starts]
+        ys = [self.spawn[1], self.spawn[d + 1]] + [p[1] for p in self.starts]
         for o in self.obstacles:
             xs += [o.x - o.radius, o.x + o.radius]
             ys += [o.y - o.radius, o.y + o.radius]
@@ -160,14 +182,14 @@ class Scenario:
 
 def spawn_positions(rng: np.random.Generator, n: int, box: Box, min_sep: float,
                     centers: np.ndarray, radii: np.ndarray) -> np.ndarray:
-    """``n`` points in ``box``, at least ``min_sep`` apart and clear of obstacles (jittered grid)."""
-    x0, y0, x1, y1 = box
-    w, h = x1 - x0, y1 - y0
-    s = math.sqrt(w * h / n) / 1.1
+    """``n`` points in ``box`` (2-D or 3-D), at least ``min_sep`` apart and clear of obstacles (jittered grid)."""
+    d = len(box) // 2
+    lo, size = np.array(box[:d], dtype=float), np.array(box[d:], dtype=float) - np.array(box[:d], dtype=float)
+    volume = float(np.prod(size)) / n
+    s = (math.sqrt(volume) if d == 2 else math.cbrt(volume)) / 1.1
     for _ in range(60):
-        xs = x0 + s * (0.5 + np.arange(max(int(w // s), 1)))
-        ys = y0 + s * (0.5 + np.arange(max(int(h // s), 1)))
-        cells = np.stack(np.meshgrid(xs, ys, indexing="ij"), axis=-1).reshape(-1, 2)
+        axes = [lo[k] + s * (0.5 + np.arange(max(int(size[k] // s), 1))) for k in range(d)]
+        cells = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, d)
         if len(centers):  # drop cells within s of an obstacle (a cell grid: O(N) memory, not N x obstacles)
             blocked, _ = ObstacleIndex(centers, radii, s).sensed(cells)
             cells = np.delete(cells, np.unique(blocked), axis=0)
@@ -177,4 +199,4 @@ def spawn_positions(rng: np.random.Generator, n: int, box: Box, min_sep: float,
     if len(cells) < n or s <= min_sep:
         raise UsageError(f"cannot place {n} agents {min_sep:g} apart in spawn region {box}; enlarge it")
     chosen = cells[rng.choice(len(cells), size=n, replace=False)]
-    return chosen + rng.uniform(-(s - min_sep) / 2, (s - min_sep) / 2, size=(n, 2))
+    return chosen + rng.uniform(-(s - min_sep) / 2, (s - min_sep) / 2, size=(n, d))

@@ -4,6 +4,7 @@ either with parameter overrides. What a scenario is: :mod:`zswarm.model.scenario
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 from typing import Any, Callable
@@ -168,6 +169,43 @@ def bench_field(n_agents: int = 50) -> Scenario:
     )
 
 
+def moving_prey_3d() -> Scenario:
+    """The demo lifted into 3-D: the flank obstacles become spheres, two more sit above and below the
+    swarm's way in and two above and below the prey's orbit, and the prey flies its circle rising and
+    falling."""
+    return Scenario(
+        name="moving-prey-3d",
+        description="The demo in 3-D: 10 agents from a box left of x=-2.6 chase a prey that flies a circle "
+                    "about (0.5, 0, 0), rising and falling 0.25, past spheres beside, above and below the way.",
+        params=DEFAULT_PARAMS.with_values({"sensing_radius": 1.2, "dimensions": 3}),
+        obstacles=(*(dataclasses.replace(o) for o in FIG14_OBSTACLES),
+                   Obstacle(-1.0, 0.0, 0.3, z=0.9), Obstacle(-1.0, 0.0, 0.3, z=-0.9),
+                   Obstacle(0.5, 0.0, 0.3, z=1.05), Obstacle(0.5, 0.0, 0.3, z=-1.05)),
+        prey_start=(0.0, 0.0, 0.0), spawn=(-4.0, -1.2, -0.7, -2.6, 1.2, 0.7),
+        prey=PreyMotion(kind="circle", speed=0.15, center=(0.5, 0.0, 0.0), radius=0.5, bob=0.25), duration=60.0,
+    )
+
+
+#: window-3d's wall: spheres of this radius on a square grid of this pitch in the plane x = 0.
+WALL_RADIUS, WALL_PITCH = 0.3, 0.55
+
+
+def window_3d() -> Scenario:
+    """A wall of spheres across the way with one square window in it: the paper's "if their formation
+    encounter a tunnel, they change their maintenance to a kind of line"."""
+    grid = [WALL_PITCH * k for k in range(-4, 5)]  # the goal's range reaches the start (l_g = 3.5)
+    wall = tuple(Obstacle(0.0, y, WALL_RADIUS, z=z) for y in grid for z in grid
+                 if not (abs(y) < WALL_PITCH * 1.5 and abs(z) < WALL_PITCH * 1.5))
+    return Scenario(
+        name="window-3d",
+        description="A wall of spheres in the plane x = 0 with a window 1.6 wide in its middle; 10 agents "
+                    "from a box left of x=-2.3 must pass it, squeezed closer than their spacing, to reach a "
+                    "static goal at (2, 0, 0).",
+        params=DEFAULT_PARAMS.with_values({"sensing_radius": 1.2, "dimensions": 3, "l_g": 3.5}),
+        obstacles=wall, prey_start=(2.0, 0.0, 0.0), spawn=(-3.5, -0.8, -0.8, -2.3, 0.8, 0.8), duration=40.0,
+    )
+
+
 SCENARIOS: dict[str, Callable[[], Scenario]] = {
     "goal-near-obstacle": goal_near_obstacle,
     "static-goal": static_goal,
@@ -178,6 +216,8 @@ SCENARIOS: dict[str, Callable[[], Scenario]] = {
     "narrow-passage": narrow_passage,
     "large-swarm": large_swarm,
     "bench-field": bench_field,
+    "moving-prey-3d": moving_prey_3d,
+    "window-3d": window_3d,
 }
 
 
@@ -213,7 +253,7 @@ def get_scenario(name: str, overrides: dict[str, Any] | None = None) -> Scenario
 
 
 _TOP_KEYS = {"name", "description", "params", "obstacles", "prey_start", "prey", "spawn", "starts",
-             "duration", "dt", "combination", "formation", "capture_radius"}
+             "duration", "dt", "combination", "formation", "capture_radius", "dimensions"}
 
 
 def load_scenario_file(path: Path) -> Scenario:
@@ -230,10 +270,11 @@ def load_scenario_file(path: Path) -> Scenario:
             if key in kw:
                 kw[key] = tuple(float(v) for v in kw[key])
         if "starts" in kw:
-            kw["starts"] = tuple((float(x), float(y)) for x, y in kw["starts"])
-        kw["params"] = DEFAULT_PARAMS.with_values(data.get("params", {}))
-        kw["obstacles"] = tuple(Obstacle(float(o["x"]), float(o["y"]), float(o.get("radius", 0.0)))
-                                for o in data.get("obstacles", []))
+            kw["starts"] = tuple(tuple(float(v) for v in p) for p in kw["starts"])
+        dims = {"dimensions": kw.pop("dimensions")} if "dimensions" in kw else {}
+        kw["params"] = DEFAULT_PARAMS.with_values({**dims, **data.get("params", {})})
+        kw["obstacles"] = tuple(Obstacle(float(o["x"]), float(o["y"]), float(o.get("radius", 0.0)),
+                                         float(o.get("z", 0.0))) for o in data.get("obstacles", []))
         prey = dict(data.get("prey", {}))
         for key in ("center", "bounds"):
             if key in prey:

@@ -147,15 +147,17 @@ def load_segment(path: Path) -> RunRecord:
                 step = int(rb.column("step")[row].as_py())
                 t = float(rb.column("t")[row].as_py()[0]) if "t" in cols else float(times[row])
                 ids = np.asarray(rb.column("id")[row].as_py(), dtype=np.int64)
-                xy = np.column_stack([rb.column("x")[row].as_py(), rb.column("y")[row].as_py()])
-                vel = np.column_stack([rb.column("vx")[row].as_py(), rb.column("vy")[row].as_py()])
+                axes = ("x", "y", "z") if "z" in cols and rb.column("z")[row].as_py() is not None else ("x", "y")
+                xy = np.column_stack([rb.column(a)[row].as_py() for a in axes])
+                vel = np.column_stack([rb.column(f"v{a}")[row].as_py() for a in axes])
                 heading = (np.asarray(rb.column("heading")[row].as_py(), dtype=float)
                            if "heading" in cols and rb.column("heading")[row].as_py() is not None else None)
-                states[step] = (t, ids, xy.reshape(-1, 2), vel.reshape(-1, 2), heading)
+                states[step] = (t, ids, xy.reshape(-1, len(axes)), vel.reshape(-1, len(axes)), heading)
         elif entity == PREY_STATE:
             for row in range(rb.num_rows):
                 step = int(rb.column("step")[row].as_py())
-                prey[step] = np.array([rb.column("x")[row].as_py()[0], rb.column("y")[row].as_py()[0]])
+                axes = ("x", "y", "z") if "z" in cols and rb.column("z")[row].as_py() is not None else ("x", "y")
+                prey[step] = np.array([rb.column(a)[row].as_py()[0] for a in axes])
     if not states and not config:
         raise UsageError(f"{path} holds no agent states (is it a zswarm run recording?)")
     frames = [Frame(step, t, ids, xy, vel, prey.get(step), heading)

@@ -3,6 +3,10 @@
 One batched entity per kind (the viewer slows down with hundreds of entities): all agents are one
 ``Points2D``, all velocities one ``Arrows2D``. Positions are also logged as float64 ``AnyValues``
 (``Points2D`` stores float32), so that metrics can be recomputed exactly from a recording.
+
+A 3-D run (positions with three columns) is logged with the 3-D archetypes (``Points3D``,
+``Arrows3D``, ``LineStrips3D``; obstacles are spheres) into a 3-D view, with a ``z`` state column
+beside ``x`` and ``y``; the plots are the same.
 """
 
 from __future__ import annotations
@@ -47,11 +51,24 @@ PLOTS = (("distance to prey", ("mean_goal_distance", "centroid_goal_distance", "
          ("energy (eq 35; the Lyapunov trace of the paper's interaction)", ("energy",)))
 
 
+def _points(positions: np.ndarray, **kw: Any) -> Any:
+    return (rr.Points3D if np.shape(positions)[-1] == 3 else rr.Points2D)(positions, **kw)
+
+
+def _arrows(origins: np.ndarray, vectors: np.ndarray, **kw: Any) -> Any:
+    return (rr.Arrows3D if np.shape(origins)[-1] == 3 else rr.Arrows2D)(origins=origins, vectors=vectors, **kw)
+
+
+def _strips(strips: Any, dims: int, **kw: Any) -> Any:
+    return (rr.LineStrips3D if dims == 3 else rr.LineStrips2D)(strips, **kw)
+
+
 def blueprint(extra_plots: Iterable[tuple[str, tuple[str, ...]]] = (), network: bool = False,
-              arena: tuple[float, float, float, float] | None = None) -> rrb.Blueprint:
+              arena: tuple[float, float, float, float] | None = None, dimensions: int = 2) -> rrb.Blueprint:
     """The map beside the metric plots (each with its threshold lines); ``network``: a third column with
     the transport figures and the run's events (the world's recordings). ``arena`` (x_min, y_min, x_max,
-    y_max): what the map frames when it opens (the scenario's :meth:`~zswarm.model.scenario.Scenario.arena`)."""
+    y_max): what the map frames when it opens (the scenario's :meth:`~zswarm.model.scenario.Scenario.arena`).
+    ``dimensions`` 3: the map is a 3-D view."""
     def path(name: str) -> str:
         return f"{THRESHOLDS}/{name}" if name in THRESHOLD_NAMES else f"{METRICS}/{name}"
 
@@ -70,8 +87,9 @@ def blueprint(extra_plots: Iterable[tuple[str, tuple[str, ...]]] = (), network: 
             row_shares=[2, 2, 1]))
     return rrb.Blueprint(
         rrb.Horizontal(
-            rrb.Spatial2DView(origin=MAP, name="swarm", visual_bounds=None if arena is None else
-                              rrb.VisualBounds2D(x_range=[arena[0], arena[2]], y_range=[arena[1], arena[3]])),
+            (rrb.Spatial3DView(origin=MAP, name="swarm") if dimensions == 3 else
+             rrb.Spatial2DView(origin=MAP, name="swarm", visual_bounds=None if arena is None else
+                               rrb.VisualBounds2D(x_range=[arena[0], arena[2]], y_range=[arena[1], arena[3]]))),
             *side,
             column_shares=[3, 2, 2] if network else [3, 2],
         ),
@@ -89,8 +107,7 @@ def log_config(rec: rr.RecordingStream, config: dict[str, Any]) -> None:
 
 def log_obstacles(rec: rr.RecordingStream, centers: np.ndarray, radii: np.ndarray) -> None:
     if len(centers):
-        rec.log(OBSTACLES, rr.Points2D(centers, radii=np.maximum(radii, 0.03), colors=(150, 150, 150)),
-                static=True)
+        rec.log(OBSTACLES, _points(centers, radii=np.maximum(radii, 0.03), colors=(150, 150, 150)), static=True)
 
 
 def set_time(rec: rr.RecordingStream, step: int, t: float) -> None:
@@ -104,17 +121,19 @@ def log_swarm(rec: rr.RecordingStream, t: float, ids: np.ndarray, positions: np.
     """Agents (with id labels), their velocity arrows, optional sensing discs and exact float64 state;
     ``headings`` (radians, NaN where none): a short white arrow from each agent the way it faces."""
     labels = [str(int(i)) for i in ids]
-    rec.log(AGENTS, rr.Points2D(positions, radii=0.05, labels=labels, class_ids=ids,
-                                show_labels=len(ids) <= 30))
-    rec.log(VELOCITIES, rr.Arrows2D(origins=positions, vectors=velocities))
+    rec.log(AGENTS, _points(positions, radii=0.05, labels=labels, class_ids=ids, show_labels=len(ids) <= 30))
+    rec.log(VELOCITIES, _arrows(positions, velocities))
     if sensing_radius is not None:
-        rec.log(SENSING, rr.Points2D(positions, radii=sensing_radius, colors=(120, 160, 255, 25)))
+        rec.log(SENSING, _points(positions, radii=sensing_radius, colors=(120, 160, 255, 25)))
     state = {}
     if headings is not None:
         has = np.isfinite(headings)
         facing = HEADING_LENGTH * np.column_stack([np.cos(headings[has]), np.sin(headings[has])])
         rec.log(HEADINGS, rr.Arrows2D(origins=positions[has], vectors=facing, colors=(240, 240, 240), radii=0.012))
         state["heading"] = np.asarray(headings, dtype=np.float64)
+    if positions.shape[1] == 3:
+        state["z"] = positions[:, 2].astype(np.float64)
+        state["vz"] = velocities[:, 2].astype(np.float64)
     rec.log(STATE, rr.AnyValues(t=np.array([t], dtype=np.float64), id=np.asarray(ids, dtype=np.int64),
                                 x=positions[:, 0].astype(np.float64),
                                 y=positions[:, 1].astype(np.float64), vx=velocities[:, 0].astype(np.float64),
@@ -122,10 +141,11 @@ def log_swarm(rec: rr.RecordingStream, t: float, ids: np.ndarray, positions: np.
 
 
 def log_prey(rec: rr.RecordingStream, prey: np.ndarray, trail: np.ndarray) -> None:
-    rec.log(PREY, rr.Points2D([prey], radii=0.08, colors=(255, 60, 60), labels=["prey"]))
+    rec.log(PREY, _points([prey], radii=0.08, colors=(255, 60, 60), labels=["prey"]))
     if len(trail) > 1:
-        rec.log(PREY_TRAIL, rr.LineStrips2D([trail], colors=(255, 120, 120)))
-    rec.log(PREY_STATE, rr.AnyValues(x=np.array([prey[0]], np.float64), y=np.array([prey[1]], np.float64)))
+        rec.log(PREY_TRAIL, _strips([trail], len(prey), colors=(255, 120, 120)))
+    z = {"z": np.array([prey[2]], np.float64)} if len(prey) == 3 else {}
+    rec.log(PREY_STATE, rr.AnyValues(x=np.array([prey[0]], np.float64), y=np.array([prey[1]], np.float64), **z))
 
 
 def log_metrics(rec: rr.RecordingStream, metrics: dict[str, float],
@@ -155,7 +175,7 @@ def log_sensing_graph(rec: rr.RecordingStream, positions: np.ndarray, radius: fl
     i, j = pairs_within(positions, radius)
     keep = i < j
     segments = np.stack([positions[i[keep]], positions[j[keep]]], axis=1)
-    rec.log(SENSING_GRAPH, rr.LineStrips2D(segments, colors=(110, 150, 220, 110), radii=0.006))
+    rec.log(SENSING_GRAPH, _strips(segments, positions.shape[1], colors=(110, 150, 220, 110), radii=0.006))
 
 
 def log_network(rec: rr.RecordingStream, figures: dict[str, float | None]) -> None:

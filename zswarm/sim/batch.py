@@ -1,7 +1,7 @@
 """Many independent runs stepped together as one array program: the batched reference simulator.
 
-B runs (each its own scenario, seed, parameter set, combination and faults; all with the same N and
-dt) are held as (B, N, 2) arrays and stepped by the equations of :mod:`zswarm.sim.simulator`:
+B runs (each its own scenario, seed, parameter set, combination and faults; all with the same N, dt
+and dimension D) are held as (B, N, D) arrays and stepped by the equations of :mod:`zswarm.sim.simulator`:
 
     v_k = sat(-grad U_i(P_k), v_max),  P_{k+1} = P_k + dt v_k,  prey_{k+1} = prey.step(prey_k, P_k)
 
@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from zswarm.model import body as bodies
+from zswarm.model import prey as prey_motion
 from zswarm.model.faults import FaultModel
 from zswarm.model.metrics import components
 from zswarm.model.formation import pair_gain
@@ -131,10 +132,12 @@ class BatchSimulator:
             raise ValueError("a batch needs at least one run")
         first = members[0].scenario
         self.n, self.dt = first.n_agents, first.dt
+        self.dims = first.dimensions
         for m in members:
-            if m.scenario.n_agents != self.n or m.scenario.dt != self.dt:
-                raise ValueError(f"every run of a batch needs the same N and dt (got N={m.scenario.n_agents}, "
-                                 f"dt={m.scenario.dt} beside N={self.n}, dt={self.dt})")
+            if m.scenario.n_agents != self.n or m.scenario.dt != self.dt or m.scenario.dimensions != self.dims:
+                raise ValueError(f"every run of a batch needs the same N, dt and dimensions (got N={m.scenario.n_agents}, "
+                                 f"dt={m.scenario.dt}, {m.scenario.dimensions}-D beside N={self.n}, dt={self.dt}, "
+                                 f"{self.dims}-D)")
         if self.n > MAX_AGENTS:
             raise ValueError(f"the batched simulator takes at most {MAX_AGENTS} agents (got {self.n})")
         self.members = members
@@ -155,7 +158,7 @@ class BatchSimulator:
             start = bodies.start(spec, positions[rows], self.prey[rows][:, None, :])
             self.state.velocity[rows], self.state.heading[rows] = start.velocity, start.heading
         m_obs = max(len(s.obstacles) for s in scen)
-        self.centers = np.zeros((b, m_obs, 2))
+        self.centers = np.zeros((b, m_obs, self.dims))
         self.radii = np.zeros((b, m_obs))
         self.has_obstacle = np.zeros((b, m_obs), dtype=bool)
         for r, s in enumerate(scen):
@@ -166,7 +169,7 @@ class BatchSimulator:
             self.motions.setdefault(s.prey, np.zeros(b, dtype=bool))[r] = True
         self.faulty = np.flatnonzero([m.faulty for m in members])
         self.channel = (BatchChannel(self.n, [members[r].faults for r in self.faulty], self.dt,
-                                     self.radius[self.faulty]) if len(self.faulty) else None)
+                                     self.radius[self.faulty], dims=self.dims) if len(self.faulty) else None)
         self.off_diagonal = ~np.eye(self.n, dtype=bool)
         self.step_index = 0
         self.variants = _variant_groups(scen)
@@ -241,6 +244,11 @@ class BatchSimulator:
     def _prey_step(self) -> np.ndarray:
         """:func:`zswarm.model.prey.step` for every run, vectorized over the runs that share a motion."""
         out, dt = self.prey.copy(), self.dt
+        if self.dims == 3:  # the reference's own step, run by run (the 3-D motions are not vectorized here)
+            for motion, rows in self.motions.items():
+                for r in rows.nonzero()[0]:
+                    out[r] = prey_motion.step(motion, self.prey[r], dt, self.positions[r])
+            return out
         for motion, rows in self.motions.items():
             prey = self.prey[rows]
             if motion.kind == "static" or motion.speed == 0.0:

@@ -22,7 +22,7 @@ BLOCK_BYTES = 64 * 2**20  # and at most this much memory for them (N = 2000 draw
 
 class BatchChannel:
     def __init__(self, n: int, models: list[FaultModel], dt: float, sensing_radius: np.ndarray,
-                 staleness: float = 0.5) -> None:
+                 staleness: float = 0.5, dims: int = 2) -> None:
         b = len(models)
         self.n, self.dt = n, dt
         self.rngs = [np.random.default_rng([m.seed, 0x5EED]) for m in models]
@@ -37,10 +37,10 @@ class BatchChannel:
         max_delay = max(int(math.ceil((m.latency + m.jitter) / dt)) + 1 for m in models)
         self.slots = max_delay + 1  # a ring longer than any run's delay: the same arrivals as its own ring
         s = n + 1  # column n is the prey
-        self.history = np.zeros((b, self.slots, s, 2))
+        self.history = np.zeros((b, self.slots, s, dims))
         self.incoming = np.full((b, self.slots, n, s), -1, dtype=np.int64)
         self.belief_stamp = np.full((b, n, s), -1, dtype=np.int64)
-        self.belief_pos = np.zeros((b, n, s, 2))
+        self.belief_pos = np.zeros((b, n, s, dims))
         self.bad = np.zeros((b, n, s), dtype=bool)
         self.stale_steps = int(round(staleness / dt))
         self.lost = np.zeros(b, dtype=np.int64)

@@ -54,7 +54,7 @@ class Simulator:
         self.obstacles = ObstacleIndex(centers, radii, p.swarm.sensing_radius)
         self.step_index = 0
         self.channel = (FaultyChannel(len(self.positions), faults, scenario.dt, p.swarm.sensing_radius,
-                                      seed=faults.seed)
+                                      seed=faults.seed, dims=scenario.dimensions)
                         if faults is not None and faults.active else None)
 
     @property
@@ -121,7 +121,7 @@ def simulate(scenario: Scenario, seed: int, *, combination: Combination | None =
     steps = int(round((duration if duration is not None else scenario.duration) / scenario.dt))
     observer = SwarmObserver(scenario, sim.combination)
     traj = np.empty((steps + 1, *sim.positions.shape)) if keep_trajectory else None
-    prey_traj = np.empty((steps + 1, 2)) if keep_trajectory else None
+    prey_traj = np.empty((steps + 1, len(sim.prey))) if keep_trajectory else None
     header = {"scenario": scenario.name, "n_agents": int(len(sim.positions)), "seed": seed,
               "potential": sim.combination, "duration": steps * scenario.dt, "steps": steps,
               "dt": scenario.dt}
@@ -130,7 +130,8 @@ def simulate(scenario: Scenario, seed: int, *, combination: Combination | None =
         from zswarm.record import swarm_log
         from zswarm.record.recording import open_recording
 
-        rec = open_recording(record, "zswarm-sim", swarm_log.blueprint(arena=scenario.arena()),
+        rec = open_recording(record, "zswarm-sim", swarm_log.blueprint(arena=scenario.arena(),
+                                                                       dimensions=scenario.dimensions),
                              recording_id=f"sim-{scenario.name}-{seed}", viewer=viewer)
         swarm_log.log_config(rec, {**header, "scenario_definition": scenario.to_dict(),
                                    "versions": versions(), "argv": argv or sys.argv})
