@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
 import signal
 import subprocess
 import sys
@@ -14,7 +13,7 @@ import pytest
 
 from zswarm.model.scenarios import get_scenario
 from zswarm.net.procs import free_port, start_router
-from zswarm.record.replay import load_run
+from zswarm.record.replay import load_run, recompute
 from zswarm.sim.simulator import Simulator, simulate
 
 from conftest import ROOT
@@ -33,14 +32,15 @@ from swarm_procs import (
 
 
 @pytest.mark.parametrize("scenario,duration,interaction,body", [
-    ("moving-prey", 30.0, "paper", "point"), ("static-goal", 32.0, "paper", "point"),
-    ("moving-prey", 15.0, "mean+gate", "point"), ("moving-prey", 5.0, "paper", "unicycle"),
+    ("moving-prey", 30.0, "paper", "point"), ("static-goal", 15.0, "paper", "point"),
+    ("moving-prey", 10.0, "mean+gate", "point"), ("moving-prey", 5.0, "paper", "unicycle"),
     ("moving-prey", 5.0, "paper", "double-integrator")])
 def test_lockstep_swarm_reproduces_the_reference_and_catches_the_prey(tmp_path, scenario, duration, interaction,
                                                                        body):
-    """The paper's law catches the prey within the run; mean+gate (slower: 34.9 s) is held to the
-    reference for its first 15 s, which is what this test is about, as are the first 5 s of the other
-    bodies (zswarm.model.body; tests/test_body.py runs them to the capture)."""
+    """The paper's law catches the prey within the run on moving-prey; the other cases are held to the
+    reference for the first part of theirs, which is what this test is about: static-goal through its
+    split at the large obstacle (15 s; tests/test_sim.py runs it to the goal), mean+gate (slower: 34.9 s)
+    for 10 s, the other bodies for 5 s (zswarm.model.body; tests/test_body.py runs them to the capture)."""
     sets = ["--set", f"interaction={interaction}", "--set", f"body={body}"]
     n = get_scenario(scenario).n_agents
     catches = duration >= 30.0
@@ -75,11 +75,10 @@ def test_lockstep_swarm_reproduces_the_reference_and_catches_the_prey(tmp_path, 
     else:
         assert all(f.headings is None for f in run.frames)
     assert run.config["seed"] == 0 and "versions" in run.config and run.summary["collisions"] == 0
-    replay = subprocess.run([sys.executable, "-m", "zswarm", "replay", str(record), "--json"],
-                            capture_output=True, text=True, timeout=120, env={**os.environ, "PYTHONPATH": str(ROOT)})
-    assert replay.returncode == 0, replay.stdout + replay.stderr
-    replayed = json.loads(replay.stdout)
-    assert replayed["replay"]["matches_stored_summary"] is True
+    replayed = recompute(run)  # what zswarm replay prints (tests/test_sim.py runs the command itself)
+    stored = {k: v for k, v in run.summary.items() if k in replayed}
+    assert stored and all(v == pytest.approx(stored[k], rel=1e-9, abs=1e-12) if isinstance(v, float) else v == stored[k]
+                          for k, v in replayed.items() if k in stored)  # the whole recorded summary
     for key in ("capture_time", "collisions", "min_pair_distance", "max_components", "final_energy"):
         assert replayed[key] == summary[key]  # exactly: same float64 states, same code
 
