@@ -49,13 +49,10 @@ class ObstacleView:
         self.obstacles = [(cx, cy, r) for (cx, cy), r in zip(m.centers, m.radii)]
         self.query_at = asked_at
 
-    def answered(self, m: msg.Obstacles) -> bool:
-        """An answer taken in with the samples (no event loop): True if a query was waiting for it."""
-        if self.query is None:
-            return False
+    def answered(self, m: msg.Obstacles) -> None:
+        """The answer to the query in flight, taken in with the samples (no event loop)."""
         self.know(m, self.query[:2])
         self.query = None
-        return True
 
     def request(self, now: float, timeout: float = 2.0) -> None:
         """Without an event loop: ask the world for the obstacles within 2R when it has moved R from

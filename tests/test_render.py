@@ -35,16 +35,23 @@ def _colored(region: np.ndarray) -> int:
     return int(((region.max(-1) - region.min(-1)) > 80).sum())
 
 
-def test_a_run_opens_with_the_map_left_and_the_plots_right(tmp_path):
-    rec = tmp_path / "run.rrd"
-    assert run_cli("-m", "zswarm", "sim", "--scenario", "moving-prey", "--duration", "3", "--record", str(rec),
+def _simulated_run(tmp_path: Path, scenario: str) -> tuple[np.ndarray, np.ndarray]:
+    """3 s of ``scenario`` recorded and rendered; the map (left 3/5) and the plots (right 2/5), without
+    the top and bottom bars."""
+    rec = tmp_path / f"{scenario}.rrd"
+    assert run_cli("-m", "zswarm", "sim", "--scenario", scenario, "--duration", "3", "--record", str(rec),
                    cwd=tmp_path).returncode == 0
-    image = _render(rec, tmp_path / "run.png")
+    image = _render(rec, tmp_path / f"{scenario}.png")
     h, w, _ = image.shape
     assert image.std() > 10, "blank screenshot"
     band = image[int(0.08 * h):int(0.92 * h)]
-    assert _colored(band[:, :int(0.55 * w)]) > 500, "no agents in the map (left 3/5 of the window)"
-    assert _colored(band[:, int(0.62 * w):]) > 500, "no plotted series (right 2/5 of the window)"
+    return band[:, :int(0.55 * w)], band[:, int(0.62 * w):]
+
+
+def test_a_run_opens_with_the_map_left_and_the_plots_right(tmp_path):
+    map_, plots = _simulated_run(tmp_path, "moving-prey")
+    assert _colored(map_) > 500, "no agents in the map (left 3/5 of the window)"
+    assert _colored(plots) > 500, "no plotted series (right 2/5 of the window)"
 
 
 def test_the_design_view_opens_with_the_figure_left_and_the_verdicts_right(tmp_path):
@@ -59,14 +66,8 @@ def test_the_design_view_opens_with_the_figure_left_and_the_verdicts_right(tmp_p
 
 def test_a_3d_run_opens_in_a_3d_view_with_the_plots_right(tmp_path):
     """moving-prey-3d: the map is a 3-D view (its ground grid, the spheres, the agents), the plots beside it."""
-    rec = tmp_path / "run3d.rrd"
-    assert run_cli("-m", "zswarm", "sim", "--scenario", "moving-prey-3d", "--duration", "3", "--record", str(rec),
-                   cwd=tmp_path).returncode == 0
-    image = _render(rec, tmp_path / "run3d.png")
-    h, w, _ = image.shape
-    band = image[int(0.08 * h):int(0.92 * h)]
-    left = band[:, :int(0.55 * w)]
-    assert _colored(left) > 500, "no agents in the 3-D map"
-    grey = (left.max(-1) - left.min(-1) < 20) & (left.mean(-1) > 120)  # the lit spheres
+    map_, plots = _simulated_run(tmp_path, "moving-prey-3d")
+    assert _colored(map_) > 500, "no agents in the 3-D map"
+    grey = (map_.max(-1) - map_.min(-1) < 20) & (map_.mean(-1) > 120)  # the lit spheres
     assert grey.sum() > 5000, "no obstacles (grey spheres) in the 3-D map"
-    assert _colored(band[:, int(0.62 * w):]) > 500, "no plotted series (right 2/5 of the window)"
+    assert _colored(plots) > 500, "no plotted series (right 2/5 of the window)"

@@ -89,8 +89,7 @@ def velocity(spec: BodySpec, state: BodyState, v_d: np.ndarray, dt: float) -> np
     if spec.kind == "point":
         return v_d
     if spec.kind == "unicycle":
-        u, _ = _unicycle_inputs(spec, state.heading, v_d)
-        return u[..., None] * np.stack([np.cos(state.heading), np.sin(state.heading)], axis=-1)
+        return _unicycle(spec, state.heading, v_d)[0]
     if spec.kind == "double-integrator":
         return state.velocity + dt * _limit((v_d - state.velocity) / dt, spec.accel)
     raise ParamError(f"unknown body {spec.kind!r}")
@@ -98,12 +97,11 @@ def velocity(spec: BodySpec, state: BodyState, v_d: np.ndarray, dt: float) -> np
 
 def step(spec: BodySpec, state: BodyState, v_d: np.ndarray, dt: float) -> BodyState:
     """One explicit Euler step of every body under the command ``v_d``."""
-    v = velocity(spec, state, v_d, dt)
-    heading = state.heading
     if spec.kind == "unicycle":
-        _, omega = _unicycle_inputs(spec, heading, v_d)
-        heading = wrap(heading + dt * omega)
-    return BodyState(state.position + dt * v, v, heading)
+        v, omega = _unicycle(spec, state.heading, v_d)
+        return BodyState(state.position + dt * v, v, wrap(state.heading + dt * omega))
+    v = velocity(spec, state, v_d, dt)
+    return BodyState(state.position + dt * v, v, state.heading)
 
 
 def wrap(angle: np.ndarray) -> np.ndarray:
@@ -111,14 +109,14 @@ def wrap(angle: np.ndarray) -> np.ndarray:
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
-def _unicycle_inputs(spec: BodySpec, heading: np.ndarray, v_d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Forward speed u and turn rate omega that steer the point ``lookahead`` ahead along ``v_d``, each
-    clipped to its limit."""
+def _unicycle(spec: BodySpec, heading: np.ndarray, v_d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The velocity u (cos theta, sin theta) a unicycle moves with and its turn rate omega, steering the
+    point ``lookahead`` ahead along ``v_d``; u and omega each clipped to its limit."""
     c, s = np.cos(heading), np.sin(heading)
     v_max, w_max = np.asarray(spec.v_max), np.asarray(spec.turn_rate)
     u = np.clip(c * v_d[..., 0] + s * v_d[..., 1], -v_max, v_max)
     omega = np.clip((-s * v_d[..., 0] + c * v_d[..., 1]) / np.asarray(spec.lookahead), -w_max, w_max)
-    return u, omega
+    return u[..., None] * np.stack([c, s], axis=-1), omega
 
 
 def _limit(a: np.ndarray, bound: float | np.ndarray) -> np.ndarray:

@@ -29,11 +29,10 @@ def body_check(params: Params, spacing: float | None) -> dict[str, Any]:
     """The body row of the design report (``spacing``: the pair spacing d^f, None when unstable)."""
     b, s = params.body, params.swarm
     kind = b.body
+    slack = None if spacing is None else spacing - 2.0 * s.robot_radius
     if kind == "point":
-        slack = None if spacing is None else spacing - 2.0 * s.robot_radius
         return {"holds": True, "body": kind, "lag": 0.0, "slack": slack,
                 "detail": "the paper's body (moves as commanded): every check above is for it"}
-    slack = None if spacing is None else spacing - 2.0 * s.robot_radius
     if kind == "unicycle":
         lag, what = 2.0 * b.lookahead, f"2 lookahead = {2.0 * b.lookahead:.4g} (its axle trails the point it steers)"
         extra = f"; it turns no tighter than v_max/turn_rate = {s.v_max / b.turn_rate:.4g}"

@@ -100,7 +100,7 @@ class PairList:
         self.agent, self.n = np.asarray(agent, dtype=np.intp), n
 
     def total(self, v: np.ndarray) -> np.ndarray:
-        """Per-agent sum of per-pair values (K,) or vectors (K, 2)."""
+        """Per-agent sum of per-pair values (K,) or vectors (K, D)."""
         if v.ndim == 1:
             return np.bincount(self.agent, weights=v, minlength=self.n)
         return np.stack([np.bincount(self.agent, weights=v[:, c], minlength=self.n) for c in range(v.shape[1])],

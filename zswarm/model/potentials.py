@@ -60,11 +60,8 @@ def formation_terms(
 
 
 def _per_agent(n: int, idx: np.ndarray, u: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    total_u = np.bincount(idx, weights=u, minlength=n)
-    total_f = np.empty((n, f.shape[1]))
-    for d in range(f.shape[1]):
-        total_f[:, d] = np.bincount(idx, weights=f[:, d], minlength=n)
-    return total_u, total_f
+    pairs = PairList(idx, n)
+    return pairs.total(u), pairs.total(f)
 
 
 def field(

@@ -116,6 +116,11 @@ def recompute(run: RunRecord) -> dict[str, Any]:
     return observer.summary.result()
 
 
+def _axes(rb: Any, row: int) -> tuple[str, ...]:
+    """The coordinates a state row holds: x, y, and z in a 3-D run."""
+    return ("x", "y", "z") if "z" in rb.schema.names and rb.column("z")[row].as_py() is not None else ("x", "y")
+
+
 def load_segment(path: Path) -> RunRecord:
     import warnings
 
@@ -147,7 +152,7 @@ def load_segment(path: Path) -> RunRecord:
                 step = int(rb.column("step")[row].as_py())
                 t = float(rb.column("t")[row].as_py()[0]) if "t" in cols else float(times[row])
                 ids = np.asarray(rb.column("id")[row].as_py(), dtype=np.int64)
-                axes = ("x", "y", "z") if "z" in cols and rb.column("z")[row].as_py() is not None else ("x", "y")
+                axes = _axes(rb, row)
                 xy = np.column_stack([rb.column(a)[row].as_py() for a in axes])
                 vel = np.column_stack([rb.column(f"v{a}")[row].as_py() for a in axes])
                 heading = (np.asarray(rb.column("heading")[row].as_py(), dtype=float)
@@ -156,8 +161,7 @@ def load_segment(path: Path) -> RunRecord:
         elif entity == PREY_STATE:
             for row in range(rb.num_rows):
                 step = int(rb.column("step")[row].as_py())
-                axes = ("x", "y", "z") if "z" in cols and rb.column("z")[row].as_py() is not None else ("x", "y")
-                prey[step] = np.array([rb.column(a)[row].as_py()[0] for a in axes])
+                prey[step] = np.array([rb.column(a)[row].as_py()[0] for a in _axes(rb, row)])
     if not states and not config:
         raise UsageError(f"{path} holds no agent states (is it a zswarm run recording?)")
     frames = [Frame(step, t, ids, xy, vel, prey.get(step), heading)

@@ -59,8 +59,8 @@ def _arrows(origins: np.ndarray, vectors: np.ndarray, **kw: Any) -> Any:
     return (rr.Arrows3D if np.shape(origins)[-1] == 3 else rr.Arrows2D)(origins=origins, vectors=vectors, **kw)
 
 
-def _strips(strips: Any, dims: int, **kw: Any) -> Any:
-    return (rr.LineStrips3D if dims == 3 else rr.LineStrips2D)(strips, **kw)
+def _strips(strips: Any, **kw: Any) -> Any:
+    return (rr.LineStrips3D if np.shape(strips)[-1] == 3 else rr.LineStrips2D)(strips, **kw)
 
 
 def blueprint(extra_plots: Iterable[tuple[str, tuple[str, ...]]] = (), network: bool = False,
@@ -143,7 +143,7 @@ def log_swarm(rec: rr.RecordingStream, t: float, ids: np.ndarray, positions: np.
 def log_prey(rec: rr.RecordingStream, prey: np.ndarray, trail: np.ndarray) -> None:
     rec.log(PREY, _points([prey], radii=0.08, colors=(255, 60, 60), labels=["prey"]))
     if len(trail) > 1:
-        rec.log(PREY_TRAIL, _strips([trail], len(prey), colors=(255, 120, 120)))
+        rec.log(PREY_TRAIL, _strips([trail], colors=(255, 120, 120)))
     z = {"z": np.array([prey[2]], np.float64)} if len(prey) == 3 else {}
     rec.log(PREY_STATE, rr.AnyValues(x=np.array([prey[0]], np.float64), y=np.array([prey[1]], np.float64), **z))
 
@@ -175,7 +175,7 @@ def log_sensing_graph(rec: rr.RecordingStream, positions: np.ndarray, radius: fl
     i, j = pairs_within(positions, radius)
     keep = i < j
     segments = np.stack([positions[i[keep]], positions[j[keep]]], axis=1)
-    rec.log(SENSING_GRAPH, _strips(segments, positions.shape[1], colors=(110, 150, 220, 110), radii=0.006))
+    rec.log(SENSING_GRAPH, _strips(segments, colors=(110, 150, 220, 110), radii=0.006))
 
 
 def log_network(rec: rr.RecordingStream, figures: dict[str, float | None]) -> None:
