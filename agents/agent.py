@@ -25,6 +25,7 @@ from agents.sensing import Body, Sensing
 from zswarm.model import body as bodies
 from zswarm.model.agent_law import agent_velocity
 from zswarm.model.neighbour_law import neighbour_law
+from zswarm.model.potentials import make_controller, sense_one
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Bridge
 from zswarm.net.runspec import RunSpec
@@ -33,7 +34,7 @@ STATS_PERIOD = 1.0
 
 
 class Agent:
-    def __init__(self, spec: RunSpec, agent_id: int, bridge: Bridge, start: tuple[float, float],
+    def __init__(self, spec: RunSpec, agent_id: int, bridge: Bridge, start: tuple[float, ...],
                  staleness: float = 0.5, lockstep_wait: float = 0.25) -> None:
         self.spec, self.id, self.bridge = spec, agent_id, bridge
         self.keys = spec.keys
@@ -42,36 +43,54 @@ class Agent:
         self.potential, self.formation = p.potential, spec.scenario.formation
         self.combination = spec.combination
         self.law = neighbour_law(p)
+        # 2-D: the law in plain floats (agent_law); 3-D: the vectorized law of the simulators
+        self.controller = (None if spec.scenario.dimensions == 2
+                           else make_controller(self.potential, self.combination, self.formation, self.law))
         self.body_spec = bodies.body_spec(p)
         first = bodies.start(self.body_spec, np.array(start, dtype=float), np.asarray(spec.scenario.prey_start))
-        self.body = Body(float(start[0]), float(start[1]), heading=self._heading(first))
+        z = (float(start[2]), 0.0) if len(start) == 3 else (None, None)
+        self.body = Body(float(start[0]), float(start[1]), heading=self._heading(first), z=z[0], vz=z[1])
         self.sensing = Sensing(spec, agent_id, bridge, self.body)
         self.counters = self.sensing.counters
         self.staleness, self.lockstep_wait = staleness, lockstep_wait
         self.seq = 0
-        self.pose_cell: tuple[int, int] | None = None
+        self.pose_cell: tuple[int, ...] | None = None
         self.pose_key = ""  # the key of its pose in that cell
         self.queryable: Any = None
         self.publisher: Any = None
         self.latest_reply: tuple[str, bytes] | None = None
         self.replies_by_step: dict[int, tuple[str, bytes]] = {}
-        self.prey_by_step: dict[int, tuple[float, float]] = {}
+        self.prey_by_step: dict[int, tuple[float, ...]] = {}
         self.stop = asyncio.Event()
         self.injector = None  # a FaultInjector when faults are injected
 
     # --- control ---------------------------------------------------------------------------------------
 
-    def move(self, goal: tuple[float, float], neighbours: list[tuple[float, float]]) -> None:
+    def move(self, goal: tuple[float, ...], neighbours: list[tuple[float, ...]]) -> None:
         """The command sat(-grad U_i) from what it sensed (eq 5 with the speed limit), and one step of its
         body under it (:func:`zswarm.model.body.step`)."""
         b = self.body
-        command = agent_velocity(b.x, b.y, goal, self.sensing.obstacles, neighbours, self.sensing.radius,
-                                 self.potential, self.combination, self.formation, self.v_max, self.law)
-        state = bodies.BodyState(np.array([b.x, b.y]), np.array([b.vx, b.vy]),
+        state = bodies.BodyState(np.array(b.position), np.array(b.velocity),
                                  np.array(np.nan if b.heading is None else b.heading))
-        moved = bodies.step(self.body_spec, state, np.array(command), self.dt)
-        (b.x, b.y), (b.vx, b.vy) = moved.position.tolist(), moved.velocity.tolist()
+        moved = bodies.step(self.body_spec, state, np.array(self.command(goal, neighbours)), self.dt)
+        position, velocity = moved.position.tolist(), moved.velocity.tolist()
+        b.x, b.y, b.vx, b.vy = position[0], position[1], velocity[0], velocity[1]
+        if b.z is not None:
+            b.z, b.vz = position[2], velocity[2]
         b.heading = self._heading(moved)
+
+    def command(self, goal: tuple[float, ...], neighbours: list[tuple[float, ...]]) -> tuple[float, ...]:
+        """The desired velocity from what it sensed: in plain floats in 2-D, the simulators' vectorized
+        law in 3-D (the same equations; :mod:`zswarm.model.agent_law` says why 2-D has its own)."""
+        b, s = self.body, self.sensing
+        if self.controller is None:
+            return agent_velocity(b.x, b.y, goal, s.obstacles, neighbours, s.radius, self.potential,
+                                  self.combination, self.formation, self.v_max, self.law)
+        position = np.array(b.position)
+        view = s.obstacle_view
+        sensed = sense_one(position, view.centers, view.radii, np.array(neighbours, dtype=float).reshape(-1, 3),
+                           s.radius)
+        return tuple(self.controller.velocity(position, np.array(goal, dtype=float), sensed, self.v_max).tolist())
 
     def _heading(self, state: bodies.BodyState) -> float | None:
         return float(state.heading) if self.body_spec.headed else None
@@ -82,13 +101,13 @@ class Agent:
         """Into the cell it is in, through that cell's declared publisher; its queryable there answers
         with the latest pose (and, in lockstep, the pose of a step)."""
         b = self.body
-        cell = self.keys.cell(b.x, b.y)
+        cell = self.keys.cell(*b.position)
         moved = cell != self.pose_cell
         if moved:
             self.pose_key = self.keys.pose(cell, self.id)
         key = self.pose_key
         self.seq += 1
-        payload = msg.encode_pose(self.id, self.seq, time.time(), step, b.x, b.y, b.vx, b.vy, b.heading)
+        payload = msg.encode_pose(self.id, self.seq, time.time(), step, b.x, b.y, b.vx, b.vy, b.heading, b.z, b.vz)
         self.latest_reply = (key, payload)
         if step >= 0:
             self.replies_by_step = {s: r for s, r in self.replies_by_step.items() if s > step - 3}
@@ -147,13 +166,13 @@ class Agent:
             if tick.final:
                 self.stop.set()
                 return
-            self.prey_by_step[tick.step] = (tick.x, tick.y)
+            self.prey_by_step[tick.step] = tick.position
             self.counters.ticks += 1
             while self.body.step < tick.step:  # tick k: every pose of step k-1 is out; do step k-1
                 k = self.body.step
                 await s.await_step_poses(k, self.lockstep_wait)
                 await s.refresh_obstacles()
-                self.move(self.prey_by_step.get(k, (tick.x, tick.y)), s.neighbour_positions(k, self.staleness))
+                self.move(self.prey_by_step.get(k, tick.position), s.neighbour_positions(k, self.staleness))
                 self.body.step += 1
                 self.prey_by_step.pop(k - 2, None)
             await s.update_cells()

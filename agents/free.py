@@ -33,11 +33,12 @@ def take_in(agent: Agent, injector: FaultInjector | None) -> int:
 def wait_for_world(agent: Agent, injector: FaultInjector | None, timeout: float,
                    stopped: Callable[[], bool]) -> bool:
     """Until the world has answered the first obstacle query (it is there), then enter the cells;
-    False if it did not answer within ``timeout`` seconds or the agent was stopped."""
+    False if it did not answer within ``timeout`` seconds, answered in another dimension, or the agent
+    was stopped."""
     s = agent.sensing
     deadline = time.monotonic() + timeout
     while s.obstacle_query_at is None:
-        if stopped() or time.monotonic() > deadline:
+        if stopped() or time.monotonic() > deadline or s.obstacle_view.foreign_dims is not None:
             return False
         s.request_obstacles(time.time(), timeout=1.0)
         time.sleep(0.05)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import math
 import signal
 import sys
 from typing import Sequence
@@ -25,8 +26,8 @@ def build_parser() -> Parser:
     parser = Parser(prog="agents", description="One zswarm agent: an independent process that senses its "
                     "neighbours over Zenoh and follows the APF control law.")
     parser.add_argument("--id", type=int, required=True, help="this agent's id (0 .. N-1 for spawn)")
-    parser.add_argument("--start", metavar="X,Y", help="start position (default: the scenario's spawn "
-                        "for this id and seed)")
+    parser.add_argument("--start", metavar="X,Y[,Z]", help="start position (X,Y,Z in a 3-D scenario; default: "
+                        "the scenario's spawn for this id and seed)")
     parser.add_argument("--staleness", type=float, default=0.5,
                         help="free clock: ignore neighbour data older than this many seconds (default 0.5)")
     parser.add_argument("--lockstep-wait", type=float, default=0.25,
@@ -40,18 +41,22 @@ def build_parser() -> Parser:
     return parser
 
 
-def start_position(spec: RunSpec, agent_id: int, text: str | None) -> tuple[float, float]:
+def start_position(spec: RunSpec, agent_id: int, text: str | None) -> tuple[float, ...]:
+    dims = spec.scenario.dimensions
+    form = "X,Y" if dims == 2 else "X,Y,Z"
     if text is not None:
         try:
-            x, y = (float(v) for v in text.split(","))
+            point = tuple(float(v) for v in text.split(","))
         except ValueError:
-            raise UsageError(f"--start expects X,Y (got {text!r})") from None
-        return x, y
+            point = ()
+        if len(point) != dims or not all(math.isfinite(c) for c in point):
+            raise UsageError(f"--start expects {form} in {spec.scenario.name} ({dims}-D; got {text!r})")
+        return point
     spawn = spec.scenario.initial_positions(np.random.default_rng(spec.seed))
     if not 0 <= agent_id < len(spawn):
         raise UsageError(f"--id {agent_id} has no spawn position in {spec.scenario.name} "
-                         f"(N = {len(spawn)}); give --start X,Y or an id below {len(spawn)}")
-    return float(spawn[agent_id, 0]), float(spawn[agent_id, 1])
+                         f"(N = {len(spawn)}); give --start {form} or an id below {len(spawn)}")
+    return tuple(float(c) for c in spawn[agent_id])
 
 
 class Process:
@@ -80,6 +85,12 @@ class Process:
                          self.bridge.subscribe(keys.prey, "prey"), self.bridge.subscribe(keys.tick, "tick")]
 
     def no_world(self, waited: float) -> UsageError:
+        """Why it cannot join: the world is of another dimension, or did not answer."""
+        foreign, dims = self.agent.sensing.obstacle_view.foreign_dims, self.spec.scenario.dimensions
+        if foreign is not None:
+            return UsageError(f"agent {self.id}: the world of run {self.spec.run!r} is {foreign}-D and this agent "
+                              f"{dims}-D ({self.spec.scenario.name}); start every process of a run with the same "
+                              "--scenario")
         return UsageError(f"agent {self.id}: the world of run {self.spec.run!r} did not answer for {waited:g} s "
                           f"(start the world, or check --run/--connect)")
 
@@ -123,7 +134,7 @@ async def run_lockstep_agent(spec: RunSpec, args: argparse.Namespace) -> int:
     try:
         deadline = loop.time() + args.start_timeout
         while not await agent.sensing.refresh_obstacles(timeout=1.0):
-            if loop.time() > deadline or agent.stop.is_set():
+            if loop.time() > deadline or agent.stop.is_set() or agent.sensing.obstacle_view.foreign_dims:
                 raise proc.no_world(args.start_timeout)
             await asyncio.sleep(0.25)  # no world yet: a query without a queryable fails at once
         await agent.sensing.update_cells()

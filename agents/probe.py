@@ -10,8 +10,6 @@ directly, without the router, so an echo would time the session, not the transpo
 
 from __future__ import annotations
 
-import math
-
 from agents.counters import Counters
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Bridge
@@ -41,17 +39,14 @@ class LatencyProbe:
         if self.probe is not None:
             who, sub = self.probe
             nb = self.neighbours.get(who)
-            if who in self.alive and nb is not None and self._distance(nb.latest) <= self.reach:
+            if who in self.alive and nb is not None and self.body.distance(nb.latest) <= self.reach:
                 return
             self.bridge.unsubscribe(sub)
             self.probe = None
         best: tuple[float, int] | None = None
         for who, nb in self.neighbours.entries.items():
-            d = self._distance(nb.latest)
+            d = self.body.distance(nb.latest)
             if d <= self.reach and who in self.alive and (best is None or d < best[0]):
                 best = (d, who)
         if best is not None:
             self.probe = (best[1], self.bridge.subscribe(self.keys.any_cell_pose(best[1]), "probe", stamped=True))
-
-    def _distance(self, pose: msg.Pose) -> float:
-        return math.hypot(pose.x - self.body.x, pose.y - self.body.y)

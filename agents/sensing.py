@@ -30,7 +30,7 @@ from zswarm.net.runspec import RunSpec
 @dataclass
 class Body:
     """The agent's own state: where it is, the velocity it last moved with, its heading (a body with one:
-    :mod:`zswarm.model.body`), how many control steps it took."""
+    :mod:`zswarm.model.body`), how many control steps it took; z and vz in a 3-D run (None in 2-D)."""
 
     x: float
     y: float
@@ -38,6 +38,26 @@ class Body:
     vy: float = 0.0
     step: int = 0
     heading: float | None = None
+    z: float | None = None
+    vz: float | None = None
+
+    @property
+    def dims(self) -> int:
+        return 2 if self.z is None else 3
+
+    @property
+    def position(self) -> tuple[float, ...]:
+        return (self.x, self.y) if self.z is None else (self.x, self.y, self.z)
+
+    @property
+    def velocity(self) -> tuple[float, ...]:
+        return (self.vx, self.vy) if self.z is None else (self.vx, self.vy, self.vz)
+
+    def distance(self, pose: msg.Pose) -> float:
+        """How far a pose is from it (a pose of the other dimension counts as at z = 0: it is refused anyway)."""
+        if self.z is None:
+            return math.hypot(pose.x - self.x, pose.y - self.y)
+        return math.hypot(pose.x - self.x, pose.y - self.y, (pose.z or 0.0) - self.z)
 
 
 class Sensing:
@@ -51,7 +71,7 @@ class Sensing:
         self.counters = Counters(Rejections(f"agent {agent_id}"))
         self.alive: set[int] = set()  # ids with a liveliness token
         self.last_seq: dict[int, int] = {}
-        self.prey: tuple[float, float] | None = None
+        self.prey: tuple[float, ...] | None = None
         self.ticks: asyncio.Queue[msg.Tick] = asyncio.Queue()
         self.pose_arrived = asyncio.Event()
         self.final_tick = False
@@ -63,15 +83,15 @@ class Sensing:
     # --- what the law and the tests read ---------------------------------------------------------------
 
     @property
-    def obstacles(self) -> list[tuple[float, float, float]]:
+    def obstacles(self) -> list[tuple[float, ...]]:
         return self.obstacle_view.obstacles
 
     @property
-    def obstacle_query_at(self) -> tuple[float, float] | None:
+    def obstacle_query_at(self) -> tuple[float, ...] | None:
         return self.obstacle_view.query_at
 
     @property
-    def cells(self) -> dict[tuple[int, int], object]:
+    def cells(self) -> dict[tuple[int, ...], object]:
         return self.cell_view.cells
 
     @property
@@ -113,10 +133,14 @@ class Sensing:
         except msg.DecodeError as exc:
             self.counters.rejections.add(exc.reason, str(exc))
             return
+        if isinstance(m, (msg.Pose, msg.Prey, msg.Tick)) and m.dims != self.body.dims:
+            self.counters.rejections.add("dimensions", f"a {m.dims}-D {type(m).__name__.lower()} in a "
+                                         f"{self.body.dims}-D run (every process of a run needs the same --scenario)")
+            return
         if tag == "pose" and isinstance(m, msg.Pose):
             self._on_pose(who, key, m, received)
         elif tag == "prey" and isinstance(m, msg.Prey):
-            self.prey = (m.x, m.y)
+            self.prey = m.position
         elif tag == "tick" and isinstance(m, msg.Tick):
             self.final_tick = self.final_tick or m.final
             self.ticks.put_nowait(m)
@@ -144,11 +168,8 @@ class Sensing:
                 m = msg.decode(payload)
             except msg.DecodeError:
                 return (who, None)  # let it through to be rejected and counted
-            return (who, self._distance(m.x, m.y) / self.radius if isinstance(m, msg.Pose) else None)
+            return (who, self.body.distance(m) / self.radius if isinstance(m, msg.Pose) else None)
         return None
-
-    def _distance(self, x: float, y: float) -> float:
-        return math.hypot(x - self.body.x, y - self.body.y)
 
     def _count_sequence(self, pose: msg.Pose) -> None:
         """Observed loss from sequence numbers: a gap of g counts g - 1 lost when the sender was within
@@ -158,8 +179,7 @@ class Sensing:
         c = self.counters
         nb = self.neighbours.get(pose.id)
         r = self.radius
-        within = (nb is not None and self._distance(nb.latest.x, nb.latest.y) <= r
-                  and self._distance(pose.x, pose.y) <= r)
+        within = nb is not None and self.body.distance(nb.latest) <= r and self.body.distance(pose) <= r
         if last is not None and within:
             if pose.seq > last:
                 gap = pose.seq - last - 1
@@ -209,7 +229,7 @@ class Sensing:
             for key, payload in await self.bridge.get(self.keys.cell_poses(cell), timeout=1.0):
                 self.handle(("pose", key, payload, False, time.time()))
 
-    def neighbour_positions(self, step: int | None, staleness: float) -> list[tuple[float, float]]:
+    def neighbour_positions(self, step: int | None, staleness: float) -> list[tuple[float, ...]]:
         """Positions of the neighbours it may use now: step-k poses (lockstep) or fresh ones (free:
         received within ``staleness`` seconds), of agents that hold a liveliness token.
 
@@ -223,9 +243,9 @@ class Sensing:
             pose = nb.by_step.get(step) if step is not None else nb.latest
             if pose is None or (step is None and now - nb.received > staleness):
                 continue
-            if self._distance(pose.x, pose.y) <= self.radius:
+            if self.body.distance(pose) <= self.radius:
                 self.counters.add(self.counters.ages, (now - pose.stamp) * 1000.0)
-            out.append((pose.x, pose.y))
+            out.append(pose.position)
         return out
 
     async def await_step_poses(self, step: int, wait: float) -> None:
@@ -239,7 +259,7 @@ class Sensing:
         reach = self.subscription_radius
         expected = [nb for nb in self.neighbours.entries.values()
                     if step not in nb.by_step and (step - 1 in nb.by_step or nb.latest.step >= step - 1)
-                    and self._distance(nb.latest.x, nb.latest.y) <= reach]
+                    and self.body.distance(nb.latest) <= reach]
         loop = asyncio.get_running_loop()
         deadline = loop.time() + wait
         while expected and loop.time() < deadline:
@@ -251,7 +271,7 @@ class Sensing:
             expected = [nb for nb in expected if step not in nb.by_step]
         cells = {c for c, since in self.cell_view.since.items() if since >= step}
         for nb in expected:
-            cells |= cells_in_disc(self.keys, nb.latest.x, nb.latest.y, 2.0 * self.v_max * self.dt)
+            cells |= cells_in_disc(self.keys, nb.latest.position, 2.0 * self.v_max * self.dt)
         replies = await asyncio.gather(*(self.bridge.get(f"{self.keys.cell_poses(c)}?step={step}", timeout=1.0)
                                          for c in cells))
         now = time.time()

@@ -24,22 +24,22 @@ KEYS = Keys("cells", cell_size=1.0)
 @given(coord, coord, st.floats(0.05, 3.0), st.floats(0, 2 * math.pi), st.floats(0, 0.999))
 @example(0.0, 0.0, 1.9999999999999996, 0.0, 0.75)  # a disc a rounding error inside a cell's edge
 def test_the_cells_stay_the_same_within_the_margin(x, y, r, angle, fraction):
-    cells, margin = cells_in_disc_margin(KEYS, x, y, r)
-    assert cells == cells_in_disc(KEYS, x, y, r)
+    cells, margin = cells_in_disc_margin(KEYS, (x, y), r)
+    assert cells == cells_in_disc(KEYS, (x, y), r)
     assert 0.0 <= margin <= KEYS.cell_size
     step = fraction * margin
-    assert cells_in_disc(KEYS, x + step * math.cos(angle), y + step * math.sin(angle), r) == cells
+    assert cells_in_disc(KEYS, (x + step * math.cos(angle), y + step * math.sin(angle)), r) == cells
 
 
 @settings(max_examples=200, deadline=None)
 @given(coord, coord, st.floats(0.05, 3.0))
 def test_the_margin_is_tight(x, y, r):
     """Some move of a little more than the margin changes the set (unless the margin is a whole cell)."""
-    cells, margin = cells_in_disc_margin(KEYS, x, y, r)
+    cells, margin = cells_in_disc_margin(KEYS, (x, y), r)
     if margin >= KEYS.cell_size or margin < 1e-9:
         return
     step = 1.1 * margin
-    assert any(cells_in_disc(KEYS, x + step * math.cos(a), y + step * math.sin(a), r) != cells
+    assert any(cells_in_disc(KEYS, (x + step * math.cos(a), y + step * math.sin(a)), r) != cells
                for a in np.linspace(0.0, 2 * math.pi, 256, endpoint=False))
 
 
@@ -56,7 +56,7 @@ def test_an_agent_listens_to_exactly_the_cells_its_disc_meets_along_a_walk():
             at = s.cell_view.chosen_at
             s.follow_cells()
             chosen += s.cell_view.chosen_at is not at
-            assert set(s.cells) == cells_in_disc(spec.keys, body.x, body.y, s.subscription_radius)
+            assert set(s.cells) == cells_in_disc(spec.keys, body.position, s.subscription_radius)
             assert {sub for _, sub in bridge.channels} == set(s.cells.values())
         assert chosen < 300  # most ticks keep the cells without working them out again
         bridge.close()
@@ -64,8 +64,21 @@ def test_an_agent_listens_to_exactly_the_cells_its_disc_meets_along_a_walk():
 
 def test_in_reach_counts_the_others_in_the_cells_each_disc_meets():
     rng = np.random.default_rng(3)
-    for n, side, r in ((2, 2.0, 1.1), (30, 6.0, 1.1), (80, 12.0, 0.7)):
-        pos = rng.uniform(-side / 2, side / 2, (n, 2))
-        expected = [sum(1 for j in range(n) if j != i and KEYS.cell(*pos[j]) in cells_in_disc(KEYS, *pos[i], r))
+    for n, side, r, dims in ((2, 2.0, 1.1, 2), (30, 6.0, 1.1, 2), (80, 12.0, 0.7, 2), (40, 5.0, 1.1, 3)):
+        pos = rng.uniform(-side / 2, side / 2, (n, dims))
+        expected = [sum(1 for j in range(n) if j != i and KEYS.cell(*pos[j]) in cells_in_disc(KEYS, pos[i], r))
                     for i in range(n)]
         assert in_reach_counts(pos, r, KEYS.cell_size).tolist() == expected
+
+
+@settings(max_examples=150, deadline=None)
+@given(coord, coord, coord, st.floats(0.05, 2.5), st.floats(0, 2 * math.pi), st.floats(0, math.pi),
+       st.floats(0, 0.999))
+def test_voxels_stay_the_same_within_the_margin(x, y, z, r, azimuth, polar, fraction):
+    """In 3-D the cells are voxels and the disc a ball: the same margin rule holds along any direction."""
+    keys = Keys("cells", cell_size=1.0, dims=3)
+    cells, margin = cells_in_disc_margin(keys, (x, y, z), r)
+    assert all(len(c) == 3 for c in cells) and 0.0 <= margin <= 1.0
+    step = fraction * margin
+    d = (math.sin(polar) * math.cos(azimuth), math.sin(polar) * math.sin(azimuth), math.cos(polar))
+    assert cells_in_disc(keys, (x + step * d[0], y + step * d[1], z + step * d[2]), r) == cells

@@ -11,9 +11,10 @@ from zswarm.net import histogram
 from zswarm.net import messages as msg
 
 finite = st.floats(-1e5, 1e5, allow_nan=False)
-poses = st.builds(msg.Pose, st.integers(0, 10_000), st.integers(0, 2**40), st.floats(0, 2e9),
-                  st.integers(-1, 10**6), finite, finite, finite, finite,
-                  st.one_of(st.none(), st.floats(-3.15, 3.15)))  # the heading, where the body has one
+pose_fields = (st.integers(0, 10_000), st.integers(0, 2**40), st.floats(0, 2e9), st.integers(-1, 10**6),
+               finite, finite, finite, finite, st.one_of(st.none(), st.floats(-3.15, 3.15)))  # heading last
+poses = st.one_of(st.builds(msg.Pose, *pose_fields, z=st.none(), vz=st.none()),
+                  st.builds(msg.Pose, *pose_fields, z=finite, vz=finite))  # 2-D, 3-D
 hist = st.dictionaries(st.integers(0, msg.MAX_HIST_BINS - 1), st.integers(0, 10**6), max_size=20)
 stats = st.builds(msg.Stats, st.integers(0, 1000), st.integers(0, 10**9), st.integers(0, 10**9),
                   st.dictionaries(st.sampled_from(msg.REASONS), st.integers(0, 100), max_size=3),
@@ -24,10 +25,13 @@ stats = st.builds(msg.Stats, st.integers(0, 1000), st.integers(0, 10**9), st.int
                   st.dictionaries(st.integers(0, 1000), st.floats(0, 2e9), max_size=3))
 messages = st.one_of(
     poses,
-    st.builds(msg.Prey, st.integers(0, 2**40), st.floats(0, 2e9), st.integers(-1, 10**6), finite, finite),
-    st.builds(msg.Tick, st.integers(0, 10**6), st.floats(0, 2e9), finite, finite, st.booleans()),
-    st.builds(msg.Obstacles, st.lists(st.tuples(finite, finite), max_size=20).map(tuple),
-              st.just(())).map(lambda o: msg.Obstacles(o.centers, tuple(0.5 for _ in o.centers))),
+    st.builds(msg.Prey, st.integers(0, 2**40), st.floats(0, 2e9), st.integers(-1, 10**6), finite, finite,
+              st.one_of(st.none(), finite)),
+    st.builds(msg.Tick, st.integers(0, 10**6), st.floats(0, 2e9), finite, finite, st.one_of(st.none(), finite),
+              final=st.booleans()),
+    st.lists(st.tuples(finite, finite), max_size=20).map(lambda c: msg.Obstacles(tuple(c), tuple(0.5 for _ in c))),
+    st.lists(st.tuples(finite, finite, finite), max_size=20).map(
+        lambda c: msg.Obstacles(tuple(c), tuple(0.5 for _ in c), dims=3)),
     stats,
 )
 
@@ -74,6 +78,10 @@ def test_mutated_fields_are_rejected_or_valid(m, key, value):
     ({"v": 1, "k": "pose", "id": 1, "seq": 1, "t": 0.0, "s": -1, "p": [1e9, 0.0], "u": [0, 0]}, "range"),
     ({"v": 1, "k": "pose", "id": -3, "seq": 1, "t": 0.0, "s": -1, "p": [0, 0], "u": [0, 0]}, "range"),
     ({"v": 1, "k": "pose", "id": 1, "seq": 1, "t": 0.0, "s": -1, "p": [0], "u": [0, 0]}, "schema"),
+    ({"v": 1, "k": "pose", "id": 1, "seq": 1, "t": 0.0, "s": -1, "p": [0, 0, 0], "u": [0, 0]}, "schema"),
+    ({"v": 1, "k": "pose", "id": 1, "seq": 1, "t": 0.0, "s": -1, "p": [0, 0, 0, 0], "u": [0, 0, 0, 0]}, "schema"),
+    ({"v": 1, "k": "obst", "c": [[0, 0]], "r": [1.0], "d": 3}, "schema"),
+    ({"v": 1, "k": "obst", "c": [], "r": [], "d": 4}, "range"),
     ({"v": 1, "k": "pose", "id": True, "seq": 1, "t": 0.0, "s": -1, "p": [0, 0], "u": [0, 0]}, "schema"),
     ({"v": 1, "k": "obst", "c": [[0, 0]] * (msg.MAX_OBSTACLES + 1), "r": [0] * (msg.MAX_OBSTACLES + 1)}, "size"),
     ({"v": 1, "k": "obst", "c": [[0, 0]], "r": [-1.0]}, "range"),

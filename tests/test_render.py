@@ -4,35 +4,14 @@ Vulkan driver (``.ci/run`` installs them when it runs as root); skipped, with th
 
 from __future__ import annotations
 
-import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from conftest import run_cli
+from viewer_shots import NO_XVFB, colored, render
 
-RERUN = Path(sys.executable).with_name("rerun")
-pytestmark = pytest.mark.skipif(shutil.which("xvfb-run") is None,
-                                reason="xvfb-run is missing: apt-get install xvfb xauth mesa-vulkan-drivers")
-
-
-def _render(recording: Path, out: Path) -> np.ndarray:
-    from PIL import Image
-
-    res = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1280x800x24", str(RERUN), str(recording),
-                          "--screenshot-to", str(out), "--window-size", "1280x800"],
-                         capture_output=True, text=True, timeout=120)
-    if not out.exists():
-        pytest.skip(f"the viewer could not render headless here (exit {res.returncode}): {res.stderr[-300:]}")
-    return np.asarray(Image.open(out).convert("RGB")).astype(int)
-
-
-def _colored(region: np.ndarray) -> int:
-    """Pixels of a saturated colour (agents, series lines), not greys."""
-    return int(((region.max(-1) - region.min(-1)) > 80).sum())
+pytestmark = NO_XVFB
 
 
 def _simulated_run(tmp_path: Path, scenario: str) -> tuple[np.ndarray, np.ndarray]:
@@ -41,7 +20,7 @@ def _simulated_run(tmp_path: Path, scenario: str) -> tuple[np.ndarray, np.ndarra
     rec = tmp_path / f"{scenario}.rrd"
     assert run_cli("-m", "zswarm", "sim", "--scenario", scenario, "--duration", "3", "--record", str(rec),
                    cwd=tmp_path).returncode == 0
-    image = _render(rec, tmp_path / f"{scenario}.png")
+    image = render(rec, tmp_path / f"{scenario}.png")
     h, w, _ = image.shape
     assert image.std() > 10, "blank screenshot"
     band = image[int(0.08 * h):int(0.92 * h)]
@@ -50,14 +29,14 @@ def _simulated_run(tmp_path: Path, scenario: str) -> tuple[np.ndarray, np.ndarra
 
 def test_a_run_opens_with_the_map_left_and_the_plots_right(tmp_path):
     map_, plots = _simulated_run(tmp_path, "moving-prey")
-    assert _colored(map_) > 500, "no agents in the map (left 3/5 of the window)"
-    assert _colored(plots) > 500, "no plotted series (right 2/5 of the window)"
+    assert colored(map_) > 500, "no agents in the map (left 3/5 of the window)"
+    assert colored(plots) > 500, "no plotted series (right 2/5 of the window)"
 
 
 def test_the_design_view_opens_with_the_figure_left_and_the_verdicts_right(tmp_path):
     rec = tmp_path / "design.rrd"
     assert run_cli("-m", "zswarm", "design", "--save", str(rec), cwd=tmp_path).returncode == 0
-    gray = _render(rec, tmp_path / "design.png").mean(axis=-1)
+    gray = render(rec, tmp_path / "design.png").mean(axis=-1)
     h, w = gray.shape
     rows = slice(int(0.1 * h), int(0.9 * h))
     assert gray[rows, int(0.05 * w):int(0.7 * w)].mean() > 150, "the (white) design figure is not on the left"
@@ -67,7 +46,7 @@ def test_the_design_view_opens_with_the_figure_left_and_the_verdicts_right(tmp_p
 def test_a_3d_run_opens_in_a_3d_view_with_the_plots_right(tmp_path):
     """moving-prey-3d: the map is a 3-D view (its ground grid, the spheres, the agents), the plots beside it."""
     map_, plots = _simulated_run(tmp_path, "moving-prey-3d")
-    assert _colored(map_) > 500, "no agents in the 3-D map"
+    assert colored(map_) > 500, "no agents in the 3-D map"
     grey = (map_.max(-1) - map_.min(-1) < 20) & (map_.mean(-1) > 120)  # the lit spheres
     assert grey.sum() > 5000, "no obstacles (grey spheres) in the 3-D map"
-    assert _colored(plots) > 500, "no plotted series (right 2/5 of the window)"
+    assert colored(plots) > 500, "no plotted series (right 2/5 of the window)"

@@ -149,6 +149,7 @@ def test_an_agent_can_only_speak_for_itself(per_agent):
             for who, s in (("shared", shared), ("one", one)):
                 for agent in (2, 1):
                     s.put(keys.pose((-3, 4), agent), who.encode())
+                    s.put(keys.pose((-3, 4, 1), agent), who.encode())  # a 3-D run's voxel key
                     s.put(keys.stats(agent), who.encode())
             # agent-1's own last words came after everything forbidden it sent
             assert until(lambda: keys.stats(1) in heard and keys.alive(1) in alive, 20.0)
@@ -156,7 +157,7 @@ def test_an_agent_can_only_speak_for_itself(per_agent):
             del sub, watch, tokens
     # agent-1's own pose, stats and token got through; nothing it said for agent 2, and nothing from
     # the shared identity (which has no rights once agents have their own)
-    assert sorted(heard) == [keys.pose((-3, 4), 1), keys.stats(1)]
+    assert sorted(heard) == [keys.pose((-3, 4), 1), keys.pose((-3, 4, 1), 1), keys.stats(1)]
     assert alive == [keys.alive(1)]
 
 

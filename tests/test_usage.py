@@ -133,10 +133,9 @@ CASES = [
     (["-m", "world", "--config", "{dir}"], "cannot read zenoh config"),
     (["-m", "world", "--record", "{missing}/w.rrd"], "does not exist"),
     (["-m", "world", "--resume", "--clock", "lockstep"], "free clock only"),
-    # 3-D: the simulators only, so far
-    ([LAUNCH, "--scenario", "moving-prey-3d"], "3-D swarms run in the simulators so far"),
-    (["-m", "world", "--scenario", "window-3d"], "3-D swarms run in the simulators so far"),
-    (["-m", "zswarm", "sweep", "--scenario", "window-3d", "--out", "{dir}/sw"], "add --sim-only"),
+    # 3-D
+    (["-m", "agents", "--id", "0", "--scenario", "moving-prey-3d", "--start", "1,2"], "--start expects X,Y,Z"),
+    (["-m", "agents", "--id", "0", "--start", "1,2,3"], "--start expects X,Y in moving-prey (2-D"),
     (["-m", "zswarm", "sim", "--scenario", "moving-prey-3d", "--set", "body=unicycle"], "drives on the ground"),
     (["-m", "zswarm", "sim", "--scenario", "moving-prey", "--set", "dimensions=3"], "in 3-D, prey_start must be"),
 ]

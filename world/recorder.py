@@ -78,7 +78,8 @@ class WorldRecorder:
         fold_frames(observer, prior.frames)
         self.trail.extend(f.prey for f in prior.frames[-TRAIL:] if f.prey is not None)
         for f in prior.frames:
-            self.keep_trajectory(f.ids, f.positions, f.prey if f.prey is not None else np.full(2, np.nan))
+            self.keep_trajectory(f.ids, f.positions,
+                                 f.prey if f.prey is not None else np.full(f.positions.shape[-1], np.nan))
         last = prior.frames[-1]
         print(f"world: resuming run {run!r} after step {last.step} (t = {last.t:.2f} s) from "
               f"{len(prior.segments)} segment(s); writing segment {self.segment}", flush=True)
@@ -91,9 +92,10 @@ class WorldRecorder:
 
     def open(self, run: str, config: dict[str, Any], centers: np.ndarray, radii: np.ndarray,
              thresholds: dict[str, float] | None = None, sensing_radius: float | None = None,
-             arena: tuple[float, float, float, float] | None = None) -> None:
+             arena: tuple[float, float, float, float] | None = None, dimensions: int = 2) -> None:
         """Open this world's segment and write what never changes; flushed at once, so that a
-        successor finds the run's identity even if this world dies at its first step."""
+        successor finds the run's identity even if this world dies at its first step. ``dimensions``
+        3: the map is a 3-D view."""
         if self.record_path is None and not (self.viewer is not None and self.viewer.wanted):
             return
         from zswarm.record import swarm_log
@@ -101,7 +103,7 @@ class WorldRecorder:
         from zswarm.record.replay import segment_path
 
         path = None if self.record_path is None else segment_path(self.record_path, self.segment)
-        self.rec = open_recording(path, "zswarm-world", swarm_log.blueprint(network=True, arena=arena),
+        self.rec = open_recording(path, "zswarm-world", swarm_log.blueprint(network=True, arena=arena, dimensions=dimensions),
                                   recording_id=run, viewer=self.viewer)
         self.thresholds = thresholds or {}
         self.graph_radius = sensing_radius if self.sensing_graph and sensing_radius else None
@@ -149,7 +151,7 @@ class WorldRecorder:
         """One row of the trajectory file: positions by agent id (NaN for the absent)."""
         if self.trajectory_path is None:
             return
-        full = np.full((self.n_agents, 2), np.nan)
+        full = np.full((self.n_agents, pos.shape[-1]), np.nan)
         inside = ids < self.n_agents
         full[ids[inside]] = pos[inside]
         self.traj.append(full)

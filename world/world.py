@@ -96,7 +96,8 @@ class World:
         self.scenario = spec.scenario
         self.argv = argv
         self.observer = SwarmObserver(self.scenario, spec.combination)
-        self.obstacles = ObstacleService(*self.scenario.obstacle_arrays(), self.keys.obstacles)
+        self.dims = self.scenario.dimensions
+        self.obstacles = ObstacleService(*self.scenario.obstacle_arrays(), self.keys.obstacles, self.dims)
         self.poses = PoseTable(3.0 * self.scenario.params.swarm.v_max * self.scenario.dt, spec.period)
         self.rejected = Rejections("world", self._event)
         self.census = Census()
@@ -126,7 +127,7 @@ class World:
                 self.prey = self.resumed.prey
         self.recorder.open(self.spec.run, self.config(), self.obstacles.centers, self.obstacles.radii,
                            self.observer.thresholds(), self.scenario.params.swarm.sensing_radius,
-                           arena=self.scenario.arena())
+                           arena=self.scenario.arena(), dimensions=self.dims)
         if self.resumed is not None:
             self._event(f"world restarted: segment {self.resumed.segment} continues after step "
                         f"{self.resumed.step} (t = {self.resumed.t:.2f} s)")
@@ -156,6 +157,10 @@ class World:
             self.rejected.add(exc.reason, f"on {key}: {exc}")
             return
         if tag == "pose" and isinstance(m, msg.Pose):
+            if m.dims != self.dims:
+                self.rejected.add("dimensions", f"agent {m.id} sends {m.dims}-D poses into this {self.dims}-D run "
+                                  "(start every process of a run with the same --scenario)")
+                return
             reason = self.poses.accept(self.keys.agent_of(key), m, received)
             if reason is not None:
                 self.rejected.add(reason)
@@ -215,8 +220,8 @@ class World:
         ids = np.array(sorted(poses), dtype=np.int64)
         if len(ids) == 0:
             return None
-        pos = np.array([[poses[i].x, poses[i].y] for i in ids])
-        vel = np.array([[poses[i].vx, poses[i].vy] for i in ids])
+        pos = np.array([poses[i].position for i in ids])
+        vel = np.array([poses[i].velocity for i in ids])
         headed = any(poses[i].heading is not None for i in ids)
         heading = (np.array([np.nan if poses[i].heading is None else poses[i].heading for i in ids])
                    if headed else None)
@@ -247,7 +252,7 @@ class World:
         self.network_logged, self.network_received = now, self.received
 
     def advance_prey(self, poses: dict[int, msg.Pose], dt: float) -> None:
-        pos = np.array([[p.x, p.y] for _, p in sorted(poses.items())]).reshape(-1, 2)
+        pos = np.array([p.position for _, p in sorted(poses.items())]).reshape(-1, self.dims)
         self.prey = prey_motion.step(self.scenario.prey, self.prey, dt, pos)
 
     def publish(self, key: str, message: msg.Message) -> None:

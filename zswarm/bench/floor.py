@@ -66,7 +66,7 @@ def run_floor(args: argparse.Namespace) -> int:
                         session.declare_subscriber(keys.prey, handler()),
                         *(session.declare_subscriber(keys.cell_poses(c), handler(),
                                                      allowed_origin=zenoh.Locality.REMOTE)
-                          for c in cells_in_disc(keys, x, y, reach)),
+                          for c in cells_in_disc(keys, (x, y), reach)),
                         session.declare_publisher(keys.pose(keys.cell(x, y), args.id), encoding=msg.ENCODING)]
             message = lambda seq: msg.encode(msg.Pose(args.id, seq, time.time(), -1, x, y, 0.0, 0.0))  # noqa: E731
         subs = [d for d in declared if hasattr(d, "try_recv") and args.handler == "ring"]

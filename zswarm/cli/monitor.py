@@ -54,7 +54,8 @@ def table(snap, run: str):
     t.add_row("data age at use p50 / p99", f"{fmt(snap.age_p50_ms)} / {fmt(snap.age_p99_ms, ' ms')}")
     t.add_row("late ticks", f"{snap.late_ticks} of {snap.ticks}")
     t.add_row("rejected messages", ", ".join(f"{k} {v}" for k, v in snap.rejected.items()) or "none")
-    t.add_row("prey", "-" if snap.prey is None else f"({snap.prey[0]:.2f}, {snap.prey[1]:.2f}) at {snap.prey_rate:.1f} Hz")
+    t.add_row("prey", "-" if snap.prey is None
+              else f"({', '.join(f'{c:.2f}' for c in snap.prey)}) at {snap.prey_rate:.1f} Hz")
     slow = [i for i in snap.alive if snap.pose_rate.get(i, 0.0) < 0.5 * (rate or 0.0)]
     t.add_row("agents at under half the mean rate", ", ".join(map(str, slow)) or "none")
     slowest = sorted(snap.alive, key=lambda i: (snap.pose_rate.get(i, 0.0), i))[:SLOWEST]

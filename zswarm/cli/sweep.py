@@ -66,9 +66,7 @@ def main(argv: Sequence[str] | None, prog: str = "zswarm sweep") -> int:
         raise UsageError(str(exc)) from None
     from zswarm.model.scenarios import get_scenario
 
-    scenario = get_scenario(args.scenario, {"n_agents": args.agents} if args.agents is not None else {})
-    if scenario.dimensions != 2 and not args.sim_only:
-        raise UsageError(f"{args.scenario} is 3-D and the distributed runtime is 2-D so far: add --sim-only")
+    get_scenario(args.scenario, {"n_agents": args.agents} if args.agents is not None else {})  # a bad one stops here
     if args.duration is not None and not args.duration > 0:
         raise UsageError(f"--duration must be > 0 (got {args.duration})")
     if args.out.exists() and not args.out.is_dir():

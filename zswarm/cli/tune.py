@@ -92,8 +92,6 @@ def _plan(args: argparse.Namespace):
         raise UsageError("--out needs a directory of its own for the search's files (e.g. --out tune-run)")
     overrides = parse_assignments(args.assignments)
     scenario = get_scenario(args.scenario, overrides)
-    if scenario.dimensions != 2 and args.confirm:
-        raise UsageError(f"{args.scenario} is 3-D and the distributed runtime is 2-D so far: drop --confirm")
     if args.duration is not None:
         scenario = dataclasses.replace(scenario, duration=args.duration)
     if scenario.n_agents > MAX_AGENTS:

@@ -1,22 +1,26 @@
 """Every key expression of a run, built in one place.
 
-Key space of a run (``RUN`` is the run id, cells are ``floor(x/size)``, ``floor(y/size)``):
+Key space of a run (``RUN`` is the run id, cells are ``floor(x/size)``, ``floor(y/size)``, and in a
+3-D run ``floor(z/size)``: voxels, one more key segment):
 
     zswarm/RUN/pose/CX/CY/ID   agent ID's pose, published into the cell it is in; each agent also
-                               answers a queryable there with its latest pose
+                               answers a queryable there with its latest pose (3-D: pose/CX/CY/CZ/ID)
     zswarm/RUN/alive/ID        liveliness token of agent ID
     zswarm/RUN/prey            the prey's position (published by the world)
     zswarm/RUN/tick            lockstep ticks (published by the world)
-    zswarm/RUN/obstacles       the world's queryable: ``?x=..;y=..;r=..`` answers obstacles within r
+    zswarm/RUN/obstacles       the world's queryable: ``?x=..;y=..;r=..`` (3-D: ``;z=..``) answers
+                               the obstacles within r
     zswarm/RUN/stats/ID        agent ID's transport counters (for the world's summary)
     zswarm/RUN/control         run control (end of run)
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 import re
 from dataclasses import dataclass
+from typing import Sequence
 
 import numpy as np
 
@@ -34,27 +38,29 @@ def check_run_id(run: str) -> str:
 
 @dataclass(frozen=True)
 class Keys:
-    """Every key expression of one run."""
+    """Every key expression of one run; ``dims``: 2, or 3 for a run in space (cells are then voxels)."""
 
     run: str
     cell_size: float
+    dims: int = 2
 
     @property
     def root(self) -> str:
         return f"zswarm/{self.run}"
 
-    def cell(self, x: float, y: float) -> tuple[int, int]:
-        return math.floor(x / self.cell_size), math.floor(y / self.cell_size)
+    def cell(self, *coords: float) -> tuple[int, ...]:
+        """The cell (voxel in 3-D) a point lies in."""
+        return tuple(math.floor(c / self.cell_size) for c in coords)
 
-    def pose(self, cell: tuple[int, int], agent: int) -> str:
-        return f"{self.root}/pose/{cell[0]}/{cell[1]}/{agent}"
+    def pose(self, cell: tuple[int, ...], agent: int) -> str:
+        return f"{self.root}/pose/{'/'.join(map(str, cell))}/{agent}"
 
     def any_cell_pose(self, agent: int) -> str:
         """Agent ``agent``'s pose in whichever cell it is (a pattern)."""
-        return f"{self.root}/pose/*/*/{agent}"
+        return f"{self.root}/pose/{'*/' * self.dims}{agent}"
 
-    def cell_poses(self, cell: tuple[int, int]) -> str:
-        return f"{self.root}/pose/{cell[0]}/{cell[1]}/*"
+    def cell_poses(self, cell: tuple[int, ...]) -> str:
+        return f"{self.root}/pose/{'/'.join(map(str, cell))}/*"
 
     @property
     def all_poses(self) -> str:
@@ -79,8 +85,10 @@ class Keys:
     def obstacles(self) -> str:
         return f"{self.root}/obstacles"
 
-    def obstacle_query(self, x: float, y: float, r: float) -> str:
-        return f"{self.obstacles}?x={x!r};y={y!r};r={r!r}"
+    def obstacle_query(self, point: Sequence[float], r: float) -> str:
+        """Ask for the obstacles within r of ``point`` (x, y, and z in 3-D)."""
+        coords = ";".join(f"{name}={c!r}" for name, c in zip("xyz", point))
+        return f"{self.obstacles}?{coords};r={r!r}"
 
     def stats(self, agent: int) -> str:
         return f"{self.root}/stats/{agent}"
@@ -100,44 +108,46 @@ class Keys:
         return int(tail) if tail.isdigit() else None
 
 
-def cells_in_disc(keys: Keys, x: float, y: float, r: float) -> set[tuple[int, int]]:
-    """Every cell whose square meets the disc of radius r about (x, y)."""
-    return cells_in_disc_margin(keys, x, y, r)[0]
+def cells_in_disc(keys: Keys, point: Sequence[float], r: float) -> set[tuple[int, ...]]:
+    """Every cell whose square (cube in 3-D) meets the disc (ball) of radius r about ``point``."""
+    return cells_in_disc_margin(keys, point, r)[0]
 
 
 ROUNDING = 1e-9  # kept off the margin: a move within it must not flip a cell that rounding puts on the edge
 
 
-def cells_in_disc_margin(keys: Keys, x: float, y: float, r: float) -> tuple[set[tuple[int, int]], float]:
-    """Every cell whose square meets the disc of radius r about (x, y) (:func:`cells_in_disc`), and
-    how far (x, y) may move, in any direction, before that set changes.
+def cells_in_disc_margin(keys: Keys, point: Sequence[float], r: float) -> tuple[set[tuple[int, ...]], float]:
+    """Every cell whose square (cube) meets the disc (ball) of radius r about ``point``
+    (:func:`cells_in_disc`), and how far the point may move, in any direction, before that set changes.
 
-    A cell is in the set when its signed distance from (x, y) (negative inside it: minus the distance
-    to its nearest edge) is at most r. A signed distance changes no faster than the point moves, so
-    the set stays the same while the point is closer to where it was than every cell's
+    A cell is in the set when its signed distance from the point (negative inside it: minus the
+    distance to its nearest face) is at most r. A signed distance changes no faster than the point
+    moves, so the set stays the same while the point is closer to where it was than every cell's
     |distance - r|. Cells farther than r + one cell size are not looked at, so the margin is at most
     one cell size.
     """
     s = keys.cell_size
-    lo_x, hi_x = math.floor((x - r) / s), math.floor((x + r) / s)  # the cells the disc's box spans
-    lo_y, hi_y = math.floor((y - r) / s), math.floor((y + r) / s)
+    lo = [math.floor((c - r) / s) for c in point]  # the cells the disc's box spans, per axis
+    hi = [math.floor((c + r) / s) for c in point]
     cells, margin = set(), s
-    for cx in range(lo_x - 1, hi_x + 2):
-        for cy in range(lo_y - 1, hi_y + 2):
-            x0, y0 = cx * s, cy * s
-            nx, ny = min(max(x, x0), x0 + s), min(max(y, y0), y0 + s)
-            d2 = (nx - x) ** 2 + (ny - y) ** 2
-            if d2 <= r * r and lo_x <= cx <= hi_x and lo_y <= cy <= hi_y:
-                cells.add((cx, cy))
-            signed = math.sqrt(d2) if d2 > 0.0 else -min(x - x0, x0 + s - x, y - y0, y0 + s - y)
-            margin = min(margin, abs(signed - r))
+    for cell in itertools.product(*(range(a - 1, b + 2) for a, b in zip(lo, hi))):
+        d2, inside = 0.0, math.inf
+        for c, k in zip(point, cell):
+            c0 = k * s
+            d2 += (min(max(c, c0), c0 + s) - c) ** 2
+            inside = min(inside, c - c0, c0 + s - c)
+        if d2 <= r * r and all(a <= k <= b for k, a, b in zip(cell, lo, hi)):
+            cells.add(cell)
+        signed = math.sqrt(d2) if d2 > 0.0 else -inside
+        margin = min(margin, abs(signed - r))
     return cells, max(margin - ROUNDING, 0.0)
 
 
 def in_reach_counts(positions: np.ndarray, r: float, cell_size: float) -> np.ndarray:
-    """For each agent at ``positions`` (N, 2), how many others publish into a cell that its disc of
-    radius r meets (:func:`cells_in_disc`): the poses a lossless transport hands it per publishing round."""
-    p = np.asarray(positions, dtype=float).reshape(-1, 2)
+    """For each agent at ``positions`` (N, D), how many others publish into a cell that its disc (ball)
+    of radius r meets (:func:`cells_in_disc`): the poses a lossless transport hands it per publishing round."""
+    p = np.asarray(positions, dtype=float)
+    p = p.reshape(-1, p.shape[-1] if p.ndim > 1 else 2)
     lo = np.floor(p / cell_size) * cell_size  # each agent's cell
     nearest = np.clip(p[:, None, :], lo[None, :, :], lo[None, :, :] + cell_size)  # [i, j]: of j's cell to i
     meets = ((nearest - p[:, None, :]) ** 2).sum(axis=2) <= r * r

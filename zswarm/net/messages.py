@@ -1,7 +1,9 @@
 """Every wire message, encoded and decoded in one place (msgpack), versioned and validated.
 
-A message is a msgpack map with ``v`` (format version) and ``k`` (kind). Decoding never trusts the
-bytes: a payload that is too large, not msgpack, of an unknown version or kind, with missing or
+A message is a msgpack map with ``v`` (format version) and ``k`` (kind). Positions and velocities
+are lists of two numbers in a 2-D run and of three in a 3-D one (``p``, ``u``; an obstacle answer says
+``d``: 3); a process refuses a message of the other dimension with the reason ``dimensions``, so a
+2-D agent and a 3-D world never mix silently. Decoding never trusts the bytes: a payload that is too large, not msgpack, of an unknown version or kind, with missing or
 mistyped fields, non-finite numbers or out-of-range sizes raises :class:`DecodeError`, whose
 ``reason`` is one of :data:`REASONS` (processes count rejections by reason).
 """
@@ -22,12 +24,12 @@ ENCODING = f"application/msgpack;zswarm/{VERSION}"
 MAX_PAYLOAD = 256 * 1024
 MAX_OBSTACLES = 4096
 MAX_ID = 1_000_000
-MAX_COORD = 1e6  # |x|, |y| beyond this is rejected as impossible
+MAX_COORD = 1e6  # |x|, |y|, |z| beyond this is rejected as impossible
 MAX_HEADING = 7.0  # |heading| in radians: an agent sends it in [-pi, pi)
 MAX_HIST_BINS = 20_000
 MAX_HEARD = 4096
 
-REASONS = ("size", "malformed", "version", "kind", "schema", "nonfinite", "range")
+REASONS = ("size", "malformed", "version", "kind", "schema", "nonfinite", "range", "dimensions")
 
 
 class DecodeError(ValueError):
@@ -38,7 +40,8 @@ class DecodeError(ValueError):
 
 class Pose(NamedTuple):
     """An agent's state: id, sequence number, sender wall time, lockstep step (-1 if free), x, y, vx, vy,
-    and its heading in radians where its body has one (:mod:`zswarm.model.body`; None otherwise).
+    its heading in radians where its body has one (:mod:`zswarm.model.body`; None otherwise), and in a
+    3-D run z and vz (None in 2-D).
 
     Immutable like the other messages, but a named tuple rather than a frozen dataclass: an agent
     builds one for every pose it hears, and a tuple is built in a sixth of the time."""
@@ -52,33 +55,71 @@ class Pose(NamedTuple):
     vx: float
     vy: float
     heading: float | None = None
+    z: float | None = None
+    vz: float | None = None
+
+    @property
+    def dims(self) -> int:
+        return 2 if self.z is None else 3
+
+    @property
+    def position(self) -> tuple[float, ...]:
+        return (self.x, self.y) if self.z is None else (self.x, self.y, self.z)
+
+    @property
+    def velocity(self) -> tuple[float, ...]:
+        return (self.vx, self.vy) if self.vz is None else (self.vx, self.vy, self.vz)
 
 
 class Prey(NamedTuple):
-    """The prey as the world publishes it (a named tuple, as :class:`Pose`: every agent decodes one a tick)."""
+    """The prey as the world publishes it (a named tuple, as :class:`Pose`: every agent decodes one a
+    tick); z in a 3-D run."""
 
     seq: int
     stamp: float
     step: int
     x: float
     y: float
+    z: float | None = None
+
+    @property
+    def dims(self) -> int:
+        return 2 if self.z is None else 3
+
+    @property
+    def position(self) -> tuple[float, ...]:
+        return (self.x, self.y) if self.z is None else (self.x, self.y, self.z)
 
 
 @dataclass(frozen=True)
 class Tick:
-    """Lockstep: step ``step`` begins; the prey is at (x, y). ``final``: the run ends after it."""
+    """Lockstep: step ``step`` begins; the prey is at (x, y) (and z in a 3-D run). ``final``: the run
+    ends after it."""
 
     step: int
     stamp: float
     x: float
     y: float
+    z: float | None = None
     final: bool = False
+
+    @property
+    def dims(self) -> int:
+        return 2 if self.z is None else 3
+
+    @property
+    def position(self) -> tuple[float, ...]:
+        return (self.x, self.y) if self.z is None else (self.x, self.y, self.z)
 
 
 @dataclass(frozen=True)
 class Obstacles:
-    centers: tuple[tuple[float, float], ...]
+    """The world's answer to an obstacle query: centres (pairs, or triples in 3-D), radii, and the
+    run's dimension (also when no obstacle is near)."""
+
+    centers: tuple[tuple[float, ...], ...]
     radii: tuple[float, ...]
+    dims: int = 2
 
 
 @dataclass(frozen=True)
@@ -129,9 +170,10 @@ def _pack(obj: dict[str, Any]) -> bytes:
 
 
 def encode_pose(agent: int, seq: int, stamp: float, step: int, x: float, y: float, vx: float, vy: float,
-                heading: float | None = None) -> bytes:
+                heading: float | None = None, z: float | None = None, vz: float | None = None) -> bytes:
     """``encode(Pose(...))`` without building the Pose: an agent publishes one every tick."""
-    pose = {"v": VERSION, "k": "pose", "id": agent, "seq": seq, "t": stamp, "s": step, "p": [x, y], "u": [vx, vy]}
+    p, u = ([x, y], [vx, vy]) if z is None else ([x, y, z], [vx, vy, vz])
+    pose = {"v": VERSION, "k": "pose", "id": agent, "seq": seq, "t": stamp, "s": step, "p": p, "u": u}
     if heading is not None:
         pose["h"] = heading
     return msgpack.packb(pose, use_bin_type=True)
@@ -141,11 +183,12 @@ def encode(msg: Message) -> bytes:
     if isinstance(msg, Pose):
         return encode_pose(*msg)
     if isinstance(msg, Prey):
-        return _pack({"k": "prey", "seq": msg.seq, "t": msg.stamp, "s": msg.step, "p": [msg.x, msg.y]})
+        return _pack({"k": "prey", "seq": msg.seq, "t": msg.stamp, "s": msg.step, "p": list(msg.position)})
     if isinstance(msg, Tick):
-        return _pack({"k": "tick", "s": msg.step, "t": msg.stamp, "p": [msg.x, msg.y], "f": msg.final})
+        return _pack({"k": "tick", "s": msg.step, "t": msg.stamp, "p": list(msg.position), "f": msg.final})
     if isinstance(msg, Obstacles):
-        return _pack({"k": "obst", "c": [list(c) for c in msg.centers], "r": list(msg.radii)})
+        extra = {} if msg.dims == 2 else {"d": msg.dims}
+        return _pack({"k": "obst", "c": [list(c) for c in msg.centers], "r": list(msg.radii), **extra})
     if isinstance(msg, Stats):
         return _pack({"k": "stats", "id": msg.id, "sent": msg.sent, "recv": msg.received,
                       "rej": dict(msg.rejected), "late": msg.late_ticks, "ticks": msg.ticks,
@@ -182,11 +225,13 @@ def _float(v: Any, key: str, bound: float = MAX_COORD) -> float:
     return v
 
 
-def _vec(d: dict, key: str) -> tuple[float, float]:
+def _vec(d: dict, key: str, dims: tuple[int, ...] = (2, 3)) -> tuple[float, ...]:
+    """A point: two numbers (2-D) or three (3-D), of the lengths ``dims`` allows."""
     v = d.get(key)
-    if not isinstance(v, (list, tuple)) or len(v) != 2:
-        raise DecodeError("schema", f"{key} must be a pair of numbers")
-    return _float(v[0], key), _float(v[1], key)
+    if not isinstance(v, (list, tuple)) or len(v) not in dims:
+        what = " or ".join({2: "a pair", 3: "a triple"}[n] for n in dims)
+        raise DecodeError("schema", f"{key} must be {what} of numbers")
+    return tuple(_float(c, key) for c in v)
 
 
 def _counts(v: Any, key: str, max_items: int) -> dict:
@@ -254,8 +299,7 @@ def _prey(obj: dict) -> Prey:
         if (type(x) is float and type(y) is float and 0 <= seq <= 2**62 and -1 <= s <= 2**62
                 and -1e12 <= t <= 1e12 and -MAX_COORD <= x <= MAX_COORD and -MAX_COORD <= y <= MAX_COORD):
             return Prey(seq, t, s, x, y)
-    x, y = _vec(obj, "p")
-    return Prey(_int(obj, "seq"), _float(obj.get("t"), "t", 1e12), _int(obj, "s", -1), x, y)
+    return Prey(_int(obj, "seq"), _float(obj.get("t"), "t", 1e12), _int(obj, "s", -1), *_vec(obj, "p"))
 
 
 def _pose(obj: dict) -> Pose:
@@ -275,32 +319,34 @@ def _pose(obj: dict) -> Pose:
                 return Pose(i, seq, t, s, x, y, vx, vy)
             if type(h) is float and -MAX_HEADING <= h <= MAX_HEADING:
                 return Pose(i, seq, t, s, x, y, vx, vy, h)
-    x, y = _vec(obj, "p")
-    vx, vy = _vec(obj, "u")
+    p = _vec(obj, "p")
+    u = _vec(obj, "u", (len(p),))
     h = obj.get("h")
     return Pose(_int(obj, "id", 0, MAX_ID), _int(obj, "seq"), _float(obj.get("t"), "t", 1e12),
-                _int(obj, "s", -1), x, y, vx, vy, None if h is None else _float(h, "h", MAX_HEADING))
+                _int(obj, "s", -1), p[0], p[1], u[0], u[1], None if h is None else _float(h, "h", MAX_HEADING),
+                *p[2:], *u[2:])
 
 
 def _other(obj: dict, kind: Any) -> Message:
     """Every kind but the pose and the prey."""
     if kind == "tick":
-        x, y = _vec(obj, "p")
+        p = _vec(obj, "p")
         final = obj.get("f", False)
         if not isinstance(final, bool):
             raise DecodeError("schema", "f must be a boolean")
-        return Tick(_int(obj, "s"), _float(obj.get("t"), "t", 1e12), x, y, final)
+        return Tick(_int(obj, "s"), _float(obj.get("t"), "t", 1e12), *p, final=final)
     if kind == "obst":
         centers, radii = obj.get("c"), obj.get("r")
         if not isinstance(centers, list) or not isinstance(radii, list) or len(centers) != len(radii):
             raise DecodeError("schema", "c and r must be lists of equal length")
         if len(centers) > MAX_OBSTACLES:
             raise DecodeError("size", f"{len(centers)} obstacles > {MAX_OBSTACLES}")
-        cs = tuple(_vec({"c": c}, "c") for c in centers)
+        dims = _int(obj, "d", 2, 3) if "d" in obj else 2
+        cs = tuple(_vec({"c": c}, "c", (dims,)) for c in centers)
         rs = tuple(_float(r, "r") for r in radii)
         if any(r < 0 for r in rs):
             raise DecodeError("range", "negative obstacle radius")
-        return Obstacles(cs, rs)
+        return Obstacles(cs, rs, dims)
     if kind == "stats":
         ages = _counts(obj.get("ages"), "ages", MAX_HIST_BINS)
         lat = _counts(obj.get("lat", {}), "lat", MAX_HIST_BINS)

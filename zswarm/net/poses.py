@@ -35,7 +35,9 @@ def implausible_jump(old: msg.Pose, new: msg.Pose, max_step: float, elapsed_step
         steps = max(new.seq - old.seq, 1)
     if elapsed_steps is not None:
         steps = min(steps, max(elapsed_steps, 1.0))
-    return math.hypot(new.x - old.x, new.y - old.y) > max_step * steps + 1e-9
+    if new.z is None or old.z is None:
+        return math.hypot(new.x - old.x, new.y - old.y) > max_step * steps + 1e-9
+    return math.hypot(new.x - old.x, new.y - old.y, new.z - old.z) > max_step * steps + 1e-9
 
 
 SEQ_RESTART = 1000

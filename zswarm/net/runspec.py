@@ -72,7 +72,7 @@ class RunSpec:
 
     @property
     def keys(self) -> Keys:
-        return Keys(self.run, cell_size=self.scenario.params.swarm.sensing_radius)
+        return Keys(self.run, cell_size=self.scenario.params.swarm.sensing_radius, dims=self.scenario.dimensions)
 
     @property
     def subscription_radius(self) -> float:
@@ -165,8 +165,5 @@ def spec_from_args(args: argparse.Namespace, run: str | None = None, extra: dict
     spec = RunSpec(run=args.run or run or DEFAULT_RUN, scenario_name=args.scenario,
                    overrides=tuple(overrides.items()), seed=args.seed, potential=args.potential, clock=args.clock,
                    time_scale=args.time_scale, duration=args.duration, faults=faults_from_args(args))
-    if spec.scenario.dimensions != 2:  # validates it too
-        raise UsageError(f"{args.scenario} is {spec.scenario.dimensions}-D: 3-D swarms run in the simulators so far "
-                         f"(zswarm sim --scenario {args.scenario}); the agent processes, the world and their wire "
-                         "are 2-D")
+    spec.scenario  # noqa: B018  (builds and validates it)
     return spec

@@ -28,6 +28,7 @@ from zswarm.net.certs import ROLES, CertPaths, make_certs
 from zswarm.net.keys import Keys
 
 ANY_RUN = Keys("*", 1.0)  # the key expressions of every run: zswarm/*/...
+ANY_RUN_3D = Keys("*", 1.0, dims=3)  # and of every 3-D run (a pose key has one more cell segment)
 
 OBSERVE = ["declare_subscriber", "query", "declare_liveliness_subscriber", "liveliness_query"]
 RECEIVE = ["put", "delete", "query", "reply", "declare_subscriber", "declare_queryable", "liveliness_token"]
@@ -70,7 +71,8 @@ def access_control(agents: int = 0) -> dict:
         for i in range(agents):
             name = agent_name(i)
             rules.append({"id": f"{name}-send", "permission": "allow", "flows": ["ingress"], "messages": AGENT_SEND,
-                          "key_exprs": [ANY_RUN.any_cell_pose(i), ANY_RUN.stats(i), ANY_RUN.alive(i)]})
+                          "key_exprs": [ANY_RUN.any_cell_pose(i), ANY_RUN_3D.any_cell_pose(i), ANY_RUN.stats(i),
+                                        ANY_RUN.alive(i)]})
             subjects.append({"id": name, "cert_common_names": [name]})
             policies.append({"rules": [f"{name}-send"], "subjects": [name]})
             readers.append(name)

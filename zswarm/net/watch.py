@@ -48,7 +48,7 @@ class Snapshot:
     rejected: dict[str, int]
     late_ticks: int
     ticks: int
-    prey: tuple[float, float] | None
+    prey: tuple[float, ...] | None
     prey_rate: float
     agents_reporting: int
     gone: dict[int, str] = field(default_factory=dict)  # id -> "crashed", "left", "run ended" or "going"
@@ -74,7 +74,7 @@ class RunWatch:
     alive: set[int] = field(default_factory=set)
     poses: dict[int, deque] = field(default_factory=dict)  # arrival times within the window
     prey_times: deque = field(default_factory=deque)
-    prey: tuple[float, float] | None = None
+    prey: tuple[float, ...] | None = None
     stats: dict[int, msg.Stats] = field(default_factory=dict)
     own_rejections: Counter = field(default_factory=Counter)
     declared: list = field(default_factory=list)
@@ -126,7 +126,7 @@ class RunWatch:
         elif tag == "tick" and isinstance(message, msg.Tick):
             self.ended = self.ended or message.final
         elif tag == "prey" and isinstance(message, msg.Prey):
-            self.prey = (message.x, message.y)
+            self.prey = message.position
             self.prey_times.append(received)
         else:
             self.own_rejections["unexpected"] += 1

@@ -1,0 +1,129 @@
+"""Three dimensions as processes: agents, world, wire and voxel keys in R^3, with a real router (every
+child reaped). tests/test_space.py holds the model and the simulators in 3-D; the lockstep case of
+tests/test_distributed.py holds 3-D processes to the reference to 1e-6."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import time
+
+import numpy as np
+import pytest
+
+from swarm_procs import load_summary, processes, rerun_verify, run_launch, split_spec, wait_exit
+from viewer_shots import NO_XVFB, colored, render
+from zswarm.net import messages as msg
+from zswarm.net.config import open_session, zenoh_config
+from zswarm.net.keys import Keys
+from zswarm.net.procs import agent_argv, free_port, start_router, world_argv
+from zswarm.record.replay import load_run, recompute
+
+
+@pytest.fixture(scope="module")
+def demo_3d(tmp_path_factory):
+    """``launch.py --scenario moving-prey-3d --agents 10``, at twice the wall clock as the other
+    free-running tests (22 simulated seconds: the reference catches the prey at 17.35 s)."""
+    tmp = tmp_path_factory.mktemp("demo3d")
+    record = tmp / "demo3d.rrd"
+    res = run_launch(tmp, "--scenario", "moving-prey-3d", "--agents", "10", "--duration", "22", "--time-scale", "2",
+                     "--record", str(record), "--quiet", timeout=240)
+    assert res.returncode == 0, res.stderr
+    return record, json.loads(record.with_suffix(".json").read_text())
+
+
+def test_the_3d_demo_runs_as_processes_and_catches_the_prey(demo_3d):
+    record, s = demo_3d
+    assert s["capture_time"] is not None and s["collisions"] == 0 and s["obstacle_collisions"] == 0, s
+    assert s["reference"]["capture_time"] is not None and s["reference"]["collisions"] == 0
+    assert s["messages_rejected"] == 0 and s["agents_reporting"] == 10 and s["poses_received"] > 0
+    assert s["design"]["ok"]
+    rerun_verify(record)
+    run = load_run(record)
+    assert run.config["scenario_definition"]["params"]["dimensions"] == 3
+    assert all(f.positions.shape == (10, 3) and f.prey.shape == (3,) for f in run.frames)
+    heights = np.stack([f.positions[:, 2] for f in run.frames])
+    assert np.ptp(heights) > 0.5  # the swarm flies: it does not stay in a plane
+    replayed = recompute(run)  # what zswarm replay prints
+    stored = {k: v for k, v in run.summary.items() if k in replayed}
+    assert stored and all(v == pytest.approx(stored[k], rel=1e-9, abs=1e-12) if isinstance(v, float) else v == stored[k]
+                          for k, v in replayed.items() if k in stored)
+    for key in ("capture_time", "collisions", "min_pair_distance", "min_obstacle_clearance"):
+        assert replayed[key] == s[key]
+
+
+@NO_XVFB
+def test_the_3d_demo_recording_opens_in_a_3d_view(demo_3d, tmp_path):
+    """The world's recording of a 3-D run: the map is a 3-D view (lit grey spheres, the agents), the
+    plots and network panels beside it."""
+    image = render(demo_3d[0], tmp_path / "demo3d.png")
+    h, w, _ = image.shape
+    band = image[int(0.08 * h):int(0.92 * h)]
+    map_, plots = band[:, :int(0.4 * w)], band[:, int(0.45 * w):]
+    grey = (map_.max(-1) - map_.min(-1) < 20) & (map_.mean(-1) > 120)
+    assert grey.sum() > 5000, "no obstacles (grey spheres) in the 3-D map"
+    assert colored(map_) > 300 and colored(plots) > 500
+
+
+def test_faults_a_crash_and_the_monitor_in_3d(tmp_path):
+    """Injected loss and delay, an agent killed and restarted, and ``zswarm monitor`` watching: the
+    3-D run carries on, says who crashed, and the monitor shows the prey in 3-D."""
+    port = free_port()
+    endpoint = f"tcp/127.0.0.1:{port}"
+    record = tmp_path / "f3.rrd"
+    with processes() as kids:
+        launch = kids.spawn("launch", ["launch.py", "--scenario", "moving-prey-3d", "--agents", "6", "--duration", "12",
+                                       "--time-scale", "2", "--listen", endpoint, "--run", "faults3d", "--dropout",
+                                       "0.1", "--latency", "20ms", "--kill", "1@3", "--restart-after", "1.5",
+                                       "--record", str(record), "--quiet"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        monitor = kids.spawn("monitor", ["-m", "zswarm", "monitor", "--run", "faults3d", "--connect", endpoint,
+                                         "--json", "--every", "0.5", "--duration", "60"], stdout=subprocess.PIPE)
+        assert wait_exit(launch, 180) == 0, launch.proc.stderr.read().decode()
+        err = launch.proc.stderr.read().decode()
+        monitor.proc.send_signal(2)
+        snapshots = [json.loads(line) for line in monitor.proc.communicate(timeout=30)[0].splitlines()]
+    assert "killed agents" in err and "restarted agents" in err, err
+    s = load_summary(record.with_suffix(".json"))
+    assert [d["how"] for d in s["departures"] if d["t"] < 11.5] == ["crashed"] and s["collisions"] == 0
+    assert s["requested_faults"]["dropout"] == 0.1 and 0.03 < s["observed_dropout"] < 0.2
+    victim = str(s["departures"][0]["id"])
+    assert any(victim in r for r in s["neighbour_returns"].values())  # heard again after its restart
+    seen = [snap for snap in snapshots if snap["prey"] is not None]
+    assert seen and all(len(snap["prey"]) == 3 for snap in seen)  # the monitor shows where the prey flies
+    assert any(snap["gone"].get(victim) == "crashed" for snap in snapshots)
+    assert max(snap["alive"] for snap in snapshots) == 6
+
+
+def test_a_2d_agent_and_a_3d_world_refuse_each_other(tmp_path):
+    """An agent started with the other dimension's scenario exits 2 with one line before it joins (both
+    ways), and the world says so once; a 2-D pose published into a 3-D run is refused as ``dimensions``."""
+    short = ("--set", "n_agents=1", "--duration", "2", "--start-timeout", "8", "--progress", "0")
+    with processes() as kids:
+        endpoint = start_router(kids)
+        worlds, agents = {}, {}
+        for run, scenario in (("sky", "moving-prey-3d"), ("flat", "moving-prey")):
+            spec, rest = split_spec(run, scenario, *short)
+            worlds[run] = kids.spawn(f"world-{run}", world_argv(spec, endpoint, *rest, "--summary",
+                                                                str(tmp_path / f"{run}.json")),
+                                     stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        for run, scenario in (("sky", "moving-prey"), ("flat", "moving-prey-3d")):  # each in the other's run
+            spec, rest = split_spec(run, scenario, "--set", "n_agents=1")
+            agents[run] = kids.spawn(f"agent-{run}", agent_argv(spec, 0, endpoint, *rest),
+                                     stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        said = {run: a.proc.communicate(timeout=60)[1].decode() for run, a in agents.items()}
+        with open_session(zenoh_config("client", [endpoint]), "test", retry_for=30.0) as session:
+            keys = Keys("sky", 1.0, dims=3)
+            for i in range(1, 40):  # a 2-D pose in the voxel key space of the 3-D run, until it ends
+                session.put(keys.pose((0, 0, 0), 5), msg.encode(msg.Pose(5, i, time.time(), -1, 0.5, 0.5, 0.0, 0.0)))
+                time.sleep(0.05)
+        heard = {run: w.proc.communicate(timeout=60)[1].decode() for run, w in worlds.items()}
+        assert all(w.proc.returncode == 0 for w in worlds.values()), heard
+    for run, own, other in (("sky", 2, 3), ("flat", 3, 2)):
+        assert agents[run].proc.returncode == 2, said[run]
+        line = f"the world of run {run!r} is {other}-D and this agent {own}-D"
+        assert line in said[run] and len(said[run].strip().splitlines()) == 1 and "Traceback" not in said[run]
+        assert f"a {own}-D agent asked this {other}-D run for obstacles" in heard[run], heard[run]
+    assert "sends 2-D poses into this 3-D run" in heard["sky"], heard["sky"]
+    assert load_summary(tmp_path / "sky.json")["rejected_by_reason"]["dimensions"] > 0
+    assert "dimensions" not in load_summary(tmp_path / "flat.json")["rejected_by_reason"]
