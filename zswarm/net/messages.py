@@ -319,6 +319,17 @@ def _pose(obj: dict) -> Pose:
                 return Pose(i, seq, t, s, x, y, vx, vy)
             if type(h) is float and -MAX_HEADING <= h <= MAX_HEADING:
                 return Pose(i, seq, t, s, x, y, vx, vy, h)
+    elif (type(i) is int and type(seq) is int and type(s) is int and type(t) is float and type(p) is list
+            and type(u) is list and len(p) == 3 and len(u) == 3 and "h" not in obj):  # a 3-D one
+        x, y, z = p
+        vx, vy, vz = u
+        if (type(x) is float and type(y) is float and type(z) is float and type(vx) is float
+                and type(vy) is float and type(vz) is float
+                and 0 <= i <= MAX_ID and 0 <= seq <= 2**62 and -1 <= s <= 2**62 and -1e12 <= t <= 1e12
+                and -MAX_COORD <= x <= MAX_COORD and -MAX_COORD <= y <= MAX_COORD and -MAX_COORD <= z <= MAX_COORD
+                and -MAX_COORD <= vx <= MAX_COORD and -MAX_COORD <= vy <= MAX_COORD
+                and -MAX_COORD <= vz <= MAX_COORD):
+            return Pose(i, seq, t, s, x, y, vx, vy, None, z, vz)
     p = _vec(obj, "p")
     u = _vec(obj, "u", (len(p),))
     h = obj.get("h")
