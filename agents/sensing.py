@@ -47,11 +47,11 @@ class Body:
 
     @property
     def position(self) -> tuple[float, ...]:
-        return (self.x, self.y) if self.z is None else (self.x, self.y, self.z)
+        return msg.point(self.x, self.y, self.z)
 
     @property
     def velocity(self) -> tuple[float, ...]:
-        return (self.vx, self.vy) if self.z is None else (self.vx, self.vy, self.vz)
+        return msg.point(self.vx, self.vy, self.vz)
 
     def distance(self, pose: msg.Pose) -> float:
         """How far a pose is from it (a pose of the other dimension counts as at z = 0: it is refused anyway)."""
@@ -133,8 +133,8 @@ class Sensing:
         except msg.DecodeError as exc:
             self.counters.rejections.add(exc.reason, str(exc))
             return
-        if isinstance(m, (msg.Pose, msg.Prey, msg.Tick)) and m.dims != self.body.dims:
-            self.counters.rejections.add("dimensions", f"a {m.dims}-D {type(m).__name__.lower()} in a "
+        if isinstance(m, (msg.Pose, msg.Prey, msg.Tick)) and len(m.position) != self.body.dims:
+            self.counters.rejections.add("dimensions", f"a {len(m.position)}-D {type(m).__name__.lower()} in a "
                                          f"{self.body.dims}-D run (every process of a run needs the same --scenario)")
             return
         if tag == "pose" and isinstance(m, msg.Pose):

@@ -32,6 +32,11 @@ MAX_HEARD = 4096
 REASONS = ("size", "malformed", "version", "kind", "schema", "nonfinite", "range", "dimensions")
 
 
+def point(x: float, y: float, z: float | None) -> tuple[float, ...]:
+    """(x, y), or (x, y, z) in a 3-D run (z is None in 2-D): a position or a velocity."""
+    return (x, y) if z is None else (x, y, z)
+
+
 class DecodeError(ValueError):
     def __init__(self, reason: str, detail: str) -> None:
         super().__init__(f"{reason}: {detail}")
@@ -64,11 +69,11 @@ class Pose(NamedTuple):
 
     @property
     def position(self) -> tuple[float, ...]:
-        return (self.x, self.y) if self.z is None else (self.x, self.y, self.z)
+        return point(self.x, self.y, self.z)
 
     @property
     def velocity(self) -> tuple[float, ...]:
-        return (self.vx, self.vy) if self.vz is None else (self.vx, self.vy, self.vz)
+        return point(self.vx, self.vy, self.vz)
 
 
 class Prey(NamedTuple):
@@ -83,12 +88,8 @@ class Prey(NamedTuple):
     z: float | None = None
 
     @property
-    def dims(self) -> int:
-        return 2 if self.z is None else 3
-
-    @property
     def position(self) -> tuple[float, ...]:
-        return (self.x, self.y) if self.z is None else (self.x, self.y, self.z)
+        return point(self.x, self.y, self.z)
 
 
 @dataclass(frozen=True)
@@ -104,12 +105,8 @@ class Tick:
     final: bool = False
 
     @property
-    def dims(self) -> int:
-        return 2 if self.z is None else 3
-
-    @property
     def position(self) -> tuple[float, ...]:
-        return (self.x, self.y) if self.z is None else (self.x, self.y, self.z)
+        return point(self.x, self.y, self.z)
 
 
 @dataclass(frozen=True)
