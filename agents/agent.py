@@ -16,6 +16,7 @@ Clocks:
 from __future__ import annotations
 
 import asyncio
+import math
 import time
 from typing import Any
 
@@ -63,12 +64,16 @@ class Agent:
         self.prey_by_step: dict[int, tuple[float, ...]] = {}
         self.stop = asyncio.Event()
         self.injector = None  # a FaultInjector when faults are injected
+        self.robot = None  # a RobotLink when a ROS 2 robot is its body (agents.robot_link)
 
     # --- control ---------------------------------------------------------------------------------------
 
     def move(self, goal: tuple[float, ...], neighbours: list[tuple[float, ...]]) -> None:
         """The command sat(-grad U_i) from what it sensed (eq 5 with the speed limit), and one step of its
-        body under it (:func:`zswarm.model.body.step`)."""
+        body under it (:func:`zswarm.model.body.step`), or, beside a robot, the robot's command."""
+        if self.robot is not None:
+            self.drive_robot(goal, neighbours)
+            return
         b = self.body
         state = bodies.BodyState(np.array(b.position), np.array(b.velocity),
                                  np.array(np.nan if b.heading is None else b.heading))
@@ -78,6 +83,22 @@ class Agent:
         if b.z is not None:
             b.z, b.vz = position[2], velocity[2]
         b.heading = self._heading(moved)
+
+    def follow_robot(self) -> bool:
+        """Beside a robot: its body is where the robot's odometry says (False: none heard yet)."""
+        pose, b = self.robot.pose, self.body
+        if pose is None:
+            return False
+        b.x, b.y, b.heading = pose.x, pose.y, pose.yaw
+        b.vx, b.vy = pose.u * math.cos(pose.yaw), pose.u * math.sin(pose.yaw)
+        return True
+
+    def drive_robot(self, goal: tuple[float, ...], neighbours: list[tuple[float, ...]]) -> None:
+        """The command from where the robot is, sent to it as a Twist; a silent robot is stopped and
+        the agent leaves (:meth:`agents.robot_link.RobotLink.check`)."""
+        self.robot.check(time.time())
+        if self.follow_robot():
+            self.robot.drive(self.command(goal, neighbours))
 
     def command(self, goal: tuple[float, ...], neighbours: list[tuple[float, ...]]) -> tuple[float, ...]:
         """The desired velocity from what it sensed: in plain floats in 2-D, the simulators' vectorized

@@ -32,12 +32,13 @@ def take_in(agent: Agent, injector: FaultInjector | None) -> int:
 
 def wait_for_world(agent: Agent, injector: FaultInjector | None, timeout: float,
                    stopped: Callable[[], bool]) -> bool:
-    """Until the world has answered the first obstacle query (it is there), then enter the cells;
-    False if it did not answer within ``timeout`` seconds, answered in another dimension, or the agent
-    was stopped."""
+    """Until the world has answered the first obstacle query (it is there) and, beside a robot, the
+    robot's first odometry came (the agent starts where it is), then enter the cells; False if that
+    took longer than ``timeout`` seconds, the world answered in another dimension, or the agent was
+    stopped."""
     s = agent.sensing
     deadline = time.monotonic() + timeout
-    while s.obstacle_query_at is None:
+    while s.obstacle_query_at is None or (agent.robot is not None and not agent.follow_robot()):
         if stopped() or time.monotonic() > deadline or s.obstacle_view.foreign_dims is not None:
             return False
         s.request_obstacles(time.time(), timeout=1.0)

@@ -7,6 +7,7 @@ import asyncio
 import math
 import signal
 import sys
+from pathlib import Path
 from typing import Sequence
 
 import numpy as np
@@ -36,6 +37,12 @@ def build_parser() -> Parser:
     parser.add_argument("--start-timeout", type=float, default=60.0,
                         help="give up if the world has not answered for this long at start (default 60 s: "
                              "a world on a loaded machine, or started later elsewhere, may take a while)")
+    parser.add_argument("--robots", type=Path, default=None, metavar="FILE.toml",
+                        help="a robots file: if it names this agent's id, a ROS 2 robot is its body (its pose "
+                             "from the robot's odometry, its command sent as cmd_vel; docs/robots.md)")
+    parser.add_argument("--odom-timeout", type=float, default=1.0,
+                        help="with a robot: stop it and leave the swarm when its odometry stops this long "
+                             "(default 1 s)")
     add_run_args(parser)
     add_zenoh_args(parser)
     return parser
@@ -83,10 +90,22 @@ class Process:
         keys = spec.keys
         self.declared = [self.bridge.subscribe_liveliness(keys.all_alive, "alive"),
                          self.bridge.subscribe(keys.prey, "prey"), self.bridge.subscribe(keys.tick, "tick")]
+        robot = fleet.robot(args.id) if (fleet := robot_fleet(args, spec)) is not None else None
+        if robot is not None:
+            from agents.robot_link import RobotLink
+
+            p = spec.scenario.params
+            self.agent.robot = self.agent.sensing.robot = RobotLink(
+                robot, fleet.route, self.bridge, p.swarm.v_max, p.body.lookahead, self.agent.counters.rejections,
+                args.odom_timeout)
 
     def no_world(self, waited: float) -> UsageError:
         """Why it cannot join: the world is of another dimension, or did not answer."""
         foreign, dims = self.agent.sensing.obstacle_view.foreign_dims, self.spec.scenario.dimensions
+        robot = self.agent.robot
+        if robot is not None and robot.pose is None and self.agent.sensing.obstacle_query_at is not None:
+            return UsageError(f"agent {self.id}: no odometry from robot {robot.robot.namespace} for {waited:g} s "
+                              f"(is it up, on this router, and on the robots file's route and distro?)")
         if foreign is not None:
             return UsageError(f"agent {self.id}: the world of run {self.spec.run!r} is {foreign}-D and this agent "
                               f"{dims}-D ({self.spec.scenario.name}); start every process of a run with the same "
@@ -99,6 +118,8 @@ class Process:
         self.declared.append(self.session.liveliness().declare_token(self.spec.keys.alive(self.id)))
 
     def close(self, final_stats: bool) -> None:
+        if self.agent.robot is not None:
+            self.agent.robot.close()  # a zero Twist: a robot is never left driving on the last command
         if final_stats:
             self.session.put(self.spec.keys.stats(self.id), self.agent.stats(final=True), encoding=msg.ENCODING)
         teardown(self.bridge, self.declared, self.session)
@@ -149,9 +170,25 @@ async def run_lockstep_agent(spec: RunSpec, args: argparse.Namespace) -> int:
         proc.close(final_stats=done)
 
 
+def robot_fleet(args: argparse.Namespace, spec: RunSpec):
+    """The robots file of ``--robots`` (None without one), checked against the run."""
+    if args.robots is None:
+        return None
+    from zswarm.ros.robots import load_fleet
+
+    if spec.scenario.dimensions != 2:
+        raise UsageError(f"--robots drives ROS 2 ground robots: {spec.scenario.name} is 3-D")
+    if spec.clock != "free" or spec.time_scale != 1.0:
+        raise UsageError("--robots needs the free clock at --time-scale 1: a robot moves in real time")
+    if not 0.0 < args.odom_timeout <= 60.0:
+        raise UsageError(f"--odom-timeout must be in (0, 60] s (got {args.odom_timeout})")
+    return load_fleet(args.robots)
+
+
 def _main(argv: Sequence[str] | None) -> int:
     args = build_parser().parse_args(argv)
     spec = spec_from_args(args)
+    robot_fleet(args, spec)  # a bad robots file stops here, before a session is opened
     if args.id < 0:
         raise UsageError(f"--id must be >= 0 (got {args.id})")
     if spec.clock == "lockstep":

@@ -73,6 +73,7 @@ class Sensing:
         self.last_seq: dict[int, int] = {}
         self.prey: tuple[float, ...] | None = None
         self.ticks: asyncio.Queue[msg.Tick] = asyncio.Queue()
+        self.robot = None  # a RobotLink (agents.robot_link) when a ROS 2 robot is the agent's body
         self.pose_arrived = asyncio.Event()
         self.final_tick = False
         self.obstacle_view = ObstacleView(self.keys, bridge, body, self.radius, self.counters)
@@ -123,6 +124,10 @@ class Sensing:
             return
         if tag == "probe":
             self.latency_probe.heard(payload, received)
+            return
+        if tag == "odom":
+            if self.robot is not None:
+                self.robot.take(payload, received)
             return
         self.counters.received += 1
         who = self.keys.agent_of(key) if tag == "pose" else None

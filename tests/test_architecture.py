@@ -30,12 +30,13 @@ ALLOWED: dict[str, set[str]] = {
     "record": {"base", "model", "record"},
     "sim": {"base", "model", "record", "sim"},
     "net": {"base", "model", "net"},
-    "agents": {"base", "model", "net", "agents"},
+    "ros": {"base", "model", "ros"},
+    "agents": {"base", "model", "net", "ros", "agents"},
     "world": {"base", "model", "net", "record", "world"},
     "tune": {"base", "model", "record", "sim", "tune"},
-    "launch": {"base", "model", "record", "sim", "net", "launch"},
+    "launch": {"base", "model", "record", "sim", "net", "ros", "launch"},
     "bench": {"base", "model", "record", "sim", "net", "launch", "bench"},
-    "cli": {"base", "model", "record", "sim", "net", "tune", "launch", "bench", "cli"},
+    "cli": {"base", "model", "record", "sim", "net", "tune", "launch", "bench", "ros", "cli"},
     "api": {"base", "model", "record", "sim"},  # zswarm/__init__: the notebook API
 }
 

@@ -133,6 +133,11 @@ CASES = [
     (["-m", "world", "--config", "{dir}"], "cannot read zenoh config"),
     (["-m", "world", "--record", "{missing}/w.rrd"], "does not exist"),
     (["-m", "world", "--resume", "--clock", "lockstep"], "free clock only"),
+    # ROS 2 robots
+    (["-m", "agents", "--id", "0", "--robots", "{missing}.toml"], "does not exist"),
+    ([LAUNCH, "--robots", "{missing}.toml"], "does not exist"),
+    (["-m", "zswarm", "robot-sim", "--robots", "{missing}.toml"], "does not exist"),
+    (["-m", "zswarm", "robot-sim", "--robots", "{missing}.toml", "--rate", "0"], "--rate must be in"),
     # 3-D
     (["-m", "agents", "--id", "0", "--scenario", "moving-prey-3d", "--start", "1,2"], "--start expects X,Y,Z"),
     (["-m", "agents", "--id", "0", "--start", "1,2,3"], "--start expects X,Y in moving-prey (2-D"),

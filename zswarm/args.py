@@ -11,7 +11,7 @@ import math
 import sys
 from typing import Callable, NoReturn, Sequence
 
-from zswarm.errors import EXIT_USAGE, ParamError, UsageError
+from zswarm.errors import EXIT_FAILURE, EXIT_USAGE, Failure, ParamError, UsageError
 
 __all__ = ["EXIT_USAGE", "Parser", "UsageError", "add_param_args", "positive_float", "positive_int", "run_main",
            "seed_arg"]
@@ -31,6 +31,9 @@ def run_main(fn: Callable[[Sequence[str] | None], int], argv: Sequence[str] | No
     except (UsageError, ParamError) as exc:
         print(f"{prog}: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
+    except Failure as exc:
+        print(f"{prog}: {exc}", file=sys.stderr)
+        return EXIT_FAILURE
     except KeyboardInterrupt:
         print(f"{prog}: interrupted", file=sys.stderr)
         return 130

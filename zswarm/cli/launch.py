@@ -77,6 +77,9 @@ def build_parser(prog: str = "zswarm run") -> Parser:
                         "its endpoints")
     p.add_argument("--router-config", type=Path, default=None, metavar="FILE",
                    help="a full Zenoh configuration (json5) for the router; --listen overrides its endpoints")
+    p.add_argument("--robots", type=Path, default=None, metavar="FILE.toml",
+                   help="drive ROS 2 robots: the agents this file names take their pose from their robot's "
+                        "odometry and command it (docs/robots.md; try it with zswarm robot-sim)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.add_argument("--require-design", action="store_true",
                    help="refuse to start (exit 2) when the set this run would use fails zswarm design")

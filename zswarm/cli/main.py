@@ -26,7 +26,7 @@ def module_command(sub: argparse._SubParsersAction, name: str, text: str, module
 
 def build_parser() -> Parser:
     from zswarm.cli import (bench_bodies, bench_guidelines, bench_interactions, bench_net, certs, design, monitor,
-                            replay, sim, soak, tune)
+                            replay, robot_sim, sim, soak, tune)
 
     parser = Parser(prog="zswarm", description="Decentralized APF swarms (Kim, Wang & Shin 2006).")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
@@ -43,6 +43,8 @@ def build_parser() -> Parser:
 
     module_command(sub, "tune", "search the parameters that pass the guidelines and perform best", tune)
     module_command(sub, "monitor", "watch a running swarm live from any machine on its router", monitor)
+    module_command(sub, "robot-sim", "stand-in ROS 2 robots (odometry, cmd_vel) to rehearse a deployment",
+                   robot_sim)
 
     scen = sub.add_parser("scenarios", help="list the registered scenarios")
     scen.add_argument("--json", action="store_true")

@@ -28,9 +28,11 @@ def role_configs(plan: Plan, n_agents: int, say: Callable[..., None]) -> dict[st
 
 
 def agent_config_args(plan: Plan, configs: dict[str, list[str]], agent: int) -> list[str]:
-    """Agent ``agent``'s config: under --secure, its own identity's if the directory has one."""
+    """Agent ``agent``'s config: under --secure, its own identity's if the directory has one; with
+    --robots, the robots file (an agent it names drives that robot)."""
+    robots = [] if plan.robots is None else ["--robots", str(plan.robots)]
     if plan.secure is None:
-        return configs.get("agent", [])
+        return configs.get("agent", []) + robots
     from zswarm.net.security import agent_config
 
-    return ["--config", str(agent_config(plan.secure, agent))]
+    return ["--config", str(agent_config(plan.secure, agent))] + robots

@@ -55,7 +55,8 @@ class Plan:
     world_outage: tuple[float, float] | None
     world_crash: tuple[float, float | None] | None
     viewer: Viewer = Viewer()
-    design: dict | None = None  # the design verdict of the set this run uses (None: not judged here)
+    design: dict | None = None
+    robots: Path | None = None  # a robots file: the agents it names drive ROS 2 robots  # the design verdict of the set this run uses (None: not judged here)
 
 
 def plan_from_args(args: argparse.Namespace) -> Plan:
@@ -103,6 +104,8 @@ def plan_from_args(args: argparse.Namespace) -> Plan:
                          "(--spawn and --serve live in the world process)")
     if args.secure is not None:
         check_secure_dir(args.secure, ids if "agents" in args.role else ())
+    if args.robots is not None:
+        check_robots(args.robots, spec)
     if "agents" in args.role and spec.clock == "free":  # last: a usage error above comes alone
         line = pace_warning(len(ids), spec.scenario.dt, spec.time_scale, available_cores())
         if line:
@@ -111,7 +114,19 @@ def plan_from_args(args: argparse.Namespace) -> Plan:
                 summary=args.summary or args.record.with_suffix(".json"), trajectory=args.trajectory,
                 connect=args.connect, listen=args.listen, secure=args.secure, config=args.config,
                 router_config=args.router_config, quiet=args.quiet, fork=args.fork, kill=args.kill, restart_after=args.restart_after,
-                world_outage=args.world_outage, world_crash=args.world_crash, viewer=viewer, design=design)
+                world_outage=args.world_outage, world_crash=args.world_crash, viewer=viewer, design=design,
+                robots=args.robots)
+
+
+def check_robots(path: Path, spec: RunSpec) -> None:
+    """A robots file every agent can use: readable, and a run the robots can drive in."""
+    from zswarm.ros.robots import load_fleet
+
+    load_fleet(path)
+    if spec.scenario.dimensions != 2:
+        raise UsageError(f"--robots drives ROS 2 ground robots: {spec.scenario.name} is 3-D")
+    if spec.clock != "free" or spec.time_scale != 1.0:
+        raise UsageError("--robots needs the free clock at --time-scale 1: a robot moves in real time")
 
 
 #: Memory an agent process holds, with margin (PSS in docs/benchmarks.md: 10-12 MB forked, 22-25 MB not).

@@ -109,14 +109,21 @@ def wrap(angle: np.ndarray) -> np.ndarray:
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
-def _unicycle(spec: BodySpec, heading: np.ndarray, v_d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The velocity u (cos theta, sin theta) a unicycle moves with and its turn rate omega, steering the
-    point ``lookahead`` ahead along ``v_d``; u and omega each clipped to its limit."""
+def unicycle_inputs(spec: BodySpec, heading: np.ndarray, v_d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A unicycle's forward speed u and turn rate omega (each clipped to its limit) that steer the point
+    ``lookahead`` ahead of its axle along ``v_d``: what a differential-drive robot is sent."""
     c, s = np.cos(heading), np.sin(heading)
     v_max, w_max = np.asarray(spec.v_max), np.asarray(spec.turn_rate)
     u = np.clip(c * v_d[..., 0] + s * v_d[..., 1], -v_max, v_max)
     omega = np.clip((-s * v_d[..., 0] + c * v_d[..., 1]) / np.asarray(spec.lookahead), -w_max, w_max)
-    return u[..., None] * np.stack([c, s], axis=-1), omega
+    return u, omega
+
+
+def _unicycle(spec: BodySpec, heading: np.ndarray, v_d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The velocity u (cos theta, sin theta) a unicycle moves with and its turn rate omega
+    (:func:`unicycle_inputs`)."""
+    u, omega = unicycle_inputs(spec, heading, v_d)
+    return u[..., None] * np.stack([np.cos(heading), np.sin(heading)], axis=-1), omega
 
 
 def _limit(a: np.ndarray, bound: float | np.ndarray) -> np.ndarray:

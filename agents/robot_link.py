@@ -1,0 +1,85 @@
+"""An agent beside a ROS 2 robot: the robot is its body.
+
+The agent takes its pose from the robot's odometry (``<namespace>/odom``, nav_msgs/msg/Odometry, or a
+geometry_msgs/msg/PoseStamped topic), turned from the robot's odom frame into the world's, and sends
+its desired velocity as ``<namespace>/cmd_vel`` (geometry_msgs/msg/Twist): a forward speed and a turn
+rate, worked out as the unicycle body does (:func:`zswarm.model.body.unicycle_inputs`) and never above
+the robot's limits or the scenario's v_max. On rmw_zenoh every command carries the attachment a ROS 2
+subscriber needs (:class:`zswarm.ros.wire.Attachment`).
+
+Safety at the boundary: a sample that does not decode is counted by reason and dropped; a robot whose
+odometry stops for ``odom_timeout`` seconds is sent a zero Twist and its agent leaves the swarm; an
+agent that stops (cleanly or not) leaves its robot stopped: it sends a zero Twist when it can, and the
+robot's own command timeout stops it when it cannot.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+
+import numpy as np
+
+from zswarm.errors import Failure
+from zswarm.model import body as bodies
+from zswarm.ros.motion import Odom, read_pose, twist
+from zswarm.ros.robots import TWIST, Robot
+from zswarm.ros.wire import Attachment, Route, WireError
+
+
+class RobotLink:
+    def __init__(self, robot: Robot, route: Route, bridge, v_max: float, lookahead: float, rejections,
+                 odom_timeout: float = 1.0) -> None:
+        self.robot, self.route, self.bridge, self.rejections = robot, route, bridge, rejections
+        self.odom_timeout = odom_timeout
+        self.spec = bodies.BodySpec("unicycle", min(robot.max_linear, v_max), robot.max_angular, lookahead)
+        self.subscription = bridge.subscribe(route.key(robot.odom, robot.pose_type), "odom")
+        self.publisher = bridge.session.declare_publisher(route.key(robot.cmd_vel, TWIST))
+        self.pose: Odom | None = None  # in the world frame
+        self.heard_at = -math.inf  # wall time of the last odometry taken in
+        self.gid, self.sequence = os.urandom(16), 0
+        self.sent = 0
+
+    def take(self, payload: bytes, received: float) -> None:
+        """An odometry (or PoseStamped) sample, already delivered by the bridge."""
+        try:
+            odom = read_pose(self.route, self.robot.pose_type, payload)
+        except WireError as exc:
+            self.rejections.add(f"ros-{exc.reason}", f"from {self.robot.odom}: {exc}")
+            return
+        x, y, yaw = self.robot.to_world(odom.x, odom.y, odom.yaw)
+        self.pose = Odom(x, y, yaw, odom.u, odom.omega, odom.stamp)
+        self.heard_at = received
+
+    def check(self, now: float) -> None:
+        """A robot silent for longer than ``odom_timeout`` is stopped, and its agent leaves (:class:`Failure`)."""
+        if now - self.heard_at > self.odom_timeout and self.pose is not None:
+            self.stop()
+            raise Failure(f"robot {self.robot.namespace} sent no odometry for {self.odom_timeout:g} s: "
+                          f"sent it a zero Twist and left the swarm")
+
+    def drive(self, v_d: tuple[float, ...]) -> tuple[float, float]:
+        """Send the Twist that tracks the desired velocity ``v_d`` from the robot's heading."""
+        u, omega = bodies.unicycle_inputs(self.spec, np.array(self.pose.yaw), np.array(v_d, dtype=float))
+        return self.send(float(u), float(omega))
+
+    def send(self, u: float, omega: float) -> tuple[float, float]:
+        u = max(-self.spec.v_max, min(self.spec.v_max, u))
+        omega = max(-self.robot.max_angular, min(self.robot.max_angular, omega))
+        self.sequence += 1
+        attachment = Attachment(self.sequence, time.time_ns(), self.gid).encode() if self.route.attached else None
+        self.publisher.put(twist(self.route, u, omega), attachment=attachment)
+        self.sent += 1
+        return u, omega
+
+    def stop(self) -> None:
+        """A zero Twist (the robot stands still until the next command)."""
+        try:
+            self.send(0.0, 0.0)
+        except Exception:  # a closing session: the robot's own command timeout stops it
+            pass
+
+    def close(self) -> None:
+        self.stop()
+        self.publisher.undeclare()

@@ -1,0 +1,144 @@
+"""Agents driving ROS 2 robots: stand-in robots on rmw_zenoh's wire (:mod:`zswarm.ros.robot_sim`) and
+``launch.py --robots``, with a real router; every child reaped."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import ROOT
+from swarm_procs import Watch, load_summary, processes, rerun_verify, wait_exit
+from zswarm.model.scenarios import get_scenario
+from zswarm.net.config import open_session, zenoh_config
+from zswarm.net.procs import start_router
+from zswarm.record.replay import load_run
+from zswarm.ros import robot_sim
+from zswarm.ros.motion import read_pose, twist
+from zswarm.ros.robots import ODOMETRY, TWIST, load_fleet
+from zswarm.ros.wire import Attachment
+
+N = 6
+
+
+def robots_file(tmp: Path, route: str = "rmw_zenoh") -> Path:
+    lines = [f'route = "{route}"', 'distro = "jazzy"', "domain_id = 0"]
+    for i in range(N):  # each robot's odom frame somewhere else in the world
+        lines += ["[[robot]]", f"id = {i}", f'namespace = "/robot{i}"', f"odom_origin = [{0.5 * i}, {-0.25 * i}, {0.3 * i}]"]
+    path = tmp / f"{route}.toml"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def agent_pid(run: str, agent: int) -> int:
+    """The pid of agent ``agent`` of ``run`` (started with --no-fork: its own command line)."""
+    needle = f"agents\x00--id\x00{agent}\x00--run\x00{run}\x00".encode()
+    for d in Path("/proc").iterdir():
+        try:
+            if d.name.isdigit() and needle in (d / "cmdline").read_bytes():
+                return int(d.name)
+        except OSError:
+            pass
+    raise AssertionError(f"agent {agent} of {run} is not running")
+
+
+def test_six_robots_catch_the_prey_and_fail_safely(tmp_path):
+    """6 stand-in robots on rmw_zenoh (jazzy) and ``launch.py --robots``: the swarm catches the prey on
+    moving-prey with no collision and records the robots' headings; then a killed agent's robot stops
+    within 0.5 s, and a robot whose odometry goes silent takes its agent out while the rest carry on."""
+    path = robots_file(tmp_path)
+    fleet = load_fleet(path)
+    scenario = get_scenario("moving-prey", {"n_agents": N})
+    spawn = scenario.initial_positions(np.random.default_rng(0))
+    robots = [robot_sim.SimRobot(r, fleet.route, robot_sim.start_pose(r, tuple(spawn[r.id]), scenario.prey_start))
+              for r in fleet.robots]
+    record, run = tmp_path / "robots.rrd", "robots"
+    stop = threading.Event()
+    with processes() as kids:
+        endpoint = start_router(kids)
+        session = open_session(zenoh_config("client", [endpoint]), "robots", retry_for=30.0)
+        heard: dict[int, list] = {i: [] for i in range(N)}  # each robot's odometry: (wall time, u, omega)
+        subs = [session.declare_subscriber(fleet.route.key(r.robot.odom, ODOMETRY), lambda s, i=i: heard[i].append(
+            (time.time(), *read_pose(fleet.route, ODOMETRY, s.payload.to_bytes())[3:5]))) for i, r in enumerate(robots)]
+        driver = threading.Thread(target=robot_sim.run, args=(session, fleet.route, robots, 50.0, stop), daemon=True)
+        driver.start()
+        launch = kids.spawn("launch", [str(ROOT / "launch.py"), "--role", "world,agents", "--connect", endpoint,
+                                       "--run", run, "--agents", str(N), "--duration", "19", "--robots", str(path),
+                                       "--no-fork", "--record", str(record), "--quiet"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        try:
+            with Watch(endpoint, run) as watch:
+                watch.reach_step(300, timeout=90)  # 15 s: the reference catches the prey at 11.2 s
+                killed_at = time.time()
+                os.kill(agent_pid(run, 2), signal.SIGKILL)
+                deadline = time.time() + 5
+                while time.time() < deadline and not any(t > killed_at and u == 0.0 and w == 0.0
+                                                         for t, u, w in heard[2][-20:]):
+                    time.sleep(0.02)
+                stopped = next(t for t, u, w in heard[2] if t > killed_at and u == 0.0 and w == 0.0)
+                assert stopped - killed_at < 0.5, stopped - killed_at  # its robot stopped within 0.5 s
+                robots[4].silent = True  # robot 4's odometry stops
+                watch.until(lambda: 4 not in watch.alive, 5, "agent 4 leaving after its robot went silent")
+                assert {0, 1, 3, 5} <= watch.alive
+            assert wait_exit(launch, 60) == 0, launch.proc.stderr.read().decode()[-2000:]
+        finally:
+            stop.set()
+            driver.join(5)
+            for s in subs:
+                s.undeclare()
+            session.close()
+    s = load_summary(record.with_suffix(".json"))
+    assert s["capture_time"] is not None and s["collisions"] == 0 and s["obstacle_collisions"] == 0, s
+    assert {d["id"]: d["how"] for d in s["departures"]} == {2: "crashed", 4: "crashed"}
+    assert s["stopped_at_end"] == [0, 1, 3, 5] and s["rejected_by_reason"] == {}
+    assert all(r.commands > 100 and not r.rejected for r in robots)
+    rerun_verify(record)
+    frames = load_run(record).frames
+    assert all(f.headings is not None and np.isfinite(f.headings).all() for f in frames[1:])  # the robots' yaw
+    assert max(u for _, u, _ in heard[0]) > 0.2  # the robots drove
+
+
+@pytest.mark.parametrize("route_name", ["rmw_zenoh", "ros2dds"])
+def test_robot_sim_speaks_the_wire_and_stops_when_commands_stop(tmp_path, route_name):
+    """``zswarm robot-sim``: odometry on the route's keys (rmw_zenoh: with the 33-byte attachment;
+    zenoh-bridge-ros2dds: the topic name, none); a Twist drives a robot, a malformed one is counted and
+    dropped; without commands the robot stops."""
+    path = robots_file(tmp_path, route_name)
+    route = load_fleet(path).route
+    attached = route_name == "rmw_zenoh"
+    samples = []
+    with processes() as kids:
+        endpoint = start_router(kids)
+        sim = kids.spawn("robot-sim", ["-m", "zswarm", "robot-sim", "--robots", str(path), "--set", f"n_agents={N}",
+                                       "--connect", endpoint, "--duration", "6"], stdout=subprocess.PIPE)
+        with open_session(zenoh_config("client", [endpoint]), "t", retry_for=30.0) as session:
+            sub = session.declare_subscriber(route.key("/robot1/odom", ODOMETRY), lambda s: samples.append(
+                (time.time(), read_pose(route, ODOMETRY, s.payload.to_bytes()),
+                 Attachment.decode(s.attachment.to_bytes()) if attached else s.attachment)))
+            deadline = time.time() + 30
+            while len(samples) < 10 and time.time() < deadline:
+                time.sleep(0.05)
+            pub = session.declare_publisher(route.key("/robot1/cmd_vel", TWIST))
+            pub.put(b"\x00\x01\x00\x00 not a twist")
+            for i in range(10):
+                pub.put(twist(route, 0.4, 0.5))
+                time.sleep(0.05)
+            sent_last = time.time()
+            time.sleep(0.6)
+            sub.undeclare()
+        out = sim.proc.communicate(timeout=30)[0].decode()
+    assert sim.proc.returncode == 0
+    if attached:
+        seqs = [a.sequence for _, _, a in samples]
+        assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))  # every sample attached, numbered in order
+    else:
+        assert route.key("/robot1/odom", ODOMETRY) == "robot1/odom" and all(a is None for _, _, a in samples)
+    assert any(p.u == pytest.approx(0.4) and p.omega == pytest.approx(0.5) for _, p, _ in samples)
+    assert all(p.u == 0.0 for t, p, _ in samples if t > sent_last + 0.35)  # stopped after its 0.25 s timeout
+    assert "/robot1: 10 commands, rejected cdr 1" in out, out

@@ -1,0 +1,123 @@
+"""The ROS 2 wire, checked against implementations that are not ours: rosbags' message types and
+RIHS01 hashes, Zenoh's own serializer for rmw_zenoh's attachment, rmw_zenoh's documented key example,
+and CDR bytes laid out by hand from the CDR rules."""
+
+from __future__ import annotations
+
+import math
+import struct
+
+import pytest
+import zenoh.ext as zx
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from zswarm.errors import UsageError
+from zswarm.ros.motion import Odom, odometry, read_pose, read_twist, twist
+from zswarm.ros.robot_sim import SimRobot
+from zswarm.ros.robots import ODOMETRY, TWIST, Robot, load_fleet
+from zswarm.ros.wire import Attachment, Route, WireError
+
+JAZZY = Route("rmw_zenoh", "jazzy")
+
+
+def test_the_key_of_a_topic_is_rmw_zenohs():
+    # rmw_zenoh's docs/design.md: "0/chatter/std_msgs::msg::dds_::String_/RIHS01_df668c74..."
+    assert JAZZY.key("/chatter", "std_msgs/msg/String") == (
+        "0/chatter/std_msgs::msg::dds_::String_/RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18")
+    assert Route("rmw_zenoh", "humble", 7).key("/robot0/cmd_vel/", TWIST) == (
+        "7/robot0/cmd_vel/geometry_msgs::msg::dds_::Twist_/TypeHashNotSupported")
+    assert Route("ros2dds").key("/robot0/cmd_vel", TWIST) == "robot0/cmd_vel"
+    assert Route("ros2dds", bridge_namespace="/site1").key("/robot0/odom", ODOMETRY) == "site1/robot0/odom"
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(1, 2**62), st.integers(0, 2**62), st.binary(min_size=16, max_size=16))
+def test_the_attachment_is_what_zenohs_own_serializer_writes(sequence, stamp, gid):
+    ours = Attachment(sequence, stamp, gid).encode()
+    theirs = zx.z_serialize((zx.Int64(sequence), zx.Int64(stamp), gid)).to_bytes()
+    assert ours == theirs and len(ours) == 33
+    assert Attachment.decode(theirs) == Attachment(sequence, stamp, gid)
+
+
+@pytest.mark.parametrize("data", [None, b"", b"\x00" * 32, b"\x00" * 16 + b"\x0f" + b"\x00" * 16])
+def test_a_sample_without_rmw_zenohs_attachment_is_refused(data):
+    with pytest.raises(WireError) as err:
+        Attachment.decode(data)
+    assert err.value.reason == "attachment"
+
+
+def test_a_twist_is_cdr_little_endian_as_laid_out_by_hand():
+    """Encapsulation header 00 01 00 00, then six float64 (two Vector3), 8-aligned from after the header."""
+    assert twist(JAZZY, 0.5, -1.25) == b"\x00\x01\x00\x00" + struct.pack("<6d", 0.5, 0, 0, 0, 0, -1.25)
+    assert read_twist(JAZZY, b"\x00\x01\x00\x00" + struct.pack("<6d", 0.3, 9, 9, 9, 9, 2.0)) == (0.3, 2.0)
+    assert read_twist(JAZZY, b"\x00\x00\x00\x00" + struct.pack(">6d", 0.3, 0, 0, 0, 0, 2.0)) == (0.3, 2.0)  # big endian
+
+
+def test_odometry_round_trips_through_rosbags():
+    odom = Odom(1.5, -2.0, 2.9, 0.4, -0.7, 1234.5)
+    payload = odometry(JAZZY, odom, "robot0/odom", "robot0/base_footprint")
+    m = JAZZY.types()  # decoded by rosbags itself, field by field
+    raw = JAZZY.decode(ODOMETRY, payload)
+    assert isinstance(raw, m[ODOMETRY]) and raw.child_frame_id == "robot0/base_footprint"
+    assert read_pose(JAZZY, ODOMETRY, payload) == pytest.approx(odom)
+
+
+@pytest.mark.parametrize("payload,reason", [
+    (b"\x01\x02\x03\x04" + b"\x00" * 48, "header"),  # not CDR
+    (b"", "header"),
+    (b"\x00\x01\x00\x00" + b"\x00" * 10, "cdr"),  # too short for a Twist
+    (b"\x00\x01\x00\x00" + struct.pack("<6d", math.nan, 0, 0, 0, 0, 0), "cdr"),
+])
+def test_malformed_or_foreign_cdr_is_refused_with_a_reason(payload, reason):
+    with pytest.raises(WireError) as err:
+        read_twist(JAZZY, payload)
+    assert err.value.reason == reason
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.binary(max_size=200))
+def test_no_bytes_make_the_decoder_raise_anything_but_a_wire_error(data):
+    for msgtype in (TWIST, ODOMETRY):
+        try:
+            read_twist(JAZZY, data) if msgtype == TWIST else read_pose(JAZZY, msgtype, data)
+        except WireError:
+            pass
+
+
+def test_odom_frames_turn_into_the_world_and_back():
+    r = Robot(0, "/r", (1.0, -2.0, 0.7))
+    x, y, yaw = r.to_world(0.5, 0.25, -2.0)
+    assert r.to_odom(x, y, yaw) == pytest.approx((0.5, 0.25, -2.0))
+    assert r.to_world(0.0, 0.0, 0.0) == pytest.approx((1.0, -2.0, 0.7))
+
+
+def test_a_stand_in_robot_obeys_its_limits_and_stops_when_commands_stop():
+    robot = SimRobot(Robot(0, "/r", max_linear=0.5, max_angular=2.0), JAZZY, Odom(0, 0, 0), cmd_timeout=0.25)
+    robot.take(twist(JAZZY, 3.0, 0.0), now=10.0)
+    assert robot.inputs(10.1) == (0.5, 0.0)  # clipped to max_linear
+    robot.take(twist(JAZZY, 0.5, 2.0), now=10.0)
+    u, omega = robot.inputs(10.1)  # the outer wheel would exceed 0.5 m/s: both slowed, curvature kept
+    assert max(abs(u - omega * 0.08), abs(u + omega * 0.08)) == pytest.approx(0.5) and omega / u == pytest.approx(4.0)
+    assert robot.inputs(10.26) == (0.0, 0.0)  # 0.26 s after the last command: stopped
+    robot.take(b"\x00\x01\x00\x00garbage", now=11.0)
+    assert robot.rejected == {"cdr": 1} and robot.commands == 2
+
+
+@pytest.mark.parametrize("text,needle", [
+    ('route = "dds"\n[[robot]]\nid = 0\nnamespace = "/r0"\n', "route must be one of"),
+    ('distro = "iron"\n[[robot]]\nid = 0\nnamespace = "/r0"\n', "distro must be one of"),
+    ('route = "rmw_zenoh"\n', "no [[robot]] entries"),
+    ('[[robot]]\nid = 0\nnamespace = "r0"\n', "namespace must be a ROS namespace"),
+    ('[[robot]]\nid = 0\nnamespace = "/r0"\n[[robot]]\nid = 0\nnamespace = "/r1"\n', "two robots have id 0"),
+    ('[[robot]]\nid = 0\nnamespace = "/r0"\nmax_linear = -1\n', "max_linear must be a number"),
+    ('[[robot]]\nid = 0\nnamespace = "/r0"\nodom_origin = [1, 2]\n', "odom_origin must be [x, y, yaw]"),
+    ('[[robot]]\nid = 0\nnamespace = "/r0"\nspeed = 2\n', "unknown field 'speed'"),
+    ("[[robot\n", "is not valid TOML"),
+])
+def test_a_bad_robots_file_is_one_line(tmp_path, text, needle):
+    f = tmp_path / "robots.toml"
+    f.write_text(text)
+    with pytest.raises(UsageError, match=None) as err:
+        load_fleet(f)
+    assert needle in str(err.value) and "\n" not in str(err.value) and str(f) in str(err.value)

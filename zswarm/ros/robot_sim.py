@@ -1,0 +1,119 @@
+"""Stand-in ROS 2 robots: differential-drive robots that speak the wire a real one does, so that a
+deployment can be rehearsed and tested without ROS 2.
+
+Each robot integrates unicycle dynamics at ``rate`` Hz (50: a TurtleBot's odometry rate), clips every
+command to its forward-speed and turn-rate limits and to its wheels' speed limit, publishes
+nav_msgs/msg/Odometry on ``<namespace>/odom`` (with rmw_zenoh's attachment on that route), and takes
+geometry_msgs/msg/Twist from ``<namespace>/cmd_vel``. When commands stop for ``cmd_timeout`` seconds it
+stops, as a robot's base controller does. A command that does not decode is counted by reason and
+dropped; it never stops the simulator.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import threading
+import time
+from dataclasses import dataclass, field
+
+from zswarm.ros.motion import Odom, odometry, read_twist
+from zswarm.ros.robots import ODOMETRY, TWIST, Robot
+from zswarm.ros.wire import Attachment, Route, WireError
+
+WHEEL_BASE = 0.16  # m, a TurtleBot 3 Burger's
+
+
+@dataclass
+class SimRobot:
+    """One stand-in robot: its pose in its odom frame, the last command and when it came, its limits."""
+
+    robot: Robot
+    route: Route
+    pose: Odom
+    cmd_timeout: float = 0.25
+    wheel_max: float | None = None  # m/s at each wheel (default: the robot's max_linear)
+    command: tuple[float, float, float] = (0.0, 0.0, -math.inf)  # (u, omega, wall time received)
+    rejected: dict[str, int] = field(default_factory=dict)
+    commands: int = 0
+    gid: bytes = field(default_factory=lambda: os.urandom(16))
+    sequence: int = 0
+    silent: bool = False  # its odometry stopped (a failure to rehearse): it publishes none
+    lock: threading.Lock = field(default_factory=threading.Lock)
+
+    def take(self, payload: bytes, now: float) -> None:
+        """A cmd_vel sample (on a Zenoh thread)."""
+        try:
+            u, omega = read_twist(self.route, payload)
+        except WireError as exc:
+            with self.lock:
+                self.rejected[exc.reason] = self.rejected.get(exc.reason, 0) + 1
+            return
+        with self.lock:
+            self.command = (u, omega, now)
+            self.commands += 1
+
+    def inputs(self, now: float) -> tuple[float, float]:
+        """The forward speed and turn rate it drives with now: the last command while fresh, clipped to
+        its limits and its wheels'; zero once commands stopped."""
+        u, omega, at = self.command
+        if now - at > self.cmd_timeout:
+            return 0.0, 0.0
+        r = self.robot
+        u = max(-r.max_linear, min(r.max_linear, u))
+        omega = max(-r.max_angular, min(r.max_angular, omega))
+        wheel = self.wheel_max if self.wheel_max is not None else r.max_linear
+        fastest = max(abs(u - omega * WHEEL_BASE / 2.0), abs(u + omega * WHEEL_BASE / 2.0))
+        if fastest > wheel:  # both wheels slowed by one factor: the path's curvature is kept
+            u, omega = u * wheel / fastest, omega * wheel / fastest
+        return u, omega
+
+    def step(self, dt: float, now: float) -> Odom:
+        u, omega = self.inputs(now)
+        p = self.pose
+        yaw = p.yaw + omega * dt
+        self.pose = Odom(p.x + u * math.cos(p.yaw) * dt, p.y + u * math.sin(p.yaw) * dt,
+                         (yaw + math.pi) % (2.0 * math.pi) - math.pi, u, omega, now)
+        return self.pose
+
+    def odometry(self) -> tuple[bytes, bytes | None]:
+        """The odometry sample and, on rmw_zenoh, its attachment."""
+        name = self.robot.namespace.strip("/")
+        payload = odometry(self.route, self.pose, f"{name}/odom", f"{name}/base_footprint")
+        self.sequence += 1
+        attachment = (Attachment(self.sequence, time.time_ns(), self.gid).encode() if self.route.attached else None)
+        return payload, attachment
+
+
+def start_pose(robot: Robot, world: tuple[float, float], facing: tuple[float, float]) -> Odom:
+    """A robot at the world point ``world`` facing ``facing``, in its odom frame."""
+    yaw = math.atan2(facing[1] - world[1], facing[0] - world[0])
+    x, y, yaw = robot.to_odom(world[0], world[1], yaw)
+    return Odom(x, y, yaw, stamp=time.time())
+
+
+def run(session, route: Route, robots: list[SimRobot], rate: float, stop: threading.Event,
+        duration: float | None = None) -> None:
+    """Drive ``robots`` on ``session`` at ``rate`` Hz until ``stop`` is set (or ``duration`` passes)."""
+    declared = []
+    publishers = []
+    for r in robots:
+        publishers.append(session.declare_publisher(route.key(r.robot.odom, ODOMETRY)))
+        declared.append(session.declare_subscriber(
+            route.key(r.robot.cmd_vel, TWIST),
+            lambda sample, r=r: r.take(sample.payload.to_bytes(), time.time())))
+    period = 1.0 / rate
+    began = next_tick = time.monotonic()
+    try:
+        while not stop.is_set() and (duration is None or time.monotonic() - began < duration):
+            now = time.time()
+            for r, pub in zip(robots, publishers):
+                r.step(period, now)
+                if not r.silent:
+                    payload, attachment = r.odometry()
+                    pub.put(payload, attachment=attachment)
+            next_tick += period
+            stop.wait(max(next_tick - time.monotonic(), 0.0))
+    finally:
+        for d in (*declared, *publishers):
+            d.undeclare()
