@@ -97,7 +97,7 @@ class Process:
             p = spec.scenario.params
             self.agent.robot = self.agent.sensing.robot = RobotLink(
                 robot, fleet.route, self.bridge, p.swarm.v_max, p.body.lookahead, self.agent.counters.rejections,
-                args.odom_timeout)
+                args.odom_timeout, args.id)
 
     def no_world(self, waited: float) -> UsageError:
         """Why it cannot join: the world is of another dimension, or did not answer."""

@@ -23,6 +23,7 @@ import numpy as np
 
 from zswarm.errors import Failure
 from zswarm.model import body as bodies
+from zswarm.ros import graph
 from zswarm.ros.motion import Odom, read_pose, twist
 from zswarm.ros.robots import TWIST, Robot
 from zswarm.ros.wire import Attachment, Route, WireError
@@ -30,7 +31,7 @@ from zswarm.ros.wire import Attachment, Route, WireError
 
 class RobotLink:
     def __init__(self, robot: Robot, route: Route, bridge, v_max: float, lookahead: float, rejections,
-                 odom_timeout: float = 1.0) -> None:
+                 odom_timeout: float = 1.0, agent_id: int = 0) -> None:
         self.robot, self.route, self.bridge, self.rejections = robot, route, bridge, rejections
         self.odom_timeout = odom_timeout
         self.spec = bodies.BodySpec("unicycle", min(robot.max_linear, v_max), robot.max_angular, lookahead)
@@ -40,6 +41,17 @@ class RobotLink:
         self.heard_at = -math.inf  # wall time of the last odometry taken in
         self.gid, self.sequence = os.urandom(16), 0
         self.sent = 0
+        self.tokens = self._announce(agent_id) if route.attached else []
+
+    def _announce(self, agent_id: int) -> list:
+        """rmw_zenoh's liveliness tokens (:mod:`zswarm.ros.graph`): node ``zswarm_agent_<id>`` in the
+        robot's namespace, publishing cmd_vel and subscribed to the robot's pose, for the ROS tools."""
+        session, robot, route = self.bridge.session, self.robot, self.route
+        zid, name, ns = str(session.info.zid()), f"zswarm_agent_{agent_id}", robot.namespace
+        keys = [graph.node_token(route, zid, 0, ns, name),
+                graph.topic_token(route, zid, 0, 1, "MP", ns, name, robot.cmd_vel, TWIST),
+                graph.topic_token(route, zid, 0, 2, "MS", ns, name, robot.odom, robot.pose_type)]
+        return [session.liveliness().declare_token(key) for key in keys]
 
     def take(self, payload: bytes, received: float) -> None:
         """An odometry (or PoseStamped) sample, already delivered by the bridge."""
@@ -82,4 +94,6 @@ class RobotLink:
 
     def close(self) -> None:
         self.stop()
+        for token in self.tokens:
+            token.undeclare()
         self.publisher.undeclare()

@@ -75,6 +75,11 @@ def test_six_robots_catch_the_prey_and_fail_safely(tmp_path):
         try:
             with Watch(endpoint, run) as watch:
                 watch.reach_step(300, timeout=90)  # 15 s: the reference catches the prey at 11.2 s
+                tokens = [str(r.ok.key_expr) for r in session.liveliness().get("@ros2_lv/0/**", timeout=5.0)
+                          if r.ok is not None]  # the ROS graph sees each agent's node and its cmd_vel
+                assert sum(t.endswith(f"/NN/%/%robot{i}/zswarm_agent_{i}") for t in tokens for i in range(N)) == N
+                assert any("/MP/%/%robot0/zswarm_agent_0/%robot0%cmd_vel/geometry_msgs::msg::dds_::Twist_/" in t
+                           for t in tokens), tokens
                 killed_at = time.time()
                 os.kill(agent_pid(run, 2), signal.SIGKILL)
                 deadline = time.time() + 5

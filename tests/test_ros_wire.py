@@ -13,9 +13,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from zswarm.errors import UsageError
+from zswarm.ros.graph import node_token, topic_token
 from zswarm.ros.motion import Odom, odometry, read_pose, read_twist, twist
 from zswarm.ros.robot_sim import SimRobot
-from zswarm.ros.robots import ODOMETRY, TWIST, Robot, load_fleet
+from zswarm.ros.robots import ODOMETRY, POSE_STAMPED, TWIST, Robot, load_fleet
 from zswarm.ros.wire import Attachment, Route, WireError
 
 JAZZY = Route("rmw_zenoh", "jazzy")
@@ -121,3 +122,30 @@ def test_a_bad_robots_file_is_one_line(tmp_path, text, needle):
     with pytest.raises(UsageError, match=None) as err:
         load_fleet(f)
     assert needle in str(err.value) and "\n" not in str(err.value) and str(f) in str(err.value)
+
+
+def test_liveliness_tokens_are_rmw_zenohs_documented_examples():
+    """rmw_zenoh's docs/design.md: the listener node, its subscription and the talker's publisher."""
+    zid, domain2 = "aac3178e146ba6f1fc6e6a4085e77f21", Route("rmw_zenoh", "jazzy", 2)
+    assert node_token(domain2, zid, 0, "/", "listener") == f"@ros2_lv/2/{zid}/0/0/NN/%/%/listener"
+    hash_ = "RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18"
+    assert topic_token(domain2, zid, 0, 10, "MS", "/", "listener", "/chatter", "std_msgs/msg/String") == (
+        f"@ros2_lv/2/{zid}/0/10/MS/%/%/listener/%chatter/std_msgs::msg::dds_::String_/{hash_}/::,10:,:,:,,")
+    talker = "8b20917502ee955ac4476e0266340d5c"
+    assert topic_token(domain2, talker, 0, 10, "MP", "/", "talker", "/chatter", "std_msgs/msg/String",
+                       "::,7:,:,:,,") == (
+        f"@ros2_lv/2/{talker}/0/10/MP/%/%/talker/%chatter/std_msgs::msg::dds_::String_/{hash_}/::,7:,:,:,,")
+    # a namespaced node: every '/' inside a name is a '%'
+    assert topic_token(JAZZY, zid, 0, 1, "MP", "/robot0", "zswarm_agent_0", "/robot0/cmd_vel", TWIST).split("/")[6:10] == [
+        "%", "%robot0", "zswarm_agent_0", "%robot0%cmd_vel"]
+
+
+def test_a_pose_stamped_topic_gives_the_pose_without_speeds():
+    t = JAZZY.types()
+    q = t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=math.sin(0.6), w=math.cos(0.6))
+    pose = t["geometry_msgs/msg/Pose"](position=t["geometry_msgs/msg/Point"](x=2.0, y=-1.0, z=0.0), orientation=q)
+    header = t["std_msgs/msg/Header"](stamp=t["builtin_interfaces/msg/Time"](sec=3, nanosec=500_000_000), frame_id="map")
+    payload = JAZZY.encode(POSE_STAMPED, t[POSE_STAMPED](header=header, pose=pose))
+    assert read_pose(JAZZY, POSE_STAMPED, payload) == pytest.approx(Odom(2.0, -1.0, 1.2, 0.0, 0.0, 3.5))
+    robot = Robot(0, "/r0", pose_topic="/mocap/r0/pose")
+    assert (robot.odom, robot.pose_type, robot.cmd_vel) == ("/mocap/r0/pose", POSE_STAMPED, "/r0/cmd_vel")

@@ -25,8 +25,8 @@ def module_command(sub: argparse._SubParsersAction, name: str, text: str, module
 
 
 def build_parser() -> Parser:
-    from zswarm.cli import (bench_bodies, bench_guidelines, bench_interactions, bench_net, certs, design, monitor,
-                            replay, robot_sim, sim, soak, tune)
+    from zswarm.cli import (bench_bodies, bench_guidelines, bench_interactions, bench_net, certs, design, export,
+                            monitor, replay, robot_sim, sim, soak, tune)
 
     parser = Parser(prog="zswarm", description="Decentralized APF swarms (Kim, Wang & Shin 2006).")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
@@ -67,6 +67,7 @@ def build_parser() -> Parser:
     module_command(bench_sub, "bodies", "what each body costs on the registered scenarios", bench_bodies)
 
     replay.add_arguments(sub)
+    module_command(sub, "export", "write a recorded run as ROS 2 messages (MCAP, for Foxglove and ros2 bag)", export)
 
     c = sub.add_parser("certs", help="make a CA, certificates and Zenoh configs for TLS + access control",
                        description=certs.DESCRIPTION)
