@@ -30,7 +30,7 @@ ALLOWED: dict[str, set[str]] = {
     "record": {"base", "model", "record"},
     "sim": {"base", "model", "record", "sim"},
     "net": {"base", "model", "net"},
-    "ros": {"base", "model", "record", "ros"},
+    "ros": {"base", "model", "ros"},
     "agents": {"base", "model", "net", "ros", "agents"},
     "world": {"base", "model", "net", "record", "world"},
     "tune": {"base", "model", "record", "sim", "tune"},

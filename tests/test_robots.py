@@ -88,6 +88,10 @@ def test_six_robots_catch_the_prey_and_fail_safely(tmp_path):
                     time.sleep(0.02)
                 stopped = next(t for t, u, w in heard[2] if t > killed_at and u == 0.0 and w == 0.0)
                 assert stopped - killed_at < 0.5, stopped - killed_at  # its robot stopped within 0.5 s
+                junk = session.declare_publisher(fleet.route.key(robots[1].robot.odom, ODOMETRY))
+                for payload in (b"not cdr at all", b"\x00\x01\x00\x00 short"):  # foreign and truncated
+                    junk.put(payload)
+                junk.undeclare()
                 robots[4].silent = True  # robot 4's odometry stops
                 watch.until(lambda: 4 not in watch.alive, 5, "agent 4 leaving after its robot went silent")
                 assert {0, 1, 3, 5} <= watch.alive
@@ -101,7 +105,8 @@ def test_six_robots_catch_the_prey_and_fail_safely(tmp_path):
     s = load_summary(record.with_suffix(".json"))
     assert s["capture_time"] is not None and s["collisions"] == 0 and s["obstacle_collisions"] == 0, s
     assert {d["id"]: d["how"] for d in s["departures"]} == {2: "crashed", 4: "crashed"}
-    assert s["stopped_at_end"] == [0, 1, 3, 5] and s["rejected_by_reason"] == {}
+    assert s["stopped_at_end"] == [0, 1, 3, 5]
+    assert s["rejected_by_reason"] == {"ros-header": 1, "ros-cdr": 1}  # counted and dropped by agent 1
     assert all(r.commands > 100 and not r.rejected for r in robots)
     rerun_verify(record)
     frames = load_run(record).frames
@@ -147,3 +152,35 @@ def test_robot_sim_speaks_the_wire_and_stops_when_commands_stop(tmp_path, route_
     assert any(p.u == pytest.approx(0.4) and p.omega == pytest.approx(0.5) for _, p, _ in samples)
     assert all(p.u == 0.0 for t, p, _ in samples if t > sent_last + 0.35)  # stopped after its 0.25 s timeout
     assert "/robot1: 10 commands, rejected cdr 1" in out, out
+
+
+def test_a_command_never_exceeds_the_robots_limits(tmp_path):
+    """Whatever the law asks, the Twist an agent sends is within the robot's max_linear (and v_max) and
+    max_angular; on rmw_zenoh it carries the attachment, numbered from 1."""
+    from agents.robot_link import RobotLink
+    from zswarm.net.bridge import Bridge
+    from zswarm.net.poses import Rejections
+    from zswarm.ros.motion import Odom, read_twist
+    from zswarm.ros.robots import Robot
+
+    route = load_fleet(robots_file(tmp_path)).route
+    robot = Robot(0, "/r0", max_linear=0.3, max_angular=1.5)
+    heard = []
+    with open_session(zenoh_config("peer"), "t") as session:
+        sub = session.declare_subscriber(route.key(robot.cmd_vel, TWIST), lambda s: heard.append(
+            (read_twist(route, s.payload.to_bytes()), Attachment.decode(s.attachment.to_bytes()))))
+        link = RobotLink(robot, route, Bridge(session, None, deliver=lambda item: None), 1.0, 0.25,
+                         Rejections("t"), agent_id=0)
+        link.pose = Odom(0.0, 0.0, 0.3)
+        rng = np.random.default_rng(1)
+        for v in rng.normal(0.0, 5.0, (50, 2)):
+            u, omega = link.drive(tuple(v))
+            assert abs(u) <= 0.3 and abs(omega) <= 1.5
+        link.close()
+        deadline = time.time() + 5
+        while len(heard) < 51 and time.time() < deadline:
+            time.sleep(0.02)
+        sub.undeclare()
+    assert len(heard) == 51 and heard[-1][0] == (0.0, 0.0)  # the last: a zero Twist on closing
+    assert all(abs(u) <= 0.3 + 1e-12 and abs(w) <= 1.5 + 1e-12 for (u, w), _ in heard)
+    assert [a.sequence for _, a in heard] == list(range(1, 52))

@@ -21,7 +21,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from zswarm.record.replay import load_run
+    from zswarm.record.replay import load_run, observer_of, scenario_of
     from zswarm.ros.export import export_mcap
 
     if args.mcap.suffix != ".mcap":
@@ -30,7 +30,8 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"{args.mcap} exists; give another path or --force")
     if not args.mcap.parent.is_dir():
         raise UsageError(f"the folder of --mcap {args.mcap} does not exist")
-    counts = export_mcap(load_run(args.recording), args.mcap, args.distro)
+    run = load_run(args.recording)
+    counts = export_mcap(run, scenario_of(run), observer_of(run), args.mcap, args.distro)
     agents = sum(1 for topic in counts if topic.startswith("/swarm/agent_"))
     print(f"export: {args.mcap}: {sum(counts.values())} messages on {len(counts)} topics ({agents} agents' poses, "
           f"the prey, {counts.get('/swarm/obstacles', 0)} obstacle array, "

@@ -23,7 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from zswarm.record.replay import RunRecord, observer_of, scenario_of
+from zswarm.model.observer import SwarmObserver
+from zswarm.model.scenario import Scenario
 from zswarm.ros.wire import typestore
 
 POSE, POINT, MARKERS, FLOAT = ("geometry_msgs/msg/PoseStamped", "geometry_msgs/msg/PointStamped",
@@ -71,13 +72,13 @@ def facing(heading: float | None, velocity: np.ndarray) -> float | None:
     return math.atan2(velocity[1], velocity[0]) if float(np.hypot(velocity[0], velocity[1])) > 1e-9 else None
 
 
-def export_mcap(run: RunRecord, out: Path, distro: str = "jazzy") -> dict[str, int]:
-    """Write ``run`` to ``out`` (an .mcap file); returns the number of messages per topic."""
+def export_mcap(run: Any, scenario: Scenario, observer: SwarmObserver, out: Path,
+                distro: str = "jazzy") -> dict[str, int]:
+    """Write ``run`` (a :class:`zswarm.record.replay.RunRecord` of ``scenario``; ``observer`` a fresh
+    one of it, which recomputes the metrics) to ``out`` (an .mcap file); returns the messages per topic."""
     from rosbags.rosbag2 import StoragePlugin, Writer
 
     store, build = typestore(distro), _Messages(distro)
-    scenario = scenario_of(run)
-    observer = observer_of(run)
     counts: dict[str, int] = {}
     with tempfile.TemporaryDirectory() as tmp:
         bag = Path(tmp) / "bag"
