@@ -126,7 +126,7 @@ def test_robot_sim_speaks_the_wire_and_stops_when_commands_stop(tmp_path, route_
     with processes() as kids:
         endpoint = start_router(kids)
         sim = kids.spawn("robot-sim", ["-m", "zswarm", "robot-sim", "--robots", str(path), "--set", f"n_agents={N}",
-                                       "--connect", endpoint, "--duration", "6"], stdout=subprocess.PIPE)
+                                       "--connect", endpoint, "--duration", "30"], stdout=subprocess.PIPE)
         with open_session(zenoh_config("client", [endpoint]), "t", retry_for=30.0) as session:
             sub = session.declare_subscriber(route.key("/robot1/odom", ODOMETRY), lambda s: samples.append(
                 (time.time(), read_pose(route, ODOMETRY, s.payload.to_bytes()),
@@ -142,6 +142,7 @@ def test_robot_sim_speaks_the_wire_and_stops_when_commands_stop(tmp_path, route_
             sent_last = time.time()
             time.sleep(0.6)
             sub.undeclare()
+        sim.proc.send_signal(signal.SIGINT)  # it stops at once and reports what it took
         out = sim.proc.communicate(timeout=30)[0].decode()
     assert sim.proc.returncode == 0
     if attached:

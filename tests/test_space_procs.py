@@ -98,7 +98,7 @@ def test_faults_a_crash_and_the_monitor_in_3d(tmp_path):
 def test_a_2d_agent_and_a_3d_world_refuse_each_other(tmp_path):
     """An agent started with the other dimension's scenario exits 2 with one line before it joins (both
     ways), and the world says so once; a 2-D pose published into a 3-D run is refused as ``dimensions``."""
-    short = ("--set", "n_agents=1", "--duration", "2", "--start-timeout", "8", "--progress", "0")
+    short = ("--set", "n_agents=1", "--duration", "2", "--start-timeout", "6", "--progress", "0")
     with processes() as kids:
         endpoint = start_router(kids)
         worlds, agents = {}, {}

@@ -20,12 +20,12 @@ Every mistake is one :class:`~zswarm.errors.UsageError` line naming the file and
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from zswarm.errors import UsageError
+from zswarm.files import read_toml
 from zswarm.ros.wire import Route
 
 ODOMETRY = "nav_msgs/msg/Odometry"
@@ -123,14 +123,7 @@ def _robot(where: str, entry: Any) -> Robot:
 def load_fleet(path: Path) -> Fleet:
     """Read and check a robots file."""
     where = str(path)
-    try:
-        data = tomllib.loads(Path(path).read_text())
-    except FileNotFoundError:
-        raise UsageError(f"robots file {where} does not exist") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise UsageError(f"cannot read robots file {where}: {exc}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise UsageError(f"{where} is not valid TOML: {exc}") from None
+    data = read_toml(path, "robots file")
     unknown = set(data) - TOP_KEYS
     if unknown:
         raise UsageError(f"{where}: unknown field {sorted(unknown)[0]!r} (known: {', '.join(sorted(TOP_KEYS))})")
