@@ -34,14 +34,14 @@ from swarm_procs import (
 @pytest.mark.parametrize("scenario,duration,interaction,body", [
     ("moving-prey", 30.0, "paper", "point"), ("static-goal", 15.0, "paper", "point"),
     ("moving-prey", 10.0, "mean+gate", "point"), ("moving-prey", 5.0, "paper", "unicycle"),
-    ("moving-prey", 5.0, "paper", "double-integrator"), ("moving-prey-3d", 8.0, "paper", "point")])
+    ("moving-prey", 5.0, "paper", "double-integrator"), ("moving-prey-3d", 5.0, "paper", "point")])
 def test_lockstep_swarm_reproduces_the_reference_and_catches_the_prey(tmp_path, scenario, duration, interaction,
                                                                        body):
     """The paper's law catches the prey within the run on moving-prey; the other cases are held to the
     reference for the first part of theirs, which is what this test is about: static-goal through its
     split at the large obstacle (15 s; tests/test_sim.py runs it to the goal), mean+gate (slower: 34.9 s)
     for 10 s, the other bodies for 5 s (zswarm.model.body; tests/test_body.py runs them to the capture),
-    3-D for 8 s (tests/test_space.py runs it to the capture as processes)."""
+    3-D for 5 s (tests/test_space_procs.py runs it to the capture as processes)."""
     sets = ["--set", f"interaction={interaction}", "--set", f"body={body}"]
     n = get_scenario(scenario).n_agents
     catches = duration >= 30.0

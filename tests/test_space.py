@@ -146,3 +146,26 @@ def test_a_3d_scenario_file_reads_and_runs(tmp_path):
     climbed = run.prey_trajectory[-1] - run.prey_trajectory[0]
     np.testing.assert_allclose(climbed, 0.1 * 12.0 * np.array([0.0, math.cos(math.pi / 6), 0.5]), atol=1e-9)
     assert run.summary["collisions"] == 0 and run.trajectory.shape == (241, 6, 3)
+
+
+def test_a_3d_agent_learns_it_is_in_a_2d_run_from_the_worlds_first_answer(capsys):
+    """The reverse of tests/test_space_procs.py's stranger: a 2-D world answers a query made at z in
+    2-D (and says once that a 3-D agent asked); the agent's view refuses the answer and remembers why."""
+    from agents.counters import Counters
+    from agents.obstacle_view import ObstacleView
+    from agents.sensing import Body
+    from world.obstacles import ObstacleService
+    from zswarm.net import messages as msg
+    from zswarm.net.keys import Keys
+    from zswarm.net.poses import Rejections
+
+    service = ObstacleService(np.array([[1.0, 0.0]]), np.array([0.3]), "zswarm/r/obstacles", dims=2)
+    (_, payload), = service.answer({"x": "0.5", "y": "0.0", "z": "2.0", "r": "1.0"})
+    service.answer({"x": "0.5", "y": "0.0", "z": "2.0", "r": "1.0"})
+    answer = msg.decode(payload)
+    assert answer.dims == 2 and answer.centers == ((1.0, 0.0),)
+    assert capsys.readouterr().err.count("a 3-D agent asked this 2-D run for obstacles") == 1
+    view = ObstacleView(Keys("r", 1.0, dims=3), None, Body(0.5, 0.0, z=2.0, vz=0.0), 1.0, Counters(Rejections("t")))
+    assert not view.know(answer, (0.5, 0.0, 2.0))
+    assert view.foreign_dims == 2 and view.query_at is None and view.obstacles == []
+    assert view.know(msg.Obstacles(((1.0, 0.0, 2.0),), (0.3,), dims=3), (0.5, 0.0, 2.0)) and view.foreign_dims == 2

@@ -11,12 +11,12 @@ import time
 import numpy as np
 import pytest
 
-from swarm_procs import load_summary, processes, rerun_verify, run_launch, split_spec, wait_exit
+from swarm_procs import Watch, load_summary, processes, rerun_verify, run_launch, split_spec, wait_exit
 from viewer_shots import NO_XVFB, colored, render
 from zswarm.net import messages as msg
 from zswarm.net.config import open_session, zenoh_config
 from zswarm.net.keys import Keys
-from zswarm.net.procs import agent_argv, free_port, start_router, world_argv
+from zswarm.net.procs import agent_argv, free_port
 from zswarm.record.replay import load_run, recompute
 
 
@@ -65,26 +65,43 @@ def test_the_3d_demo_recording_opens_in_a_3d_view(demo_3d, tmp_path):
     assert colored(map_) > 300 and colored(plots) > 500
 
 
-def test_faults_a_crash_and_the_monitor_in_3d(tmp_path):
-    """Injected loss and delay, an agent killed and restarted, and ``zswarm monitor`` watching: the
-    3-D run carries on, says who crashed, and the monitor shows the prey in 3-D."""
+def test_faults_a_crash_a_2d_stranger_and_the_monitor_in_3d(tmp_path):
+    """Injected loss and delay, an agent killed and restarted, and ``zswarm monitor`` watching: the 3-D
+    run carries on, says who crashed, and the monitor shows the prey in 3-D. Meanwhile an agent started
+    with a 2-D scenario exits 2 with one line before it joins, the world says so once, and a 2-D pose
+    published into the run is refused as ``dimensions`` (the reverse way: tests/test_space.py)."""
     port = free_port()
     endpoint = f"tcp/127.0.0.1:{port}"
-    record = tmp_path / "f3.rrd"
+    record, run = tmp_path / "f3.rrd", "faults3d"
     with processes() as kids:
         launch = kids.spawn("launch", ["launch.py", "--scenario", "moving-prey-3d", "--agents", "6", "--duration", "12",
-                                       "--time-scale", "2", "--listen", endpoint, "--run", "faults3d", "--dropout",
+                                       "--time-scale", "2", "--listen", endpoint, "--run", run, "--dropout",
                                        "0.1", "--latency", "20ms", "--kill", "1@3", "--restart-after", "1.5",
                                        "--record", str(record), "--quiet"],
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-        monitor = kids.spawn("monitor", ["-m", "zswarm", "monitor", "--run", "faults3d", "--connect", endpoint,
+        monitor = kids.spawn("monitor", ["-m", "zswarm", "monitor", "--run", run, "--connect", endpoint,
                                          "--json", "--every", "0.5", "--duration", "60"], stdout=subprocess.PIPE)
+        with Watch(endpoint, run) as watch:
+            watch.reach_step(10, timeout=90)
+        spec, rest = split_spec(run, "moving-prey", "--set", "n_agents=6")
+        stranger = kids.spawn("stranger", agent_argv(spec, 0, endpoint, *rest), stdout=subprocess.DEVNULL,
+                              stderr=subprocess.PIPE)
+        said = stranger.proc.communicate(timeout=60)[1].decode()
+        with open_session(zenoh_config("client", [endpoint]), "test", retry_for=30.0) as session:
+            keys = Keys(run, 1.0, dims=3)
+            for i in range(1, 11):  # a 2-D pose in the voxel key space of the 3-D run
+                session.put(keys.pose((0, 0, 0), 50), msg.encode(msg.Pose(50, i, time.time(), -1, 0.5, 0.5, 0.0, 0.0)))
+                time.sleep(0.02)
         assert wait_exit(launch, 180) == 0, launch.proc.stderr.read().decode()
         err = launch.proc.stderr.read().decode()
         monitor.proc.send_signal(2)
         snapshots = [json.loads(line) for line in monitor.proc.communicate(timeout=30)[0].splitlines()]
+    assert stranger.proc.returncode == 2, said
+    assert f"the world of run {run!r} is 3-D and this agent 2-D" in said and len(said.strip().splitlines()) == 1
+    assert "a 2-D agent asked this 3-D run for obstacles" in err and "sends 2-D poses into this 3-D run" in err, err
     assert "killed agents" in err and "restarted agents" in err, err
     s = load_summary(record.with_suffix(".json"))
+    assert s["rejected_by_reason"]["dimensions"] > 0
     assert [d["how"] for d in s["departures"] if d["t"] < 11.5] == ["crashed"] and s["collisions"] == 0
     assert s["requested_faults"]["dropout"] == 0.1 and 0.03 < s["observed_dropout"] < 0.2
     victim = str(s["departures"][0]["id"])
@@ -93,37 +110,3 @@ def test_faults_a_crash_and_the_monitor_in_3d(tmp_path):
     assert seen and all(len(snap["prey"]) == 3 for snap in seen)  # the monitor shows where the prey flies
     assert any(snap["gone"].get(victim) == "crashed" for snap in snapshots)
     assert max(snap["alive"] for snap in snapshots) == 6
-
-
-def test_a_2d_agent_and_a_3d_world_refuse_each_other(tmp_path):
-    """An agent started with the other dimension's scenario exits 2 with one line before it joins (both
-    ways), and the world says so once; a 2-D pose published into a 3-D run is refused as ``dimensions``."""
-    short = ("--set", "n_agents=1", "--duration", "2", "--start-timeout", "6", "--progress", "0")
-    with processes() as kids:
-        endpoint = start_router(kids)
-        worlds, agents = {}, {}
-        for run, scenario in (("sky", "moving-prey-3d"), ("flat", "moving-prey")):
-            spec, rest = split_spec(run, scenario, *short)
-            worlds[run] = kids.spawn(f"world-{run}", world_argv(spec, endpoint, *rest, "--summary",
-                                                                str(tmp_path / f"{run}.json")),
-                                     stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-        for run, scenario in (("sky", "moving-prey"), ("flat", "moving-prey-3d")):  # each in the other's run
-            spec, rest = split_spec(run, scenario, "--set", "n_agents=1")
-            agents[run] = kids.spawn(f"agent-{run}", agent_argv(spec, 0, endpoint, *rest),
-                                     stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-        said = {run: a.proc.communicate(timeout=60)[1].decode() for run, a in agents.items()}
-        with open_session(zenoh_config("client", [endpoint]), "test", retry_for=30.0) as session:
-            keys = Keys("sky", 1.0, dims=3)
-            for i in range(1, 40):  # a 2-D pose in the voxel key space of the 3-D run, until it ends
-                session.put(keys.pose((0, 0, 0), 5), msg.encode(msg.Pose(5, i, time.time(), -1, 0.5, 0.5, 0.0, 0.0)))
-                time.sleep(0.05)
-        heard = {run: w.proc.communicate(timeout=60)[1].decode() for run, w in worlds.items()}
-        assert all(w.proc.returncode == 0 for w in worlds.values()), heard
-    for run, own, other in (("sky", 2, 3), ("flat", 3, 2)):
-        assert agents[run].proc.returncode == 2, said[run]
-        line = f"the world of run {run!r} is {other}-D and this agent {own}-D"
-        assert line in said[run] and len(said[run].strip().splitlines()) == 1 and "Traceback" not in said[run]
-        assert f"a {own}-D agent asked this {other}-D run for obstacles" in heard[run], heard[run]
-    assert "sends 2-D poses into this 3-D run" in heard["sky"], heard["sky"]
-    assert load_summary(tmp_path / "sky.json")["rejected_by_reason"]["dimensions"] > 0
-    assert "dimensions" not in load_summary(tmp_path / "flat.json")["rejected_by_reason"]
