@@ -70,7 +70,8 @@ class Process:
     """What one agent process holds: its session, the bridge, the agent, the faults it injects and
     what it declared (undeclared in reverse order at the end)."""
 
-    def __init__(self, spec: RunSpec, args: argparse.Namespace, loop: asyncio.AbstractEventLoop | None) -> None:
+    def __init__(self, spec: RunSpec, args: argparse.Namespace, loop: asyncio.AbstractEventLoop | None,
+                 fleet=None) -> None:
         start = start_position(spec, args.id, args.start)
         self.spec, self.id = spec, args.id
         self.session = open_session(config_from_args(args), what=f"agent {args.id}", retry_for=args.connect_timeout)
@@ -90,7 +91,7 @@ class Process:
         keys = spec.keys
         self.declared = [self.bridge.subscribe_liveliness(keys.all_alive, "alive"),
                          self.bridge.subscribe(keys.prey, "prey"), self.bridge.subscribe(keys.tick, "tick")]
-        robot = fleet.robot(args.id) if (fleet := robot_fleet(args, spec)) is not None else None
+        robot = fleet.robot(args.id) if fleet is not None else None  # fleet: robot_fleet's, read once
         if robot is not None:
             from agents.robot_link import RobotLink
 
@@ -125,12 +126,12 @@ class Process:
         teardown(self.bridge, self.declared, self.session)
 
 
-def run_free_agent(spec: RunSpec, args: argparse.Namespace) -> int:
+def run_free_agent(spec: RunSpec, args: argparse.Namespace, fleet=None) -> int:
     """The free clock, without an event loop (:mod:`agents.free`)."""
     stop: list[int] = []
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda signum, _frame: stop.append(signum))
-    proc = Process(spec, args, loop=None)
+    proc = Process(spec, args, loop=None, fleet=fleet)
     done = False
     try:
         if not wait_for_world(proc.agent, proc.injector, args.start_timeout, lambda: bool(stop)):
@@ -188,12 +189,12 @@ def robot_fleet(args: argparse.Namespace, spec: RunSpec):
 def _main(argv: Sequence[str] | None) -> int:
     args = build_parser().parse_args(argv)
     spec = spec_from_args(args)
-    robot_fleet(args, spec)  # a bad robots file stops here, before a session is opened
+    fleet = robot_fleet(args, spec)  # a bad robots file stops here, before a session is opened
     if args.id < 0:
         raise UsageError(f"--id must be >= 0 (got {args.id})")
     if spec.clock == "lockstep":
         return asyncio.run(run_lockstep_agent(spec, args))
-    return run_free_agent(spec, args)
+    return run_free_agent(spec, args, fleet)  # robots run on the free clock only (robot_fleet)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

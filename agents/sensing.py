@@ -138,7 +138,7 @@ class Sensing:
         except msg.DecodeError as exc:
             self.counters.rejections.add(exc.reason, str(exc))
             return
-        if isinstance(m, (msg.Pose, msg.Prey, msg.Tick)) and len(m.position) != self.body.dims:
+        if isinstance(m, (msg.Pose, msg.Prey, msg.Tick)) and (m.z is None) != (self.body.z is None):
             self.counters.rejections.add("dimensions", f"a {len(m.position)}-D {type(m).__name__.lower()} in a "
                                          f"{self.body.dims}-D run (every process of a run needs the same --scenario)")
             return

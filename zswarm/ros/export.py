@@ -25,6 +25,7 @@ import numpy as np
 
 from zswarm.model.observer import SwarmObserver
 from zswarm.model.scenario import Scenario
+from zswarm.ros.motion import quaternion
 from zswarm.ros.wire import typestore
 
 POSE, POINT, MARKERS, FLOAT = ("geometry_msgs/msg/PoseStamped", "geometry_msgs/msg/PointStamped",
@@ -45,9 +46,7 @@ class _Messages:
         return self.t["geometry_msgs/msg/Point"](x=float(p[0]), y=float(p[1]), z=float(p[2]) if len(p) > 2 else 0.0)
 
     def pose(self, p: np.ndarray, yaw: float | None) -> Any:
-        half = 0.0 if yaw is None else yaw / 2.0
-        q = self.t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=math.sin(half), w=math.cos(half))
-        return self.t["geometry_msgs/msg/Pose"](position=self.point(p), orientation=q)
+        return self.t["geometry_msgs/msg/Pose"](position=self.point(p), orientation=quaternion(self.t, yaw))
 
     def marker(self, ns: int, k: int, center: np.ndarray, radius: float, dims: int) -> Any:
         t = self.t

@@ -27,6 +27,12 @@ def yaw_of(q) -> float:
     return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
 
 
+def quaternion(types, yaw: float | None):
+    """geometry_msgs/msg/Quaternion of a rotation by ``yaw`` about z (None: the identity)."""
+    half = 0.0 if yaw is None else yaw / 2.0
+    return types["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=math.sin(half), w=math.cos(half))
+
+
 def _time(types, seconds: float):
     sec = math.floor(seconds)
     return types["builtin_interfaces/msg/Time"](sec=int(sec), nanosec=int((seconds - sec) * 1e9))
@@ -39,8 +45,8 @@ def odometry(route: Route, odom: Odom, frame: str, child: str) -> bytes:
     t = route.types()
     header = t["std_msgs/msg/Header"](stamp=_time(t, odom.stamp), frame_id=frame)
     point = t["geometry_msgs/msg/Point"](x=odom.x, y=odom.y, z=0.0)
-    q = t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=math.sin(odom.yaw / 2.0), w=math.cos(odom.yaw / 2.0))
-    pose = t["geometry_msgs/msg/PoseWithCovariance"](pose=t["geometry_msgs/msg/Pose"](position=point, orientation=q),
+    pose = t["geometry_msgs/msg/PoseWithCovariance"](pose=t["geometry_msgs/msg/Pose"](position=point,
+                                                                                     orientation=quaternion(t, odom.yaw)),
                                                      covariance=np.zeros(36))
     twist = t["geometry_msgs/msg/TwistWithCovariance"](twist=_twist(t, odom.u, odom.omega), covariance=np.zeros(36))
     return route.encode(ODOMETRY, t[ODOMETRY](header=header, child_frame_id=child, pose=pose, twist=twist))

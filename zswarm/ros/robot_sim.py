@@ -17,6 +17,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 
+from zswarm.model.body import wrap
 from zswarm.ros.motion import Odom, odometry, read_twist
 from zswarm.ros.robots import ODOMETRY, TWIST, Robot
 from zswarm.ros.wire import Attachment, Route, WireError
@@ -73,7 +74,7 @@ class SimRobot:
         p = self.pose
         yaw = p.yaw + omega * dt
         self.pose = Odom(p.x + u * math.cos(p.yaw) * dt, p.y + u * math.sin(p.yaw) * dt,
-                         (yaw + math.pi) % (2.0 * math.pi) - math.pi, u, omega, now)
+                         float(wrap(yaw)), u, omega, now)
         return self.pose
 
     def odometry(self) -> tuple[bytes, bytes | None]:

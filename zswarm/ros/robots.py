@@ -26,6 +26,7 @@ from typing import Any
 
 from zswarm.errors import UsageError
 from zswarm.files import read_toml
+from zswarm.model.body import wrap
 from zswarm.ros.wire import Route
 
 ODOMETRY = "nav_msgs/msg/Odometry"
@@ -66,14 +67,14 @@ class Robot:
         """A pose in the robot's odom frame, in the world's."""
         ox, oy, oyaw = self.odom_origin
         c, s = math.cos(oyaw), math.sin(oyaw)
-        return ox + c * x - s * y, oy + s * x + c * y, _wrap(yaw + oyaw)
+        return ox + c * x - s * y, oy + s * x + c * y, float(wrap(yaw + oyaw))
 
     def to_odom(self, x: float, y: float, yaw: float) -> tuple[float, float, float]:
         """A world pose in the robot's odom frame (the inverse of :meth:`to_world`)."""
         ox, oy, oyaw = self.odom_origin
         c, s = math.cos(oyaw), math.sin(oyaw)
         dx, dy = x - ox, y - oy
-        return c * dx + s * dy, -s * dx + c * dy, _wrap(yaw - oyaw)
+        return c * dx + s * dy, -s * dx + c * dy, float(wrap(yaw - oyaw))
 
 
 @dataclass(frozen=True)
@@ -85,10 +86,6 @@ class Fleet:
 
     def robot(self, agent: int) -> Robot | None:
         return next((r for r in self.robots if r.id == agent), None)
-
-
-def _wrap(angle: float) -> float:
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
 def _number(where: str, name: str, value: Any, lo: float, hi: float) -> float:
