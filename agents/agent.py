@@ -22,37 +22,43 @@ from typing import Any
 
 import numpy as np
 
+from agents.reach import Reach
 from agents.sensing import Body, Sensing
 from zswarm.model import body as bodies
-from zswarm.model.agent_law import agent_velocity
-from zswarm.model.neighbour_law import neighbour_law
-from zswarm.model.potentials import make_controller, sense_one
+from zswarm.model.agent_law import agent_velocity, point_step
+from zswarm.model.law import Law, sense_one
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Bridge
+from zswarm.net.injector import FaultInjector
 from zswarm.net.runspec import RunSpec
 
 STATS_PERIOD = 1.0
 
 
+def starting_body(spec: RunSpec, start: tuple[float, ...]) -> Body:
+    """The agent's own state at ``start``, at rest (a headed body facing the prey's start)."""
+    spec_body = bodies.body_spec(spec.scenario.params)
+    first = bodies.start(spec_body, np.array(start, dtype=float), np.asarray(spec.scenario.prey_start))
+    z = (float(start[2]), 0.0) if len(start) == 3 else (None, None)
+    return Body(float(start[0]), float(start[1]), heading=float(first.heading) if spec_body.headed else None,
+                z=z[0], vz=z[1])
+
+
 class Agent:
-    def __init__(self, spec: RunSpec, agent_id: int, bridge: Bridge, start: tuple[float, ...],
-                 staleness: float = 0.5, lockstep_wait: float = 0.25) -> None:
-        self.spec, self.id, self.bridge = spec, agent_id, bridge
+    """Control, the pose it publishes and the lockstep clock. Everything it uses is built before it and
+    handed in (:class:`agents.main.Process` wires them, top to bottom): its body, what it senses, what
+    it asks of the network, the bridge, the compiled law, and optionally the fault injector on its
+    inbound links and the ROS 2 robot that drives its body."""
+
+    def __init__(self, spec: RunSpec, agent_id: int, body: Body, sensing: Sensing, reach: Reach, bridge: Bridge,
+                 law: Law, injector: FaultInjector | None = None, robot: Any = None, staleness: float = 0.5,
+                 lockstep_wait: float = 0.25) -> None:
+        self.spec, self.id, self.body, self.sensing, self.reach, self.bridge = spec, agent_id, body, sensing, reach, bridge
+        self.law, self.injector, self.robot = law, injector, robot
         self.keys = spec.keys
-        p = spec.scenario.params
-        self.v_max, self.dt = p.swarm.v_max, spec.scenario.dt
-        self.potential, self.formation = p.potential, spec.scenario.formation
-        self.combination = spec.combination
-        self.law = neighbour_law(p)
-        # 2-D: the law in plain floats (agent_law); 3-D: the vectorized law of the simulators
-        self.controller = (None if spec.scenario.dimensions == 2
-                           else make_controller(self.potential, self.combination, self.formation, self.law))
-        self.body_spec = bodies.body_spec(p)
-        first = bodies.start(self.body_spec, np.array(start, dtype=float), np.asarray(spec.scenario.prey_start))
-        z = (float(start[2]), 0.0) if len(start) == 3 else (None, None)
-        self.body = Body(float(start[0]), float(start[1]), heading=self._heading(first), z=z[0], vz=z[1])
-        self.sensing = Sensing(spec, agent_id, bridge, self.body)
-        self.counters = self.sensing.counters
+        self.dt = spec.scenario.dt
+        self.body_spec = bodies.body_spec(spec.scenario.params)
+        self.counters = sensing.counters
         self.staleness, self.lockstep_wait = staleness, lockstep_wait
         self.seq = 0
         self.pose_cell: tuple[int, ...] | None = None
@@ -63,26 +69,28 @@ class Agent:
         self.replies_by_step: dict[int, tuple[str, bytes]] = {}
         self.prey_by_step: dict[int, tuple[float, ...]] = {}
         self.stop = asyncio.Event()
-        self.injector = None  # a FaultInjector when faults are injected
-        self.robot = None  # a RobotLink when a ROS 2 robot is its body (agents.robot_link)
 
     # --- control ---------------------------------------------------------------------------------------
 
     def move(self, goal: tuple[float, ...], neighbours: list[tuple[float, ...]]) -> None:
         """The command sat(-grad U_i) from what it sensed (eq 5 with the speed limit), and one step of its
-        body under it (:func:`zswarm.model.body.step`), or, beside a robot, the robot's command."""
+        body under it (:func:`zswarm.model.body.step`; the point body in plain floats, the same
+        arithmetic), or, beside a robot, the robot's command."""
         if self.robot is not None:
             self.drive_robot(goal, neighbours)
             return
-        b = self.body
+        b, v_d = self.body, self.command(goal, neighbours)
+        if self.body_spec.kind == "point":
+            (b.x, b.y, b.z), (b.vx, b.vy, b.vz) = point_step(b.x, b.y, b.z, v_d, self.dt)
+            return
         state = bodies.BodyState(np.array(b.position), np.array(b.velocity),
                                  np.array(np.nan if b.heading is None else b.heading))
-        moved = bodies.step(self.body_spec, state, np.array(self.command(goal, neighbours)), self.dt)
+        moved = bodies.step(self.body_spec, state, np.array(v_d), self.dt)
         position, velocity = moved.position.tolist(), moved.velocity.tolist()
         b.x, b.y, b.vx, b.vy = position[0], position[1], velocity[0], velocity[1]
         if b.z is not None:
             b.z, b.vz = position[2], velocity[2]
-        b.heading = self._heading(moved)
+        b.heading = float(moved.heading) if self.body_spec.headed else None
 
     def follow_robot(self) -> bool:
         """Beside a robot: its body is where the robot's odometry says (False: none heard yet)."""
@@ -101,20 +109,16 @@ class Agent:
             self.robot.drive(self.command(goal, neighbours))
 
     def command(self, goal: tuple[float, ...], neighbours: list[tuple[float, ...]]) -> tuple[float, ...]:
-        """The desired velocity from what it sensed: in plain floats in 2-D, the simulators' vectorized
-        law in 3-D (the same equations; :mod:`zswarm.model.agent_law` says why 2-D has its own)."""
-        b, s = self.body, self.sensing
-        if self.controller is None:
-            return agent_velocity(b.x, b.y, goal, s.obstacles, neighbours, s.radius, self.potential,
-                                  self.combination, self.formation, self.v_max, self.law)
+        """The desired velocity from what it sensed: in plain floats in 2-D, the one law on one row in
+        3-D (the same equations; :mod:`zswarm.model.agent_law` says why 2-D has its own)."""
+        b, s, law = self.body, self.sensing, self.law
+        if b.z is None:
+            return agent_velocity(b.x, b.y, goal, s.obstacles, neighbours, s.radius, law.p, law.combination,
+                                  law.formation, law.v_max, law.neighbours)
         position = np.array(b.position)
-        view = s.obstacle_view
-        sensed = sense_one(position, view.centers, view.radii, np.array(neighbours, dtype=float).reshape(-1, 3),
-                           s.radius)
-        return tuple(self.controller.velocity(position, np.array(goal, dtype=float), sensed, self.v_max).tolist())
-
-    def _heading(self, state: bodies.BodyState) -> float | None:
-        return float(state.heading) if self.body_spec.headed else None
+        centers, radii = s.obstacle_arrays
+        sensed = sense_one(position, centers, radii, np.array(neighbours, dtype=float).reshape(-1, 3), s.radius)
+        return tuple(law.velocity(position, np.array(goal, dtype=float), sensed).tolist())
 
     # --- outbound --------------------------------------------------------------------------------------
 
@@ -191,10 +195,10 @@ class Agent:
             self.counters.ticks += 1
             while self.body.step < tick.step:  # tick k: every pose of step k-1 is out; do step k-1
                 k = self.body.step
-                await s.await_step_poses(k, self.lockstep_wait)
-                await s.refresh_obstacles()
+                await self.reach.await_step_poses(k, self.lockstep_wait)
+                await self.reach.refresh_obstacles()
                 self.move(self.prey_by_step.get(k, tick.position), s.neighbour_positions(k, self.staleness))
                 self.body.step += 1
                 self.prey_by_step.pop(k - 2, None)
-            await s.update_cells()
+            await self.reach.update_cells()
             self.publish_pose(self.body.step)

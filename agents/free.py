@@ -41,10 +41,10 @@ def wait_for_world(agent: Agent, injector: FaultInjector | None, timeout: float,
     while s.obstacle_query_at is None or (agent.robot is not None and not agent.follow_robot()):
         if stopped() or time.monotonic() > deadline or s.obstacle_view.foreign_dims is not None:
             return False
-        s.request_obstacles(time.time(), timeout=1.0)
+        agent.reach.request_obstacles(time.time(), timeout=1.0)
         time.sleep(0.05)
         take_in(agent, injector)
-    s.follow_cells()
+    agent.reach.follow_cells()
     return True
 
 
@@ -61,12 +61,12 @@ def run_free(agent: Agent, injector: FaultInjector | None, stopped: Callable[[],
             next_tick = max(next_tick, now)  # skip, never queue up a backlog
         c.ticks += 1
         c.window_queue_max = max(c.window_queue_max, take_in(agent, injector))
-        s.request_obstacles(time.time())
+        agent.reach.request_obstacles(time.time())
         if s.prey is not None:
             agent.move(s.prey, s.neighbour_positions(None, agent.staleness))
         agent.body.step += 1
-        s.follow_cells()
-        s.follow_probe()
+        agent.reach.follow_cells()
+        agent.reach.follow_probe()
         agent.publish_pose(-1)
         if c.ticks % stats_every == 0:
             agent.publish_stats_now()

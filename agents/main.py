@@ -8,19 +8,26 @@ import math
 import signal
 import sys
 from pathlib import Path
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
-from agents.agent import Agent
+from agents.agent import Agent, starting_body
 from agents.free import run_free, wait_for_world
+from agents.reach import Reach
+from agents.sensing import Sensing
 from zswarm.args import Parser, UsageError, run_main
+from zswarm.model.law import compile_law
 from zswarm.net import messages as msg
-from zswarm.net.bridge import Bridge, teardown
+from zswarm.net.bridge import Bridge, Deliver, Inbound, teardown
 from zswarm.net.config import add_zenoh_args, config_from_args, open_session
 from zswarm.net.injector import FaultInjector
 from zswarm.net.rings import CELL_CAPACITY
 from zswarm.net.runspec import RunSpec, add_run_args, spec_from_args
+
+if TYPE_CHECKING:
+    from agents.robot_link import RobotLink
+    from zswarm.ros.robots import RobotsFile
 
 
 def build_parser() -> Parser:
@@ -66,39 +73,58 @@ def start_position(spec: RunSpec, agent_id: int, text: str | None) -> tuple[floa
     return tuple(float(c) for c in spawn[agent_id])
 
 
+def inbound_chain(sensing: Sensing, injector: FaultInjector | None, robot: RobotLink | None) -> Deliver:
+    """Where every sample the bridge takes in goes: the robot's odometry to its driver, the rest
+    through the fault injector (when faults are injected) into sensing."""
+    to_sensing = sensing.handle if injector is None else injector.deliver
+    if robot is None:
+        return to_sensing
+
+    def deliver(item: Inbound) -> None:
+        if item[0] == "odom":
+            robot.take(item[2], item[4])
+        else:
+            to_sensing(item)
+    return deliver
+
+
 class Process:
-    """What one agent process holds: its session, the bridge, the agent, the faults it injects and
-    what it declared (undeclared in reverse order at the end)."""
+    """What one agent process holds, built top to bottom in this constructor and never rewired: its
+    session, its body, the robot that drives the body (if any), sensing, the fault injector on its
+    inbound links (if faults are injected), the bridge that delivers into them, what it asks of the
+    network, the agent, and what it declared (undeclared in reverse order at the end)."""
 
     def __init__(self, spec: RunSpec, args: argparse.Namespace, loop: asyncio.AbstractEventLoop | None,
-                 fleet=None) -> None:
+                 robots: RobotsFile | None = None) -> None:
         start = start_position(spec, args.id, args.start)
         self.spec, self.id = spec, args.id
+        p, keys = spec.scenario.params, spec.keys
+        law = compile_law(p, spec.combination, spec.scenario.formation)
         self.session = open_session(config_from_args(args), what=f"agent {args.id}", retry_for=args.connect_timeout)
+        body = starting_body(spec, start)
         # free clock: samples wait in ring channels (in an inbox, stamped on arrival, when a delay is
         # injected from the arrival time) and are taken in once per tick; lockstep: each one wakes the loop
         rings = loop is None and not (spec.faults.latency or spec.faults.jitter)
-        self.bridge = Bridge(self.session, loop, deliver=lambda item: None, batch=loop is None, channels=rings,
-                             capacity=CELL_CAPACITY)
-        self.agent = Agent(spec, args.id, self.bridge, start, args.staleness, args.lockstep_wait)
-        self.bridge.deliver = self.agent.sensing.handle
-        self.injector: FaultInjector | None = None
-        if spec.faults.active:
-            self.injector = FaultInjector(spec.faults, args.id, loop, self.agent.sensing.handle,
-                                          self.agent.sensing.fault_source)
-            self.bridge.deliver, self.bridge.reply_filter = self.injector.deliver, self.injector.filter_replies
-            self.agent.injector = self.injector
-        keys = spec.keys
-        self.declared = [self.bridge.subscribe_liveliness(keys.all_alive, "alive"),
-                         self.bridge.subscribe(keys.prey, "prey"), self.bridge.subscribe(keys.tick, "tick")]
-        robot = fleet.robot(args.id) if fleet is not None else None  # fleet: robot_fleet's, read once
+        sensing = Sensing(spec, args.id, body, probe_latency=rings)
+        robot = robots.robot(args.id) if robots is not None else None
+        link = None
         if robot is not None:
             from agents.robot_link import RobotLink
 
-            p = spec.scenario.params
-            self.agent.robot = self.agent.sensing.robot = RobotLink(
-                robot, fleet.route, self.bridge, p.swarm.v_max, p.body.lookahead, self.agent.counters.rejections,
-                args.odom_timeout, args.id)
+            link = RobotLink(robot, robots.route, self.session, p.swarm.v_max, p.body.lookahead,
+                             sensing.counters.rejections, args.odom_timeout, args.id)
+        injector = (FaultInjector(spec.faults, args.id, loop, sensing.handle, sensing.fault_source)
+                    if spec.faults.active else None)
+        self.bridge = Bridge(self.session, loop, inbound_chain(sensing, injector, link), batch=loop is None,
+                             channels=rings, capacity=CELL_CAPACITY,
+                             reply_filter=injector.filter_replies if injector is not None else None)
+        self.agent = Agent(spec, args.id, body, sensing, Reach(sensing, self.bridge), self.bridge, law, injector,
+                           link, args.staleness, args.lockstep_wait)
+        self.injector = injector
+        self.declared = [self.bridge.subscribe_liveliness(keys.all_alive, "alive"),
+                         self.bridge.subscribe(keys.prey, "prey"), self.bridge.subscribe(keys.tick, "tick")]
+        if link is not None:
+            self.declared.append(self.bridge.subscribe(link.odom_key, "odom"))
 
     def no_world(self, waited: float) -> UsageError:
         """Why it cannot join: the world is of another dimension, or did not answer."""
@@ -126,12 +152,12 @@ class Process:
         teardown(self.bridge, self.declared, self.session)
 
 
-def run_free_agent(spec: RunSpec, args: argparse.Namespace, fleet=None) -> int:
+def run_free_agent(spec: RunSpec, args: argparse.Namespace, robots: RobotsFile | None = None) -> int:
     """The free clock, without an event loop (:mod:`agents.free`)."""
     stop: list[int] = []
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda signum, _frame: stop.append(signum))
-    proc = Process(spec, args, loop=None, fleet=fleet)
+    proc = Process(spec, args, loop=None, robots=robots)
     done = False
     try:
         if not wait_for_world(proc.agent, proc.injector, args.start_timeout, lambda: bool(stop)):
@@ -155,11 +181,11 @@ async def run_lockstep_agent(spec: RunSpec, args: argparse.Namespace) -> int:
     done = False
     try:
         deadline = loop.time() + args.start_timeout
-        while not await agent.sensing.refresh_obstacles(timeout=1.0):
+        while not await agent.reach.refresh_obstacles(timeout=1.0):
             if loop.time() > deadline or agent.stop.is_set() or agent.sensing.obstacle_view.foreign_dims:
                 raise proc.no_world(args.start_timeout)
             await asyncio.sleep(0.25)  # no world yet: a query without a queryable fails at once
-        await agent.sensing.update_cells()
+        await agent.reach.update_cells()
         proc.announce()
         stats_task = asyncio.ensure_future(agent.publish_stats())
         await agent.run_lockstep()
@@ -171,30 +197,26 @@ async def run_lockstep_agent(spec: RunSpec, args: argparse.Namespace) -> int:
         proc.close(final_stats=done)
 
 
-def robot_fleet(args: argparse.Namespace, spec: RunSpec):
+def robots_file(args: argparse.Namespace, spec: RunSpec) -> RobotsFile | None:
     """The robots file of ``--robots`` (None without one), checked against the run."""
     if args.robots is None:
         return None
-    from zswarm.ros.robots import load_fleet
+    from zswarm.ros.robots import robots_for_run
 
-    if spec.scenario.dimensions != 2:
-        raise UsageError(f"--robots drives ROS 2 ground robots: {spec.scenario.name} is 3-D")
-    if spec.clock != "free" or spec.time_scale != 1.0:
-        raise UsageError("--robots needs the free clock at --time-scale 1: a robot moves in real time")
     if not 0.0 < args.odom_timeout <= 60.0:
         raise UsageError(f"--odom-timeout must be in (0, 60] s (got {args.odom_timeout})")
-    return load_fleet(args.robots)
+    return robots_for_run(args.robots, spec.scenario.name, spec.scenario.dimensions, spec.clock, spec.time_scale)
 
 
 def _main(argv: Sequence[str] | None) -> int:
     args = build_parser().parse_args(argv)
     spec = spec_from_args(args)
-    fleet = robot_fleet(args, spec)  # a bad robots file stops here, before a session is opened
+    robots = robots_file(args, spec)  # a bad robots file stops here, before a session is opened
     if args.id < 0:
         raise UsageError(f"--id must be >= 0 (got {args.id})")
     if spec.clock == "lockstep":
         return asyncio.run(run_lockstep_agent(spec, args))
-    return run_free_agent(spec, args, fleet)  # robots run on the free clock only (robot_fleet)
+    return run_free_agent(spec, args, robots)  # robots run on the free clock only (robots_file)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -19,8 +19,8 @@ from zswarm.net.keys import Keys
 
 
 class ObstacleView:
-    def __init__(self, keys: Keys, bridge: Bridge, body, radius: float, counters: Counters) -> None:
-        self.keys, self.bridge, self.body, self.radius, self.counters = keys, bridge, body, radius, counters
+    def __init__(self, keys: Keys, body, radius: float, counters: Counters) -> None:
+        self.keys, self.body, self.radius, self.counters = keys, body, radius, counters
         self.obstacles: list[tuple[float, ...]] = []  # centre (x, y[, z]) and radius of each known one
         self.centers = np.zeros((0, keys.dims))  # the same as arrays (the vectorized law's input)
         self.radii = np.zeros(0)
@@ -28,13 +28,13 @@ class ObstacleView:
         self.query: tuple[tuple[float, ...], float] | None = None  # (where, sent at): a query in flight
         self.foreign_dims: int | None = None  # the world answered in another dimension than the agent's
 
-    async def refresh(self, timeout: float = 2.0) -> bool:
+    async def refresh(self, bridge: Bridge, timeout: float = 2.0) -> bool:
         """Ask the world for the obstacles within 2R; re-ask after moving R from the last question."""
         point = self.body.position
         if self.current():
             return True
         try:
-            replies = await self.bridge.get(self.keys.obstacle_query(point, 2.0 * self.radius), timeout)
+            replies = await bridge.get(self.keys.obstacle_query(point, 2.0 * self.radius), timeout)
         except Exception:
             replies = []
         for _, payload in replies:
@@ -71,7 +71,7 @@ class ObstacleView:
         self.know(m, self.query[0])
         self.query = None
 
-    def request(self, now: float, timeout: float = 2.0) -> None:
+    def request(self, bridge: Bridge, now: float, timeout: float = 2.0) -> None:
         """Without an event loop: ask the world for the obstacles within 2R when it has moved R from
         the last answer (or has none); the answer is taken in with the next samples. An unanswered
         query counts as failed after ``timeout`` seconds and is asked again."""
@@ -84,4 +84,4 @@ class ObstacleView:
         if self.current():
             return
         self.query = (point, now)
-        self.bridge.get_into_inbox(self.keys.obstacle_query(point, 2.0 * self.radius), "obstacles", timeout)
+        bridge.get_into_inbox(self.keys.obstacle_query(point, 2.0 * self.radius), "obstacles", timeout)

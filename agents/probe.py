@@ -18,9 +18,9 @@ from zswarm.net.poses import PoseTable
 
 
 class LatencyProbe:
-    def __init__(self, keys: Keys, bridge: Bridge, body, reach: float, neighbours: PoseTable, alive: set[int],
+    def __init__(self, keys: Keys, body, reach: float, neighbours: PoseTable, alive: set[int],
                  counters: Counters) -> None:
-        self.keys, self.bridge, self.body, self.reach = keys, bridge, body, reach
+        self.keys, self.body, self.reach = keys, body, reach
         self.neighbours, self.alive, self.counters = neighbours, alive, counters
         self.probe: tuple[int, object] | None = None  # the neighbour probed, and its subscription
 
@@ -34,14 +34,14 @@ class LatencyProbe:
         if isinstance(m, msg.Pose):
             self.counters.add(self.counters.latency, (received - m.stamp) * 1000.0)
 
-    def follow(self) -> None:
+    def follow(self, bridge: Bridge) -> None:
         """Keep probing the nearest neighbour for as long as it stays within reach and alive."""
         if self.probe is not None:
             who, sub = self.probe
             nb = self.neighbours.get(who)
             if who in self.alive and nb is not None and self.body.distance(nb.latest) <= self.reach:
                 return
-            self.bridge.unsubscribe(sub)
+            bridge.unsubscribe(sub)
             self.probe = None
         best: tuple[float, int] | None = None
         for who, nb in self.neighbours.entries.items():
@@ -49,4 +49,4 @@ class LatencyProbe:
             if d <= self.reach and who in self.alive and (best is None or d < best[0]):
                 best = (d, who)
         if best is not None:
-            self.probe = (best[1], self.bridge.subscribe(self.keys.any_cell_pose(best[1]), "probe", stamped=True))
+            self.probe = (best[1], bridge.subscribe(self.keys.any_cell_pose(best[1]), "probe", stamped=True))

@@ -30,13 +30,17 @@ from zswarm.ros.wire import Attachment, Route, WireError
 
 
 class RobotLink:
-    def __init__(self, robot: Robot, route: Route, bridge, v_max: float, lookahead: float, rejections,
+    """The driver of an agent's body when that body is a robot, owned by the agent alone. It publishes
+    on ``session``; its odometry reaches :meth:`take` through the agent's inbound chain, from the
+    subscription to :attr:`odom_key` that the agent's process declares (:mod:`agents.main`)."""
+
+    def __init__(self, robot: Robot, route: Route, session, v_max: float, lookahead: float, rejections,
                  odom_timeout: float = 1.0, agent_id: int = 0) -> None:
-        self.robot, self.route, self.bridge, self.rejections = robot, route, bridge, rejections
+        self.robot, self.route, self.session, self.rejections = robot, route, session, rejections
         self.odom_timeout = odom_timeout
         self.spec = bodies.BodySpec("unicycle", min(robot.max_linear, v_max), robot.max_angular, lookahead)
-        self.subscription = bridge.subscribe(route.key(robot.odom, robot.pose_type), "odom")
-        self.publisher = bridge.session.declare_publisher(route.key(robot.cmd_vel, TWIST))
+        self.odom_key = route.key(robot.odom, robot.pose_type)
+        self.publisher = session.declare_publisher(route.key(robot.cmd_vel, TWIST))
         self.pose: Odom | None = None  # in the world frame
         self.heard_at = -math.inf  # wall time of the last odometry taken in
         self.gid, self.sequence = os.urandom(16), 0
@@ -46,7 +50,7 @@ class RobotLink:
     def _announce(self, agent_id: int) -> list:
         """rmw_zenoh's liveliness tokens (:mod:`zswarm.ros.graph`): node ``zswarm_agent_<id>`` in the
         robot's namespace, publishing cmd_vel and subscribed to the robot's pose, for the ROS tools."""
-        session, robot, route = self.bridge.session, self.robot, self.route
+        session, robot, route = self.session, self.robot, self.route
         zid, name, ns = str(session.info.zid()), f"zswarm_agent_{agent_id}", robot.namespace
         keys = [graph.node_token(route, zid, 0, ns, name),
                 graph.topic_token(route, zid, 0, 1, "MP", ns, name, robot.cmd_vel, TWIST),
@@ -54,7 +58,7 @@ class RobotLink:
         return [session.liveliness().declare_token(key) for key in keys]
 
     def take(self, payload: bytes, received: float) -> None:
-        """An odometry (or PoseStamped) sample, already delivered by the bridge."""
+        """An odometry (or PoseStamped) sample, delivered by the bridge."""
         try:
             odom = read_pose(self.route, self.robot.pose_type, payload)
         except WireError as exc:

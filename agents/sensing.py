@@ -1,11 +1,14 @@
 """What one agent senses: the neighbours within its radius, the obstacles near it and the prey.
 
-Neighbours' poses arrive from the spatial cells its sensing disc (grown by 2 v_max dt) overlaps
-(:mod:`agents.cell_view`) and pass the shared acceptance rules of :class:`~zswarm.net.poses.PoseTable`.
-Obstacles are asked of the world's queryable within 2R of where the agent is, again after it moved R
-(:mod:`agents.obstacle_view`). Only agents that hold a liveliness token are used as neighbours. The
-transport latency is timed on one of them (:mod:`agents.probe`). This module takes every sample in
-and says which neighbours the law may use.
+This is the inbound end of the agent: it takes every sample in (the last link of the chain Zenoh ->
+bridge -> fault injector -> here, built before the bridge, :mod:`agents.main`) and says which
+neighbours the law may use. It holds no transport: what the agent asks of the network (the cells
+to listen to, the obstacle queries, the latency probe's subscription) is :mod:`agents.reach`.
+
+Neighbours' poses arrive from the spatial cells its sensing disc (grown by 2 v_max dt) overlaps and
+pass the shared acceptance rules of :class:`~zswarm.net.poses.PoseTable`. Obstacles come from the
+world's answers (:mod:`agents.obstacle_view`). Only agents that hold a liveliness token are used as
+neighbours. The transport latency is timed on one of them (:mod:`agents.probe`).
 """
 
 from __future__ import annotations
@@ -15,14 +18,14 @@ import math
 import time
 from dataclasses import dataclass
 
-from agents.cell_view import CellView
+import numpy as np
+
 from agents.counters import Counters
 from agents.obstacle_view import ObstacleView
 from agents.probe import LatencyProbe
 from zswarm.model.faults import OBSTACLE_SOURCE, PREY_SOURCE
 from zswarm.net import messages as msg
-from zswarm.net.bridge import Bridge, Inbound
-from zswarm.net.keys import cells_in_disc
+from zswarm.net.bridge import Inbound
 from zswarm.net.poses import PoseTable, Rejections
 from zswarm.net.runspec import RunSpec
 
@@ -61,8 +64,13 @@ class Body:
 
 
 class Sensing:
-    def __init__(self, spec: RunSpec, agent_id: int, bridge: Bridge, body: Body) -> None:
-        self.spec, self.id, self.bridge, self.body = spec, agent_id, bridge, body
+    """``probe_latency``: poses come from ring channels, which carry no arrival time, so the transport
+    latency is timed on one neighbour's poses heard a second time through a subscription stamped on
+    arrival (:mod:`agents.probe`); otherwise on every pose."""
+
+    def __init__(self, spec: RunSpec, agent_id: int, body: Body, probe_latency: bool) -> None:
+        self.spec, self.id, self.body = spec, agent_id, body
+        self.latency_from_probe = probe_latency
         self.keys = spec.keys
         p = spec.scenario.params.swarm
         self.radius, self.v_max, self.dt = p.sensing_radius, p.v_max, spec.scenario.dt
@@ -73,38 +81,31 @@ class Sensing:
         self.last_seq: dict[int, int] = {}
         self.prey: tuple[float, ...] | None = None
         self.ticks: asyncio.Queue[msg.Tick] = asyncio.Queue()
-        self.robot = None  # a RobotLink (agents.robot_link) when a ROS 2 robot is the agent's body
         self.pose_arrived = asyncio.Event()
         self.final_tick = False
-        self.obstacle_view = ObstacleView(self.keys, bridge, body, self.radius, self.counters)
-        self.cell_view = CellView(self.keys, bridge, body, self.subscription_radius)
-        self.latency_probe = LatencyProbe(self.keys, bridge, body, self.subscription_radius, self.neighbours,
+        self.obstacle_view = ObstacleView(self.keys, body, self.radius, self.counters)
+        self.latency_probe = LatencyProbe(self.keys, body, self.subscription_radius, self.neighbours,
                                           self.alive, self.counters)
 
     # --- what the law and the tests read ---------------------------------------------------------------
 
     @property
     def obstacles(self) -> list[tuple[float, ...]]:
+        """The known obstacles as (centre..., radius) tuples (the float law's input)."""
         return self.obstacle_view.obstacles
+
+    @property
+    def obstacle_arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """The known obstacles' centres (M, D) and radii (M,) (the vectorized law's input)."""
+        return self.obstacle_view.centers, self.obstacle_view.radii
 
     @property
     def obstacle_query_at(self) -> tuple[float, ...] | None:
         return self.obstacle_view.query_at
 
     @property
-    def cells(self) -> dict[tuple[int, ...], object]:
-        return self.cell_view.cells
-
-    @property
     def probe(self) -> tuple[int, object] | None:
         return self.latency_probe.probe
-
-    @property
-    def latency_from_probe(self) -> bool:
-        """Poses come from ring channels, which carry no arrival time: the transport latency is then
-        measured on one neighbour's poses, heard a second time through a subscription stamped on
-        arrival (:meth:`follow_probe`)."""
-        return self.bridge.channels is not None
 
     # --- inbound ---------------------------------------------------------------------------------------
 
@@ -124,10 +125,6 @@ class Sensing:
             return
         if tag == "probe":
             self.latency_probe.heard(payload, received)
-            return
-        if tag == "odom":
-            if self.robot is not None:
-                self.robot.take(payload, received)
             return
         self.counters.received += 1
         who = self.keys.agent_of(key) if tag == "pose" else None
@@ -153,11 +150,6 @@ class Sensing:
             self.obstacle_view.answered(m)
         else:
             self.counters.rejections.add("kind", f"{type(m).__name__} on {tag} key")
-
-    def follow_probe(self) -> None:
-        """Ring-channel inbox: keep the latency probe on the nearest live neighbour (:mod:`agents.probe`)."""
-        if self.latency_from_probe:
-            self.latency_probe.follow()
 
     def fault_source(self, tag: str, key: str, payload: bytes) -> tuple[int, float | None] | None:
         """The link a message arrives on, and (poses) its sender's distance over the sensing radius."""
@@ -217,23 +209,6 @@ class Sensing:
 
     # --- what the agent senses -------------------------------------------------------------------------
 
-    async def refresh_obstacles(self, timeout: float = 2.0) -> bool:
-        return await self.obstacle_view.refresh(timeout)
-
-    def request_obstacles(self, now: float, timeout: float = 2.0) -> None:
-        self.obstacle_view.request(now, timeout)
-
-    def follow_cells(self) -> None:
-        """Without an event loop: :meth:`update_cells`, the new cells' answers taken in later."""
-        for cell in self.cell_view.move():
-            self.bridge.get_into_inbox(self.keys.cell_poses(cell), "pose", 1.0)
-
-    async def update_cells(self) -> None:
-        """Subscribe to the cells the sensing disc overlaps; ask new cells for their agents at once."""
-        for cell in self.cell_view.move():
-            for key, payload in await self.bridge.get(self.keys.cell_poses(cell), timeout=1.0):
-                self.handle(("pose", key, payload, False, time.time()))
-
     def neighbour_positions(self, step: int | None, staleness: float) -> list[tuple[float, ...]]:
         """Positions of the neighbours it may use now: step-k poses (lockstep) or fresh ones (free:
         received within ``staleness`` seconds), of agents that hold a liveliness token.
@@ -252,33 +227,3 @@ class Sensing:
                 self.counters.add(self.counters.ages, (now - pose.stamp) * 1000.0)
             out.append(pose.position)
         return out
-
-    async def await_step_poses(self, step: int, wait: float) -> None:
-        """Make sure it has the step pose of every agent that can be within its radius now.
-
-        It subscribes to the cells within R + 2 v_max dt, so every agent that can be within R at
-        step k was heard at step k-1. It waits (up to ``wait`` seconds) for those; for any still
-        missing, and for cells it subscribed to during this step (a subscription may reach the router
-        after a neighbour published), it asks the cells where they can be for their pose of this step.
-        """
-        reach = self.subscription_radius
-        expected = [nb for nb in self.neighbours.entries.values()
-                    if step not in nb.by_step and (step - 1 in nb.by_step or nb.latest.step >= step - 1)
-                    and self.body.distance(nb.latest) <= reach]
-        loop = asyncio.get_running_loop()
-        deadline = loop.time() + wait
-        while expected and loop.time() < deadline:
-            self.pose_arrived.clear()
-            try:
-                await asyncio.wait_for(self.pose_arrived.wait(), deadline - loop.time())
-            except asyncio.TimeoutError:
-                break
-            expected = [nb for nb in expected if step not in nb.by_step]
-        cells = {c for c, since in self.cell_view.since.items() if since >= step}
-        for nb in expected:
-            cells |= cells_in_disc(self.keys, nb.latest.position, 2.0 * self.v_max * self.dt)
-        replies = await asyncio.gather(*(self.bridge.get(f"{self.keys.cell_poses(c)}?step={step}", timeout=1.0)
-                                         for c in cells))
-        now = time.time()
-        for key, payload in (r for batch in replies for r in batch):
-            self.handle(("pose", key, payload, False, now))

@@ -2,7 +2,8 @@
 
     python examples/notebook.py [WORKDIR]
 
-Each step is what a notebook cell would do; it prints what it found.
+Each step is what a notebook cell would do; it prints what it found. The recording goes to
+WORKDIR/notebook.rrd (default: a new temporary folder), and the script says where.
 """
 
 import sys
@@ -24,6 +25,7 @@ scenario = zswarm.load_scenario("moving-prey", n_agents=10, c_o=3.0)
 workdir = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(tempfile.mkdtemp())
 record = workdir / "notebook.rrd"
 result = zswarm.simulate(scenario, seed=1, duration=40.0, keep_trajectory=True, record=record)
+print("recording written to", record)
 print("captured at", result.summary["capture_time"], "s; collisions:", result.summary["collisions"])
 print("trajectory", result.trajectory.shape, "prey", result.prey_trajectory.shape)
 closest = np.asarray(result.metrics.series["min_pair_distance"]).min()

@@ -25,12 +25,39 @@ def cli():
 
 
 def free_port() -> int:
-    """A TCP port nothing listens on now (for a router or a viewer a test starts)."""
-    import socket
+    """A TCP port nothing listens on now (for a router or a viewer a test starts), from this worker's
+    own range when the suite runs in parallel (:func:`pytest_configure`)."""
+    from zswarm.ports import free_port as pick
 
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+    return pick()
+
+
+#: Modules whose tests start routers, worlds, agents or launches (a test elsewhere that runs a command
+#: through the ``cli`` fixture is marked too).
+PROCESS_MODULES = {
+    "test_distributed", "test_reliability", "test_hostile", "test_space_procs", "test_usage", "test_experiments",
+    "test_robots", "test_security", "test_netns", "test_render", "test_install", "test_routers", "test_faults",
+    "test_monitor", "test_live", "test_latency", "test_api", "test_export", "test_bench", "test_soak",
+    "test_tune", "test_study",
+}
+
+
+def pytest_collection_modifyitems(config, items) -> None:
+    """The ``procs`` marker: ``-m "not procs"`` is the quick tier (the math, the messages, the checks)."""
+    for item in items:
+        if item.module.__name__ in PROCESS_MODULES or "cli" in getattr(item, "fixturenames", ()):
+            item.add_marker(pytest.mark.procs)
+
+
+def pytest_configure(config) -> None:
+    """Under pytest-xdist each worker, and every process it starts, picks ports from a range of its own
+    (``ZSWARM_PORTS``, :mod:`zswarm.ports`), below the kernel's ephemeral range: two workers never pick
+    the same free port before one of them binds it."""
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "")
+    if worker.startswith("gw") and "ZSWARM_PORTS" not in os.environ:
+        k = int(worker[2:]) % 11  # 10000-31999: below the kernel's ephemeral ports (32768-)
+        lo = 10_000 + 2_000 * k
+        os.environ["ZSWARM_PORTS"] = f"{lo}-{lo + 1_999}"
 
 
 def wait_for_port(port: int, timeout: float = 30.0) -> None:

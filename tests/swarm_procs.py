@@ -13,7 +13,7 @@ import time
 from pathlib import Path
 from typing import Iterator
 
-from zswarm.net.procs import Children, agent_argv, world_argv
+from zswarm.net.procs import Children, Fleet, agent_argv, world_argv
 from zswarm.net.runspec import RunSpec, add_run_args, spec_from_args
 
 
@@ -24,6 +24,7 @@ def processes() -> Iterator[Children]:
         yield kids
     finally:
         kids.stop_all(grace=3.0)
+        _FLEETS.pop(id(kids), None)
 
 
 def split_spec(run: str, scenario: str, *args: str) -> tuple[RunSpec, list[str]]:
@@ -43,10 +44,18 @@ def start_world(kids: Children, endpoint: str, run: str, scenario: str, tmp: Pat
     return child, summary, record, traj
 
 
+#: The agent fleet of each set of children (``zswarm run`` forks its agents the same way): the agent
+#: program is imported once, and each agent is forked from it in milliseconds, still its own process
+#: with its own session and pid, instead of a fresh interpreter importing numpy and Zenoh again.
+_FLEETS: dict[int, Fleet] = {}
+
+
 def start_agent(kids: Children, endpoint: str, run: str, scenario: str, agent: int, *extra: str):
     spec, rest = split_spec(run, scenario, *extra)
-    return kids.spawn(f"agent-{agent}", agent_argv(spec, agent, endpoint, *rest),
-                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    fleet = _FLEETS.get(id(kids))
+    if fleet is None or not fleet.child.alive():
+        fleet = _FLEETS[id(kids)] = Fleet(kids)
+    return fleet.spawn(f"agent-{agent}", agent_argv(spec, agent, endpoint, *rest)[2:])  # without "-m agents"
 
 
 def with_reference(summary_path: Path, run: str, scenario: str, *extra: str) -> dict:

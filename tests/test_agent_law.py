@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from zswarm.model.agent_law import agent_velocity
 from zswarm.model.params import DEFAULT_PARAMS, PAPER_PARAMS
-from zswarm.model.potentials import make_controller, sense_one
+from zswarm.model.law import make_law, sense_one
 
 coord = st.floats(-4, 4, allow_nan=False)
 
@@ -26,7 +26,7 @@ def test_the_scalar_law_is_the_vectorized_law(pos, goal, obstacles, neighbours, 
     position = np.array(pos)
     centers = np.array([o[:2] for o in obstacles], dtype=float).reshape(-1, 2)
     radii = np.array([o[2] for o in obstacles], dtype=float)
-    controller = make_controller(p, combination, formation)
+    controller = make_law(p, combination, formation)
     sensed = sense_one(position, centers, radii, np.array(neighbours, dtype=float).reshape(-1, 2), radius)
     expected = controller.velocity(position, np.array(goal), sensed, v_max)
     got = agent_velocity(pos[0], pos[1], goal, obstacles, neighbours, radius, p, combination, formation, v_max)

@@ -24,7 +24,7 @@ def test_the_notebook_example_runs_and_finds_what_it_says(tmp_path):
     assert "collisions: 0" in lines and "captured at None" not in lines
     assert "trajectory (801, 10, 2)" in lines
     assert "same positions as simulated: True" in lines
-    assert (tmp_path / "notebook.rrd").exists()
+    assert (tmp_path / "notebook.rrd").exists() and f"recording written to {tmp_path / 'notebook.rrd'}" in lines
 
 
 def test_the_api_names_resolve():

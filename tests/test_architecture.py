@@ -23,7 +23,7 @@ import pytest
 
 from conftest import ROOT
 
-BASE = {"zswarm", "zswarm.errors", "zswarm.args", "zswarm.files", "zswarm.provenance"}
+BASE = {"zswarm", "zswarm.errors", "zswarm.args", "zswarm.files", "zswarm.provenance", "zswarm.ports"}
 ALLOWED: dict[str, set[str]] = {
     "base": {"base"},
     "model": {"base", "model"},
@@ -41,8 +41,13 @@ ALLOWED: dict[str, set[str]] = {
 }
 
 
+#: The layer of a project module whose package is in no layer: the check fails on it (closed, not open).
+UNLAYERED = "no layer"
+
+
 def layer(module: str) -> str | None:
-    """The layer of a zswarm module, or None for anything outside the project."""
+    """The layer of a project module (:data:`UNLAYERED` for a zswarm package missing from ALLOWED), or
+    None for anything outside the project."""
     if module in BASE:
         return "base"
     top, _, rest = module.partition(".")
@@ -50,7 +55,8 @@ def layer(module: str) -> str | None:
         return top
     if top != "zswarm":
         return None
-    return rest.split(".")[0] if rest.split(".")[0] in ALLOWED else None
+    name = rest.split(".")[0]
+    return name if name in ALLOWED else UNLAYERED
 
 
 def imports(path: Path, module: str) -> list[tuple[int, str]]:
@@ -93,9 +99,16 @@ def violations(modules: list[tuple[str, Path]]) -> list[str]:
         own = "api" if module == "zswarm" else layer(module)
         if module == "zswarm.__main__":
             own = "cli"
+        if own == UNLAYERED:
+            bad.append(f"{path}: {module} is in no layer: give its package a row of ALLOWED here and of "
+                       "docs/architecture.md")
+            continue
         for line, target in imports(path, module):
             theirs = layer(target)
             if theirs is None or own is None:
+                continue
+            if theirs == UNLAYERED:
+                bad.append(f"{path}:{line}: {own} imports {target}, which is in no layer")
                 continue
             if theirs == "api":
                 theirs = "base"
@@ -132,6 +145,22 @@ def test_the_check_catches_an_import_against_the_layers(tmp_path, where, line):
     copy.write_text((ROOT / where).read_text() + f"\n\ndef _sneaky():\n    {line}\n")
     assert violations([(module, copy)]) != []
     assert violations([(module, ROOT / where)]) == []
+
+
+def test_a_package_without_a_layer_fails_the_check(tmp_path):
+    """A new folder (say a cluster layer) that nobody gave a layer is caught, both as a module and as
+    something another module imports; the same module is accepted once its package has a layer."""
+    module = tmp_path / "host.py"
+    module.write_text("from zswarm.net.procs import Children\n")
+    assert any("zswarm.cluster.host is in no layer" in v for v in violations([("zswarm.cluster.host", module)]))
+    user = tmp_path / "supervisor.py"
+    user.write_text("def _start():\n    from zswarm.cluster.host import Host\n")
+    assert any("which is in no layer" in v for v in violations([("zswarm.launch.supervisor", user)]))
+    ALLOWED["cluster"] = {"base", "model", "net", "cluster"}
+    try:
+        assert violations([("zswarm.cluster.host", module)]) == []
+    finally:
+        del ALLOWED["cluster"]
 
 
 #: The most lines a command module may hold: a command reads its arguments and reports; the work is in

@@ -10,6 +10,7 @@ import zenoh
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
+from agents.reach import Reach
 from agents.sensing import Body, Sensing
 from zswarm.net.bridge import Bridge
 from zswarm.net.config import zenoh_config
@@ -47,16 +48,16 @@ def test_an_agent_listens_to_exactly_the_cells_its_disc_meets_along_a_walk():
     spec = RunSpec(run="cells", scenario_name="bench-field", overrides=(("n_agents", 4),))
     rng = np.random.default_rng(7)
     with zenoh.open(zenoh_config("peer")) as session:
-        bridge = Bridge(session, None, deliver=lambda item: None, batch=True, channels=True)
-        body = Body(0.3, -0.2)
-        s = Sensing(spec, 0, bridge, body)
+        sensing = Sensing(spec, 0, Body(0.3, -0.2), probe_latency=True)
+        bridge = Bridge(session, None, sensing.handle, batch=True, channels=True)
+        body, s = sensing.body, Reach(sensing, bridge)
         chosen = 0
         for _ in range(400):
             body.x, body.y = body.x + rng.normal(0, 0.04), body.y + rng.normal(0, 0.04)
             at = s.cell_view.chosen_at
             s.follow_cells()
             chosen += s.cell_view.chosen_at is not at
-            assert set(s.cells) == cells_in_disc(spec.keys, body.position, s.subscription_radius)
+            assert set(s.cells) == cells_in_disc(spec.keys, body.position, sensing.subscription_radius)
             assert {sub for _, sub in bridge.channels} == set(s.cells.values())
         assert chosen < 300  # most ticks keep the cells without working them out again
         bridge.close()

@@ -9,7 +9,8 @@ import pytest
 from zswarm.model.design import check, epsilon, prop1_curve
 from zswarm.model.formation import closed_form_spacing, equilibria, pair_potential
 from zswarm.model.params import DEFAULT_PARAMS, PAPER_PARAMS, PotentialParams
-from zswarm.model.potentials import field, formation_terms, goal_terms, obstacle_terms, saturate
+from zswarm.model.law import field
+from zswarm.model.potentials import formation_terms, goal_terms, obstacle_terms, saturate
 
 PAPER = PAPER_PARAMS.potential
 
@@ -272,6 +273,40 @@ def test_cli_judges_a_scenarios_own_set_and_finds_a_nearest_set_that_passes(cli)
     again = cli("-m", "zswarm", "design", *sum((["--set", f"{k}={v}"] for k, v in out["nearest"]["params"].items()),
                                                 []), "--json")
     assert again.returncode == 0 and json.loads(again.stdout)["ok"]
+
+
+def test_every_parameter_set_the_tools_print_is_accepted_back(cli, tmp_path):
+    """What `design --json` prints as a set (params, and nearest.params) is read back unchanged as a
+    TOML file for --params, every field included (names such as body and interaction too)."""
+    from zswarm.args import read_params_file
+    from zswarm.model.params import FIELDS, Params
+
+    printed = json.loads(cli("-m", "zswarm", "design", "--set", "body=unicycle", "--set", "interaction=mean+gate",
+                             "--set", "k_nearest=7", "--json").stdout)["params"]
+    assert set(printed) == set(FIELDS)  # the whole set is printed
+    path = tmp_path / "set.toml"
+    path.write_text("[params]\n" + "".join(f"{k} = {json.dumps(v)}\n" for k, v in printed.items()))
+    assert Params().with_overrides(read_params_file(str(path))).flat() == printed
+    again = cli("-m", "zswarm", "design", "--params", str(path), "--json")
+    assert again.returncode in (0, 1), again.stderr
+    assert json.loads(again.stdout)["params"] == printed
+
+
+def test_the_table_states_one_verdict_and_the_papers_column_sums_up_as_printed(cli):
+    """`design --paper`: the last two lines say what the table's columns say, and no row of ours (contact)
+    carries a paper verdict the summary would then contradict."""
+    for args in (["--paper"], ["--scenario", "large-swarm", "--set", "n_agents=300"]):
+        out = cli("-m", "zswarm", "design", *args).stdout.splitlines()
+        rows = [line.split() for line in out if line[:10].strip() in
+                ("Prop 1", "Prop 2", "Prop 3", "Prop 4", "Prop 5", "Formation", "Contact", "Swarm", "Body")]
+        ours = {r[0] + (r[1] if r[0] == "Prop" else "") for r in rows if "FAILS" in r[1:3]}
+        paper = {r[0] + r[1] for r in rows if r[0] == "Prop" and r[3] == "FAILS"}
+        assert not any(r[0] in ("Formation", "Contact", "Swarm", "Body") and r[2] in ("holds", "FAILS") for r in rows)
+        verdict, summary = out[-2], out[-1]
+        named = {w.strip(",").replace("prop", "Prop") for w in verdict.split()[2:]} if "fails" in verdict else set()
+        assert {n.lower() for n in named} == {n.lower() for n in ours}, (verdict, ours)
+        assert ("all hold" in summary) == (not paper), (summary, paper)
+        assert all(p.lower() in summary.lower() for p in paper)
 
 
 def test_nearest_says_what_blocks_when_nothing_passes():

@@ -43,7 +43,7 @@ def _pull_toward(behind, params):
     """The attraction (no repulsion) an agent at the origin takes from neighbours, along -x."""
     law = neighbour_law(params.with_values({"c_r": 0.0}))
     psi = -behind
-    f, _ = neighbour_force(PairList(np.zeros(len(psi), np.intp), 1), psi, np.ones(len(psi), bool),
+    f, _ = neighbour_force(PairList(np.zeros(len(psi), np.intp), 1), psi,
                            np.zeros((1, 2)), params.with_values({"c_r": 0.0}).potential, law)
     return -f[0, 0]
 
@@ -89,7 +89,7 @@ def test_contact_with_mean_cohesion_flips_where_a_lone_touching_pair_stops_separ
         x = np.vstack([pair, others])
         n = len(x)
         i, k = np.nonzero(~np.eye(n, dtype=bool) & (np.linalg.norm(x[:, None] - x[None], axis=-1) <= 3.0))
-        f, _ = neighbour_force(PairList(i, n), x[i] - x[k], np.ones(len(i), bool), np.zeros((n, 2)), q,
+        f, _ = neighbour_force(PairList(i, n), x[i] - x[k], np.zeros((n, 2)), q,
                                neighbour_law(base.with_values({"c_r": q.c_r})))
         f = f + goal_terms(x, q)[1]
         return bool((f[0, 0] - f[1, 0]) > 0)

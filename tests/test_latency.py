@@ -24,7 +24,7 @@ def agent(endpoint: str, agent_id: int, x: float) -> Process:
                                       "--scenario", "bench-field", "--set", "n_agents=2", "--connect", endpoint])
     proc = Process(spec_from_args(args), args, loop=None)
     proc.announce()
-    proc.agent.sensing.follow_cells()
+    proc.agent.reach.follow_cells()
     return proc
 
 
@@ -32,8 +32,8 @@ def tick(*procs: Process) -> None:
     """One free-clock tick of each (as :func:`agents.free.run_free`, without the control law)."""
     for p in procs:
         take_in(p.agent, None)
-        p.agent.sensing.follow_cells()
-        p.agent.sensing.follow_probe()
+        p.agent.reach.follow_cells()
+        p.agent.reach.follow_probe()
         p.agent.publish_pose(-1)
 
 

@@ -13,7 +13,7 @@ from zswarm.model.agent_law import agent_velocity
 from zswarm.model.interaction import parse_interaction
 from zswarm.model.neighbour_law import CUTOFF_INNER, PairList, cutoff_weight, neighbour_force, neighbour_law
 from zswarm.model.params import DEFAULT_PARAMS, PAPER_PARAMS
-from zswarm.model.potentials import field, make_controller, sense_one
+from zswarm.model.law import field, make_law, sense_one
 
 R = 1.5
 
@@ -26,7 +26,7 @@ def _law(name: str, **extra):
 def _force(position, neighbours, name, **extra):
     params, law = _law(name, **extra)
     psi = position - neighbours
-    f, weight = neighbour_force(PairList(np.zeros(len(psi), dtype=np.intp), 1), psi, np.ones(len(psi), bool),
+    f, weight = neighbour_force(PairList(np.zeros(len(psi), dtype=np.intp), 1), psi,
                                 np.zeros((1, 2)), params.potential, law)
     return f[0], weight[0]
 
@@ -125,7 +125,7 @@ def test_the_agents_floats_are_the_vectorized_law(name):
     p = params.potential
     rng = np.random.default_rng(11)
     for combination in ("additive", "multiplicative"):
-        controller = make_controller(p, combination, True, law)
+        controller = make_law(p, combination, True, law)
         for _ in range(150):
             pos, goal = rng.uniform(-2, 2, 2), rng.uniform(-3, 3, 2)
             nbrs = pos + rng.uniform(-1.6, 1.6, (int(rng.integers(0, 12)), 2))

@@ -7,16 +7,8 @@ from hypothesis import strategies as st
 
 from zswarm.model.formation import formation_offset
 from zswarm.model.params import DEFAULT_PARAMS, PAPER_PARAMS, PotentialParams
-from zswarm.model.potentials import (
-    field,
-    formation_terms,
-    goal_terms,
-    make_controller,
-    obstacle_offsets,
-    obstacle_terms,
-    saturate,
-    sense_one,
-)
+from zswarm.model.law import field, make_law, sense_one
+from zswarm.model.potentials import formation_terms, goal_terms, obstacle_offsets, obstacle_terms, saturate
 
 H = 1e-6
 coord = st.floats(-3.0, 3.0, allow_nan=False)
@@ -145,7 +137,7 @@ def test_sensing_radius_excludes_what_is_beyond_it():
 
 
 def test_controller_velocity_matches_field_and_saturates():
-    ctrl = make_controller(DEFAULT_PARAMS.potential)
+    ctrl = make_law(DEFAULT_PARAMS.potential)
     assert ctrl.c_f == pytest.approx(formation_offset(DEFAULT_PARAMS.potential))
     sensed = sense_one(np.zeros(2), np.array([[0.05, 0.0]]), np.zeros(1), np.zeros((0, 2)), 6.0)
     v = ctrl.velocity(np.zeros(2), np.array([2.0, 0.0]), sensed, v_max=0.5)

@@ -21,7 +21,7 @@ from zswarm.net.procs import start_router
 from zswarm.record.replay import load_run
 from zswarm.ros import robot_sim
 from zswarm.ros.motion import read_pose, twist
-from zswarm.ros.robots import ODOMETRY, TWIST, load_fleet
+from zswarm.ros.robots import ODOMETRY, TWIST, load_robots
 from zswarm.ros.wire import Attachment
 
 N = 6
@@ -53,7 +53,7 @@ def test_six_robots_catch_the_prey_and_fail_safely(tmp_path):
     moving-prey with no collision and records the robots' headings; then a killed agent's robot stops
     within 0.5 s, and a robot whose odometry goes silent takes its agent out while the rest carry on."""
     path = robots_file(tmp_path)
-    fleet = load_fleet(path)
+    fleet = load_robots(path)
     scenario = get_scenario("moving-prey", {"n_agents": N})
     spawn = scenario.initial_positions(np.random.default_rng(0))
     robots = [robot_sim.SimRobot(r, fleet.route, robot_sim.start_pose(r, tuple(spawn[r.id]), scenario.prey_start))
@@ -114,19 +114,37 @@ def test_six_robots_catch_the_prey_and_fail_safely(tmp_path):
     assert max(u for _, u, _ in heard[0]) > 0.2  # the robots drove
 
 
+def test_the_shipped_robots_file_drives_six_agents_and_the_launcher_says_which():
+    """examples/robots.toml, used as docs/robots.md says: six robots for agents 0-5; with --agents 8
+    the plan says at start that 0-5 drive robots and 6-7 keep a simulated body."""
+    from conftest import ROOT
+
+    from zswarm.cli.launch import build_parser
+    from zswarm.launch.plan import plan_from_args
+
+    path = ROOT / "examples" / "robots.toml"
+    robots = load_robots(path)
+    assert [r.id for r in robots.robots] == list(range(6))
+    assert len({r.namespace for r in robots.robots}) == 6
+    plan = plan_from_args(build_parser().parse_args(["--agents", "8", "--robots", str(path), "--record",
+                                                     str(Path("/tmp") / "never-written.rrd"), "--quiet"]))
+    assert f"robots ({path}): agents 0-5 drive ROS 2 robots; agents 6-7 keep a simulated body" in plan.notes
+
+
 @pytest.mark.parametrize("route_name", ["rmw_zenoh", "ros2dds"])
 def test_robot_sim_speaks_the_wire_and_stops_when_commands_stop(tmp_path, route_name):
     """``zswarm robot-sim``: odometry on the route's keys (rmw_zenoh: with the 33-byte attachment;
     zenoh-bridge-ros2dds: the topic name, none); a Twist drives a robot, a malformed one is counted and
     dropped; without commands the robot stops."""
     path = robots_file(tmp_path, route_name)
-    route = load_fleet(path).route
+    route = load_robots(path).route
     attached = route_name == "rmw_zenoh"
     samples = []
     with processes() as kids:
         endpoint = start_router(kids)
         sim = kids.spawn("robot-sim", ["-m", "zswarm", "robot-sim", "--robots", str(path), "--set", f"n_agents={N}",
-                                       "--connect", endpoint, "--duration", "30"], stdout=subprocess.PIPE)
+                                       "--connect", endpoint, "--duration", "30", "--idle-exit", "1.5"],
+                         stdout=subprocess.PIPE)
         with open_session(zenoh_config("client", [endpoint]), "t", retry_for=30.0) as session:
             sub = session.declare_subscriber(route.key("/robot1/odom", ODOMETRY), lambda s: samples.append(
                 (time.time(), read_pose(route, ODOMETRY, s.payload.to_bytes()),
@@ -142,8 +160,9 @@ def test_robot_sim_speaks_the_wire_and_stops_when_commands_stop(tmp_path, route_
             sent_last = time.time()
             time.sleep(0.6)
             sub.undeclare()
-        sim.proc.send_signal(signal.SIGINT)  # it stops at once and reports what it took
-        out = sim.proc.communicate(timeout=30)[0].decode()
+        # no SIGINT: once commanded and then idle for 1.5 s, it ends by itself and reports what it took
+        out = sim.proc.communicate(timeout=20)[0].decode()
+        assert time.time() - sent_last < 15
     assert sim.proc.returncode == 0
     if attached:
         seqs = [a.sequence for _, _, a in samples]
@@ -153,24 +172,24 @@ def test_robot_sim_speaks_the_wire_and_stops_when_commands_stop(tmp_path, route_
     assert any(p.u == pytest.approx(0.4) and p.omega == pytest.approx(0.5) for _, p, _ in samples)
     assert all(p.u == 0.0 for t, p, _ in samples if t > sent_last + 0.35)  # stopped after its 0.25 s timeout
     assert "/robot1: 10 commands, rejected cdr 1" in out, out
+    assert "robot-sim: no command for 1.5 s: the run that drove the robots has ended" in out, out
 
 
 def test_a_command_never_exceeds_the_robots_limits(tmp_path):
     """Whatever the law asks, the Twist an agent sends is within the robot's max_linear (and v_max) and
     max_angular; on rmw_zenoh it carries the attachment, numbered from 1."""
     from agents.robot_link import RobotLink
-    from zswarm.net.bridge import Bridge
     from zswarm.net.poses import Rejections
     from zswarm.ros.motion import Odom, read_twist
     from zswarm.ros.robots import Robot
 
-    route = load_fleet(robots_file(tmp_path)).route
+    route = load_robots(robots_file(tmp_path)).route
     robot = Robot(0, "/r0", max_linear=0.3, max_angular=1.5)
     heard = []
     with open_session(zenoh_config("peer"), "t") as session:
         sub = session.declare_subscriber(route.key(robot.cmd_vel, TWIST), lambda s: heard.append(
             (read_twist(route, s.payload.to_bytes()), Attachment.decode(s.attachment.to_bytes()))))
-        link = RobotLink(robot, route, Bridge(session, None, deliver=lambda item: None), 1.0, 0.25,
+        link = RobotLink(robot, route, session, 1.0, 0.25,
                          Rejections("t"), agent_id=0)
         link.pose = Odom(0.0, 0.0, 0.3)
         rng = np.random.default_rng(1)

@@ -16,7 +16,7 @@ from zswarm.errors import UsageError
 from zswarm.ros.graph import node_token, topic_token
 from zswarm.ros.motion import Odom, odometry, read_pose, read_twist, twist
 from zswarm.ros.robot_sim import SimRobot
-from zswarm.ros.robots import ODOMETRY, POSE_STAMPED, TWIST, Robot, load_fleet
+from zswarm.ros.robots import ODOMETRY, POSE_STAMPED, TWIST, Robot, load_robots
 from zswarm.ros.wire import Attachment, Route, WireError
 
 JAZZY = Route("rmw_zenoh", "jazzy")
@@ -120,7 +120,7 @@ def test_a_bad_robots_file_is_one_line(tmp_path, text, needle):
     f = tmp_path / "robots.toml"
     f.write_text(text)
     with pytest.raises(UsageError, match=None) as err:
-        load_fleet(f)
+        load_robots(f)
     assert needle in str(err.value) and "\n" not in str(err.value) and str(f) in str(err.value)
 
 

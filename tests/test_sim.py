@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from zswarm.args import UsageError
-from zswarm.model.potentials import sense_one
+from zswarm.model.law import sense_one
 from zswarm.model.prey import step
 from zswarm.model.scenarios import SCENARIOS, get_scenario, load_scenario_file
 from zswarm.sim.simulator import Simulator, simulate
@@ -68,7 +68,7 @@ def test_vectorized_step_equals_each_agent_deciding_alone():
     for k, pos in enumerate(sim.positions):
         others = np.delete(sim.positions, k, axis=0)
         sensed = sense_one(pos, centers, radii, others, p.sensing_radius)
-        np.testing.assert_allclose(sim.controller.velocity(pos, sim.prey, sensed, p.v_max), v[k],
+        np.testing.assert_allclose(sim.law.velocity(pos, sim.prey, sensed, p.v_max), v[k],
                                    rtol=1e-12, atol=1e-14)
 
 
@@ -193,12 +193,14 @@ def test_spawning_a_large_swarm_takes_memory_in_proportion_to_n():
 def test_the_arena_frames_every_agent_obstacle_and_the_prey_all_run_long():
     for name in SCENARIOS:
         scenario = get_scenario(name)
-        x0, y0, x1, y1 = scenario.arena(margin=0.0)
+        box = scenario.arena(margin=0.0)  # (x0, y0[, z0], x1, y1[, z1])
+        d = scenario.dimensions
+        assert len(box) == 2 * d, name
         sim = Simulator(scenario, 0)
-        inside = lambda p: x0 - 1e-9 <= p[0] <= x1 + 1e-9 and y0 - 1e-9 <= p[1] <= y1 + 1e-9  # noqa: E731
+        inside = lambda p: all(box[k] - 1e-9 <= p[k] <= box[d + k] + 1e-9 for k in range(d))  # noqa: E731
         assert all(inside(p) for p in sim.positions), name
-        assert all(inside((o.x + dx * o.radius, o.y + dy * o.radius)) for o in scenario.obstacles
-                   for dx, dy in ((-1, 0), (1, 0), (0, -1), (0, 1))), name
+        assert all(inside((o.x + dx * o.radius, o.y + dy * o.radius, o.z + dz * o.radius)) for o in scenario.obstacles
+                   for dx, dy, dz in ((-1, 0, 0), (1, 0, 0), (0, -1, 0), (0, 1, 0), (0, 0, -1), (0, 0, 1))), name
         prey_framed = name != "bench-field"  # its prey is out of reach on purpose, and out of the frame
         prey = sim.prey
         for _ in range(scenario.steps):  # wherever its motion takes it during the run (agents held at spawn)

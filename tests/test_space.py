@@ -16,7 +16,7 @@ from zswarm.model.design_swarm import packing_bound
 from zswarm.model.faults import FaultModel
 from zswarm.model.neighbours import pairs_within
 from zswarm.model.params import DEFAULT_PARAMS
-from zswarm.model.potentials import field
+from zswarm.model.law import field
 from zswarm.model.prey import PreyMotion, step
 from zswarm.model.scenarios import get_scenario
 from zswarm.record.replay import load_run
@@ -165,7 +165,7 @@ def test_a_3d_agent_learns_it_is_in_a_2d_run_from_the_worlds_first_answer(capsys
     answer = msg.decode(payload)
     assert answer.dims == 2 and answer.centers == ((1.0, 0.0),)
     assert capsys.readouterr().err.count("a 3-D agent asked this 2-D run for obstacles") == 1
-    view = ObstacleView(Keys("r", 1.0, dims=3), None, Body(0.5, 0.0, z=2.0, vz=0.0), 1.0, Counters(Rejections("t")))
+    view = ObstacleView(Keys("r", 1.0, dims=3), Body(0.5, 0.0, z=2.0, vz=0.0), 1.0, Counters(Rejections("t")))
     assert not view.know(answer, (0.5, 0.0, 2.0))
     assert view.foreign_dims == 2 and view.query_at is None and view.obstacles == []
     assert view.know(msg.Obstacles(((1.0, 0.0, 2.0),), (0.3,), dims=3), (0.5, 0.0, 2.0)) and view.foreign_dims == 2
@@ -174,26 +174,20 @@ def test_a_3d_agent_learns_it_is_in_a_2d_run_from_the_worlds_first_answer(capsys
 def test_an_agent_in_a_3d_run_refuses_2d_poses_and_takes_3d_ones():
     import time
 
-    import zenoh
-
     from agents.sensing import Body, Sensing
     from zswarm.net import messages as msg
-    from zswarm.net.bridge import Bridge
-    from zswarm.net.config import zenoh_config
     from zswarm.net.runspec import RunSpec
 
     spec = RunSpec(run="sky", scenario_name="moving-prey-3d")
-    with zenoh.open(zenoh_config("peer")) as session:
-        bridge = Bridge(session, None, deliver=lambda item: None, batch=True, channels=True)
-        s = Sensing(spec, 0, bridge, Body(0.0, 0.0, z=0.0, vz=0.0))
-        now = time.time()
-        s.handle(("pose", spec.keys.pose((0, 0, 0), 5), msg.encode(msg.Pose(5, 1, now, -1, 0.5, 0.5, 0.0, 0.0)),
-                  False, now))
-        s.handle(("prey", spec.keys.prey, msg.encode(msg.Prey(1, now, -1, 1.0, 0.0)), False, now))
-        assert s.counters.rejections.counts == {"dimensions": 2} and 5 not in s.neighbours.entries and s.prey is None
-        s.handle(("pose", spec.keys.pose((0, 0, 0), 6),
-                  msg.encode(msg.Pose(6, 1, now, -1, 0.5, 0.5, 0.0, 0.0, None, 0.25, 0.0)), False, now))
-        s.handle(("prey", spec.keys.prey, msg.encode(msg.Prey(1, now, -1, 1.0, 0.0, 0.5)), False, now))
-        assert 6 in s.neighbours.entries and s.prey == (1.0, 0.0, 0.5)
-        assert s.counters.rejections.counts == {"dimensions": 2}
-        bridge.close()
+    # sensing holds no transport: samples are handed to it as the bridge would
+    s = Sensing(spec, 0, Body(0.0, 0.0, z=0.0, vz=0.0), probe_latency=True)
+    now = time.time()
+    s.handle(("pose", spec.keys.pose((0, 0, 0), 5), msg.encode(msg.Pose(5, 1, now, -1, 0.5, 0.5, 0.0, 0.0)),
+              False, now))
+    s.handle(("prey", spec.keys.prey, msg.encode(msg.Prey(1, now, -1, 1.0, 0.0)), False, now))
+    assert s.counters.rejections.counts == {"dimensions": 2} and 5 not in s.neighbours.entries and s.prey is None
+    s.handle(("pose", spec.keys.pose((0, 0, 0), 6),
+              msg.encode(msg.Pose(6, 1, now, -1, 0.5, 0.5, 0.0, 0.0, None, 0.25, 0.0)), False, now))
+    s.handle(("prey", spec.keys.prey, msg.encode(msg.Prey(1, now, -1, 1.0, 0.0, 0.5)), False, now))
+    assert 6 in s.neighbours.entries and s.prey == (1.0, 0.0, 0.5)
+    assert s.counters.rejections.counts == {"dimensions": 2}

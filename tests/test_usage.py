@@ -114,8 +114,11 @@ CASES = [
     (["-m", "zswarm", "sim", "--record", "{dir}/x.txt"], "ending in .rrd"),
     (["-m", "zswarm", "replay", "{dir}"], "is a directory"),
     # monitor, tune
-    (["-m", "zswarm", "monitor", "--run", "x", "--connect", "foo:bar"], "an endpoint looks like tcp/HOST:PORT"),
+    (["-m", "zswarm", "monitor", "--run", "x", "--connect", "foo:bar"], "must look like tcp/HOST:PORT"),
     (["-m", "zswarm", "monitor", "--run", "x", "--wait", "-1"], "--wait must be"),
+    (["-m", "zswarm", "monitor", "--run", "x", "--connect", "tcp/999.1.1.1:7447"], "999.1.1.1 is not an IP address"),
+    (["-m", "agents", "--id", "0", "--connect", "tcp/127.0.0.1:70000"], "the port must be in 1..65535"),
+    ([LAUNCH, "--record", "{old}"], "exists (an earlier run's): give --force to overwrite it, or another --record"),
     (["-m", "zswarm", "monitor", "--run", "x", "--duration", "-1"], "--duration must be"),
     (["-m", "zswarm", "tune", "--out", "{dir}/t", "--popsize", "1"], "--popsize must be >= 2"),
     (["-m", "zswarm", "tune", "--out", ""], "--out needs a directory"),
@@ -161,7 +164,9 @@ def _prepare(folder: Path) -> dict[str, str]:
     junk.write_bytes(b"\x00\xff not what you think [[[ = \n")
     (folder / "junk.toml").write_bytes(b"[[[ = \n")
     (folder / "d").mkdir()
-    return {"junk": str(junk), "dir": str(folder / "d"), "missing": str(folder / "missing")}
+    (folder / "old.rrd").write_bytes(b"an earlier run's recording")
+    return {"junk": str(junk), "dir": str(folder / "d"), "missing": str(folder / "missing"),
+            "old": str(folder / "old.rrd")}
 
 
 @pytest.fixture(scope="module")
@@ -190,7 +195,24 @@ def test_user_mistakes_get_one_line_and_exit_2(k, mistakes):
     assert res.returncode == 2, (res.returncode, res.stderr[-2000:])
     assert needle in res.stderr, res.stderr
     assert "Traceback" not in res.stderr and len(res.stderr.strip().splitlines()) == 1, res.stderr
-    assert not any(p.name not in ("junk", "junk.toml", "d") for p in folder.iterdir()), "left files behind"
+    assert not any(p.name not in ("junk", "junk.toml", "d", "old.rrd") for p in folder.iterdir()), "left files behind"
+    assert (folder / "old.rrd").read_bytes() == b"an earlier run's recording"
+
+
+def test_a_run_never_overwrites_an_earlier_one_unless_forced(tmp_path, monkeypatch):
+    """No --record: run.rrd, then run-2.rrd beside an earlier run (said at start); --force takes run.rrd."""
+    from zswarm.launch.plan import run_files
+
+    monkeypatch.chdir(tmp_path)
+    assert run_files(None, None, False) == (Path("run.rrd"), Path("run.json"), "")
+    Path("run.json").write_text("{}")  # an earlier run's summary alone holds the name too
+    record, summary, note = run_files(None, None, False)
+    assert (record, summary) == (Path("run-2.rrd"), Path("run-2.json")) and "run-2.rrd" in note
+    Path("run-2.rrd").write_bytes(b"x")
+    assert run_files(None, None, False)[0] == Path("run-3.rrd")
+    assert run_files(None, None, True)[:2] == (Path("run.rrd"), Path("run.json"))
+    with pytest.raises(Exception, match="give --force"):
+        run_files(Path("run-2.rrd"), None, False)
 
 
 def test_a_scenario_file_with_an_interaction_its_potential_cannot_use_is_refused_when_read(tmp_path):

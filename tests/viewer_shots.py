@@ -19,8 +19,11 @@ NO_XVFB = pytest.mark.skipif(shutil.which("xvfb-run") is None,
 def render(recording: Path, out: Path) -> np.ndarray:
     from PIL import Image
 
+    from conftest import free_port
+
+    # a port of its own: two renders at once (the suite runs in parallel) must not find each other's viewer
     res = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1280x800x24", str(RERUN), str(recording),
-                          "--screenshot-to", str(out), "--window-size", "1280x800"],
+                          "--screenshot-to", str(out), "--window-size", "1280x800", "--port", str(free_port())],
                          capture_output=True, text=True, timeout=120)
     if not out.exists():
         pytest.skip(f"the viewer could not render headless here (exit {res.returncode}): {res.stderr[-300:]}")

@@ -48,13 +48,12 @@ def build_parser() -> Parser:
 async def run_world(args: argparse.Namespace, spec: RunSpec, viewer: Viewer | None = None) -> dict:
     loop = asyncio.get_running_loop()
     session = open_session(config_from_args(args), what="world", retry_for=args.connect_timeout)
-    # free clock: what arrived waits in channels taken out at each world tick; lockstep: each pose wakes
-    # the loop (the world waits for the poses of a step)
-    bridge = Bridge(session, loop, deliver=lambda item: None, channels=spec.clock == "free")
     recorder = WorldRecorder(args.record, args.summary, args.trajectory, spec.scenario.n_agents, spec.scenario.dt,
                              viewer, {"auto": None, "on": True, "off": False}[args.sensing_graph])
-    world = World(spec, bridge, recorder, list(sys.argv))
-    bridge.deliver = world.handle
+    world = World(spec, session, recorder, list(sys.argv))
+    # free clock: what arrived waits in channels taken out at each world tick; lockstep: each pose wakes
+    # the loop (the world waits for the poses of a step)
+    bridge = Bridge(session, loop, world.handle, channels=spec.clock == "free")
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, world.stop.set)
     keys = spec.keys
@@ -68,12 +67,12 @@ async def run_world(args: argparse.Namespace, spec: RunSpec, viewer: Viewer | No
 
         print(f"world: run {spec.run!r}, scenario {spec.scenario.name}, {spec.scenario.n_agents} agents, "
               f"{spec.clock} clock; waiting for the agents", flush=True)
-        await world.wait_for_agents(min(args.start_timeout, 3.0) if world.resumed else args.start_timeout)
+        await world.wait_for_agents(bridge, min(args.start_timeout, 3.0) if world.resumed else args.start_timeout)
         print(f"world: started with {len(world.census.alive)} agents alive", flush=True)
         if spec.clock == "lockstep":
             await world.run_lockstep(spec.steps, args.progress, args.step_timeout)
         else:
-            await world.run_free(spec.steps, args.progress)
+            await world.run_free(bridge, spec.steps, args.progress)
         expected = set(world.census.alive)
         world.ending = True
         world.publish(keys.tick, msg.Tick(world.clock.step + 1, time.time(), *map(float, world.prey), final=True))

@@ -91,8 +91,11 @@ class Clock:
 
 
 class World:
-    def __init__(self, spec: RunSpec, bridge: Bridge, recorder: WorldRecorder, argv: list[str]) -> None:
-        self.spec, self.bridge, self.keys, self.recorder = spec, bridge, spec.keys, recorder
+    """The world's state and clocks. It publishes on ``session``; what it hears reaches :meth:`handle`
+    through the bridge built after it (:mod:`world.main`), which the free clock drains once per tick."""
+
+    def __init__(self, spec: RunSpec, session: zenoh.Session, recorder: WorldRecorder, argv: list[str]) -> None:
+        self.spec, self.session, self.keys, self.recorder = spec, session, spec.keys, recorder
         self.scenario = spec.scenario
         self.argv = argv
         self.observer = SwarmObserver(self.scenario, spec.combination)
@@ -260,30 +263,30 @@ class World:
         over: ticks go ahead of data (a higher priority) and wait for room on a congested link rather
         than being dropped there."""
         qos = TICK_QOS if isinstance(message, msg.Tick) else {}
-        self.bridge.session.put(key, msg.encode(message), encoding=msg.ENCODING, **qos)
+        self.session.put(key, msg.encode(message), encoding=msg.ENCODING, **qos)
         self.sent += 1
 
     # --- the clocks -----------------------------------------------------------------------------------
 
-    async def wait_for_agents(self, timeout: float) -> None:
+    async def wait_for_agents(self, bridge: Bridge, timeout: float) -> None:
         loop = asyncio.get_running_loop()
         deadline = loop.time() + timeout
         alive, n = self.census.alive, self.scenario.n_agents
         while len(alive) < n and loop.time() < deadline and not self.stop.is_set():
             await asyncio.sleep(0.05)
-            self.bridge.drain()
+            bridge.drain()
         if len(alive) < n:
             print(f"world: {len(alive)} of {n} agents alive after {timeout:g} s; starting anyway",
                   file=sys.stderr, flush=True)
 
-    async def run_free(self, steps: int, progress: float) -> None:
+    async def run_free(self, bridge: Bridge, steps: int, progress: float) -> None:
         loop = asyncio.get_running_loop()
         clock, period, duration = self.clock, self.spec.period, steps * self.scenario.dt
         next_tick = loop.time()
         start = next_tick - clock.t / self.spec.time_scale  # a restarted world goes on from its t
         last_print = -math.inf
         while not self.stop.is_set():
-            self.bridge.drain()  # every sample that arrived since the last tick
+            bridge.drain()  # every sample that arrived since the last tick
             live = self.poses.latest(self.census.alive)
             self.publish(self.keys.prey, msg.Prey(clock.step, time.time(), -1, *map(float, self.prey)))
             last_print = self._progress(self.observe(live), steps, progress, last_print)

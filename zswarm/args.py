@@ -57,11 +57,11 @@ def read_params_file(path: str) -> list[str]:
     table = data.get("params", data) if isinstance(data.get("params"), dict) else data
     out = []
     for name, value in table.items():
-        if isinstance(value, str) and name == "interaction":
+        if isinstance(value, str):  # a name (interaction, body): checked where it is used, as a --set is
             out.append(f"{name}={value}")
             continue
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise UsageError(f"parameter file {path}: {name} must be a number (got {value!r})")
+            raise UsageError(f"parameter file {path}: {name} must be a number or a name (got {value!r})")
         out.append(f"{name}={value!r}")
     return out
 

@@ -52,7 +52,10 @@ def build_parser(prog: str = "zswarm run") -> Parser:
     add_run_args(p, run_help="run id: namespaces every key (default: run-SEED-TIME)")
     p.add_argument("--agents", type=int, default=None,
                    help="number of agents N (default: the scenario's; same as --set n_agents=N)")
-    p.add_argument("--record", type=Path, default=Path("run.rrd"), help="recording (default run.rrd)")
+    p.add_argument("--record", type=Path, default=None,
+                   help="recording (default run.rrd, or run-2.rrd, run-3.rrd, ... when an earlier run's is there)")
+    p.add_argument("--force", action="store_true",
+                   help="overwrite the recording and summary an earlier run left at --record / --summary")
     p.add_argument("--summary", type=Path, default=None, help="summary JSON (default: beside the recording)")
     p.add_argument("--trajectory", type=Path, default=None, help="observed positions per step (.npz)")
     p.add_argument("--role", type=parse_roles, default=list(ROLES),

@@ -28,7 +28,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--cmd-timeout", type=float, default=0.25,
                         help="stop a robot whose commands stopped this many seconds ago (default 0.25)")
     parser.add_argument("--duration", type=float, default=None, help="stop after this many seconds (default: "
-                        "until Ctrl-C)")
+                        "until the run ends, see --idle-exit, or Ctrl-C)")
+    parser.add_argument("--idle-exit", type=float, default=5.0, metavar="S",
+                        help="stop once the robots were commanded and then no command came for S seconds: "
+                             "the run that drove them has ended (default 5; 0: never)")
     add_zenoh_args(parser)
 
 
@@ -37,36 +40,39 @@ def run(args: argparse.Namespace) -> int:
     from zswarm.model.scenarios import get_scenario
     from zswarm.net.config import config_from_args, open_session
     from zswarm.ros import robot_sim
-    from zswarm.ros.robots import load_fleet
+    from zswarm.ros.robots import load_robots
 
     if not 1.0 <= args.rate <= 1000.0:
         raise UsageError(f"--rate must be in [1, 1000] Hz (got {args.rate})")
+    if not 0.0 <= args.idle_exit <= 3600.0:
+        raise UsageError(f"--idle-exit must be in [0, 3600] s (got {args.idle_exit})")
     if not 0.0 < args.cmd_timeout <= 10.0:
         raise UsageError(f"--cmd-timeout must be in (0, 10] s (got {args.cmd_timeout})")
-    fleet = load_fleet(args.robots)
+    robots_file = load_robots(args.robots)
     scenario = get_scenario(args.scenario, parse_assignments(args.assignments))
     if scenario.dimensions != 2:
         raise UsageError(f"{args.scenario} is 3-D: ROS 2 ground robots (a unicycle each) need a 2-D scenario")
     spawn = scenario.initial_positions(np.random.default_rng(args.seed))
     facing = tuple(float(c) for c in scenario.prey_start)
     robots = []
-    for r in fleet.robots:
+    for r in robots_file.robots:
         if r.id >= len(spawn):
             raise UsageError(f"robot {r.namespace} drives agent {r.id}, which {scenario.name} (N = {len(spawn)}) "
                              "does not spawn; give it an id below N or --set n_agents=")
         start = robot_sim.start_pose(r, (float(spawn[r.id, 0]), float(spawn[r.id, 1])), facing)
-        robots.append(robot_sim.SimRobot(r, fleet.route, start, args.cmd_timeout))
+        robots.append(robot_sim.SimRobot(r, robots_file.route, start, args.cmd_timeout))
     session = open_session(config_from_args(args), what="robot-sim", retry_for=args.connect_timeout)
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
-    route = fleet.route
+    route = robots_file.route
     print(f"robot-sim: {len(robots)} robots on {route.route} ({route.distro}, domain {route.domain_id}), "
           f"odometry at {args.rate:g} Hz, stopping {args.cmd_timeout:g} s after the last command", flush=True)
     try:
-        robot_sim.run(session, route, robots, args.rate, stop, args.duration)
+        why = robot_sim.run(session, route, robots, args.rate, stop, args.duration, args.idle_exit or None)
     finally:
         session.close()
+    print(f"robot-sim: {why}", flush=True)
     for r in robots:
         rejected = ", ".join(f"{k} {v}" for k, v in sorted(r.rejected.items())) or "none"
         print(f"robot-sim: {r.robot.namespace}: {r.commands} commands, rejected {rejected}", flush=True)

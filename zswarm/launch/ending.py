@@ -31,4 +31,26 @@ def finish_recording(plan: Plan, world_code: int, started_at: float, routing: di
         except UsageError as exc:
             say(f"the world ended with code {world_code} and its recording cannot be salvaged: {exc}")
     if not plan.quiet and plan.record.exists():
-        say(f"recording {plan.record} (open with: rerun {plan.record}); summary {plan.summary}", err=False)
+        say(f"recording {plan.record} (open with: {viewer_command()} {plan.record}); summary {plan.summary}", err=False)
+
+
+def viewer_command() -> str:
+    """How to start the Rerun viewer from here: ``rerun`` where it is on PATH, else the one installed
+    beside this Python (a virtual environment's bin/ that was not activated), relative to here when it
+    is below."""
+    import shutil
+    import sys
+    from pathlib import Path
+
+    if shutil.which("rerun") is not None:
+        return "rerun"
+    return _short(Path(sys.executable).parent / "rerun")
+
+
+def _short(path) -> str:
+    from pathlib import Path
+
+    try:
+        return str(Path(path).relative_to(Path.cwd()))
+    except ValueError:
+        return str(path)

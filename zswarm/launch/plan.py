@@ -15,21 +15,16 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 from zswarm.errors import UsageError
 from zswarm.files import check_run_files
+from zswarm.net.config import endpoint_host_port
 from zswarm.net.runspec import RunSpec, spec_from_args
 from zswarm.record.live import Viewer, viewer_from_args
 
-
-def endpoint_host_port(endpoint: str) -> tuple[str, int]:
-    try:
-        _, rest = endpoint.split("/", 1)
-        host, port = rest.rsplit(":", 1)
-        return host.strip("[]"), int(port)
-    except ValueError:
-        raise UsageError(f"endpoint {endpoint!r} must look like tcp/HOST:PORT (or tls/HOST:PORT)") from None
+if TYPE_CHECKING:
+    from zswarm.ros.robots import RobotsFile
 
 
 @dataclass(frozen=True)
@@ -56,7 +51,8 @@ class Plan:
     world_crash: tuple[float, float | None] | None
     viewer: Viewer = Viewer()
     design: dict | None = None
-    robots: Path | None = None  # a robots file: the agents it names drive ROS 2 robots  # the design verdict of the set this run uses (None: not judged here)
+    robots: Path | None = None  # a robots file: the agents it names drive ROS 2 robots
+    notes: tuple[str, ...] = ()  # said at start: where the recording goes, which agents drive robots
 
 
 def plan_from_args(args: argparse.Namespace) -> Plan:
@@ -73,8 +69,12 @@ def plan_from_args(args: argparse.Namespace) -> Plan:
     design = None
     if "world" in args.role or args.require_design:
         design = judge_design(spec, args.require_design)
+    files_note = ""
     if "world" in args.role:
+        args.record, args.summary, files_note = run_files(args.record, args.summary, args.force)
         check_run_files(args.record, args.summary, args.trajectory)
+    elif args.record is None:
+        args.record = Path("run.rrd")  # not written here: the world's machine records
     if "router" not in args.role and args.connect is None:
         raise UsageError("without the router role, give --connect tcp/HOST:PORT of the router")
     for flag, endpoint in (("--listen", args.listen), ("--connect", args.connect)):
@@ -104,8 +104,9 @@ def plan_from_args(args: argparse.Namespace) -> Plan:
                          "(--spawn and --serve live in the world process)")
     if args.secure is not None:
         check_secure_dir(args.secure, ids if "agents" in args.role else ())
+    notes = [files_note] if files_note else []
     if args.robots is not None:
-        check_robots(args.robots, spec)
+        notes.append(robots_note(check_robots(args.robots, spec), args.robots, ids))
     if "agents" in args.role and spec.clock == "free":  # last: a usage error above comes alone
         line = pace_warning(len(ids), spec.scenario.dt, spec.time_scale, available_cores())
         if line:
@@ -115,18 +116,57 @@ def plan_from_args(args: argparse.Namespace) -> Plan:
                 connect=args.connect, listen=args.listen, secure=args.secure, config=args.config,
                 router_config=args.router_config, quiet=args.quiet, fork=args.fork, kill=args.kill, restart_after=args.restart_after,
                 world_outage=args.world_outage, world_crash=args.world_crash, viewer=viewer, design=design,
-                robots=args.robots)
+                robots=args.robots, notes=tuple(notes))
 
 
-def check_robots(path: Path, spec: RunSpec) -> None:
-    """A robots file every agent can use: readable, and a run the robots can drive in."""
-    from zswarm.ros.robots import load_fleet
+def run_files(record: Path | None, summary: Path | None, force: bool) -> tuple[Path, Path, str]:
+    """The recording and summary a run writes, and what to say about them at start. Nothing an earlier
+    run left is overwritten without ``--force``: the default (no ``--record``) takes run.rrd, or the
+    first of run-2.rrd, run-3.rrd, ... whose recording and summary are both free; an explicit path that
+    holds a file is refused."""
+    if record is None and summary is None and not force:
+        for k in range(1, 10_000):
+            candidate = Path("run.rrd" if k == 1 else f"run-{k}.rrd")
+            if not candidate.exists() and not candidate.with_suffix(".json").exists():
+                note = "" if k == 1 else f"recording to {candidate} (run.rrd is an earlier run's; --record to choose)"
+                return candidate, candidate.with_suffix(".json"), note
+        raise UsageError("run.rrd to run-9999.rrd are all taken: give --record FILE.rrd")
+    record = record or Path("run.rrd")
+    summary = summary or record.with_suffix(".json")
+    for flag, path in (("--record", record), ("--summary", summary)):
+        if path.is_file() and not force:  # a directory there: check_run_files says what is wrong
+            raise UsageError(f"{path} exists (an earlier run's): give --force to overwrite it, or another {flag}")
+    return record, summary, ""
 
-    load_fleet(path)
-    if spec.scenario.dimensions != 2:
-        raise UsageError(f"--robots drives ROS 2 ground robots: {spec.scenario.name} is 3-D")
-    if spec.clock != "free" or spec.time_scale != 1.0:
-        raise UsageError("--robots needs the free clock at --time-scale 1: a robot moves in real time")
+
+def robots_note(robots: RobotsFile, path: Path, ids: Sequence[int]) -> str:
+    """Which of this machine's agents drive a robot of the file, and which keep a simulated body."""
+    driving = [i for i in ids if robots.robot(i) is not None]
+    simulated = [i for i in ids if robots.robot(i) is None]
+    line = (f"robots ({path}): agents {_ids(driving)} drive ROS 2 robots" if driving else
+            f"robots ({path}): none of this machine's agents is named there: every agent keeps a simulated body")
+    if driving and simulated:
+        line += f"; agents {_ids(simulated)} keep a simulated body"
+    return line
+
+
+def _ids(ids: Sequence[int]) -> str:
+    """0-5, 8, 10-12."""
+    parts, start = [], None
+    for k, i in enumerate(ids):
+        if start is None:
+            start = i
+        if k + 1 == len(ids) or ids[k + 1] != i + 1:
+            parts.append(str(start) if start == i else f"{start}-{i}")
+            start = None
+    return ", ".join(parts)
+
+
+def check_robots(path: Path, spec: RunSpec) -> RobotsFile:
+    """A robots file every agent can use (:func:`zswarm.ros.robots.robots_for_run`)."""
+    from zswarm.ros.robots import robots_for_run
+
+    return robots_for_run(path, spec.scenario.name, spec.scenario.dimensions, spec.clock, spec.time_scale)
 
 
 #: Memory an agent process holds, with margin (PSS in docs/benchmarks.md: 10-12 MB forked, 22-25 MB not).

@@ -18,7 +18,8 @@ from zswarm.errors import UsageError
 from zswarm.launch.chaos import Event, schedule
 from zswarm.launch.configs import agent_config_args, role_configs
 from zswarm.launch.ending import finish_recording
-from zswarm.launch.plan import Plan, endpoint_host_port
+from zswarm.launch.plan import Plan
+from zswarm.net.config import endpoint_host_port
 from zswarm.launch.world_lines import DONE, follow_world
 from zswarm.net.procs import (
     Child,
@@ -104,6 +105,8 @@ class Launch:
             routers = f"router {self.endpoint}" if len(self.endpoints) == 1 else \
                 f"{len(self.endpoints)} routers {', '.join(self.endpoints)}"
             _say(f"run {self.spec.run!r}, {len(self.kids.named('agent'))} agent processes, {routers}", err=False)
+            for note in plan.notes:
+                _say(note, err=False)
 
     def _agent_config(self, agent: int) -> list[str]:
         return agent_config_args(self.plan, self.configs, agent)

@@ -1,11 +1,12 @@
 """The control law of one agent in plain floats: P' = sat(-grad U_i) (eq 5 with the speed limit).
 
-The same arithmetic as :func:`zswarm.model.potentials.field` for a single agent, term by term and in
-the same order, written for the handful of obstacles and neighbours one agent senses. At that size
-numpy's per-call overhead is most of the cost (about 0.23 ms a step with arrays, a tenth of that
-here), and an agent process steps 20 times a second. ``tests/test_agent_law.py`` checks it against
-the vectorized law on random configurations; the lockstep test checks whole runs against the
-reference simulator.
+A thin specialisation of the one law, :func:`zswarm.model.law.field`, for one 2-D agent: the same
+arithmetic term by term and in the same order, written for the handful of obstacles and neighbours
+one agent senses. At that size numpy's per-call overhead is most of the cost (about 0.23 ms a step
+with arrays, a tenth of that here; ``docs/benchmarks.md``), and an agent process steps 20 times a
+second. ``tests/test_one_law.py`` holds it equal to the law (1e-12) on random states for every
+interaction and combination, and its point-body step to :func:`zswarm.model.body.step`; the lockstep
+test checks whole runs against the reference simulator.
 
 - goal (eqs 7-8): U^g = c_g (1 - e^{-|psi_g|^2/l_g^2}), F^g = -2 c_g/l_g^2 e^{...} psi_g;
 - obstacles (eqs 9-11, circles through their nearest boundary point): U^o = sum c_o e^{-|psi_o|^2/l_o^2},
@@ -32,6 +33,7 @@ from zswarm.model.params import PotentialParams
 from zswarm.model.potentials import Combination
 
 Point = tuple[float, float]
+Triple = tuple[float, float, float | None]
 Circle = tuple[float, float, float]  # centre x, y and radius (0: the paper's point obstacle)
 
 
@@ -141,3 +143,11 @@ def _neighbour_force(x: float, y: float, goal: Point, neighbours: Iterable[Point
         k = max(wsum, 1.0)
         ax, ay = ax / k, ay / k
     return (rx + ax, ry + ay), 1.0 - block
+
+
+def point_step(x: float, y: float, z: float | None, v_d: tuple[float, ...], dt: float) -> tuple[Triple, Triple]:
+    """The point body's step (:func:`zswarm.model.body.step` for ``point``) in plain floats: P + dt v_d
+    and the velocity v_d; z (and the third component) stays None in 2-D."""
+    if z is None:
+        return (x + dt * v_d[0], y + dt * v_d[1], None), (v_d[0], v_d[1], None)
+    return (x + dt * v_d[0], y + dt * v_d[1], z + dt * v_d[2]), (v_d[0], v_d[1], v_d[2])

@@ -22,7 +22,9 @@ from zswarm.model.metrics import components
 from zswarm.model.neighbour_law import neighbour_law
 from zswarm.model.neighbours import pairs_within
 from zswarm.model.params import Params
-from zswarm.model.potentials import field, formation_offset, saturate
+from zswarm.model.formation import formation_offset
+from zswarm.model.law import field
+from zswarm.model.potentials import saturate
 
 
 @dataclass(frozen=True)

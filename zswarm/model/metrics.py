@@ -65,6 +65,43 @@ def algebraic_connectivity(n: int, i: np.ndarray, j: np.ndarray, n_components: i
     return float(np.linalg.eigvalsh(lap)[1])
 
 
+# -- each metric's definition, once: vectorized over any leading axes (a run, or a batch of runs); the
+# per-step metrics below and the batched simulator's tally (zswarm.sim.batch) both use these
+
+
+def centroid_goal_distance(positions: np.ndarray, prey: np.ndarray) -> np.ndarray:
+    """|centroid - prey| of each run: positions (..., N, D), prey (..., D) -> (...)."""
+    return np.linalg.norm(positions.mean(axis=-2) - prey, axis=-1)
+
+
+def caught(centroid_distance: np.ndarray | float, capture_radius: np.ndarray | float) -> np.ndarray:
+    """The prey is caught when the swarm's centroid is within the capture radius of it."""
+    return np.asarray(centroid_distance) <= capture_radius
+
+
+def too_close(distance: np.ndarray, robot_radius: np.ndarray | float) -> np.ndarray:
+    """A collision: two bodies of radius d^r closer than 2 d^r (counted on pairs of the sensing graph)."""
+    return distance < 2.0 * np.asarray(robot_radius)
+
+
+def obstacle_clearance(points: np.ndarray, centers: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """|P - C| - rho (the |psi^o| that Props 1-2 bound), broadcast over points and obstacles."""
+    d = points - centers
+    return np.sqrt(np.einsum("...k,...k->...", d, d)) - radii
+
+
+def touching(clearance: np.ndarray, robot_radius: np.ndarray | float) -> np.ndarray:
+    """An obstacle contact: the clearance below the robot's radius."""
+    return clearance < np.asarray(robot_radius)
+
+
+def median_nearest(nearest: np.ndarray) -> float:
+    """The median nearest-neighbour distance over the agents that have one within R (inf: none); NaN
+    when no agent has one."""
+    has = np.isfinite(nearest)
+    return float(np.median(nearest[has])) if has.any() else math.nan
+
+
 def _min_pair_distance(positions: np.ndarray, i: np.ndarray, j: np.ndarray) -> float:
     if len(i):
         d = positions[i] - positions[j]
@@ -90,26 +127,26 @@ def step_metrics(positions: np.ndarray, velocities: np.ndarray, prey: np.ndarray
     labels = components(n, i, j)
     n_comp = len(np.unique(labels))
     d_ij = np.linalg.norm(positions[i] - positions[j], axis=1)
-    close = (d_ij < 2.0 * ctx.robot_radius) & (i < j)
+    close = too_close(d_ij, ctx.robot_radius) & (i < j)
     colliding = np.stack([i[close], j[close]], axis=1)
 
     a, m = ctx.obstacles.sensed(positions)
-    clearance = np.linalg.norm(positions[a] - ctx.obstacles.centers[m], axis=1) - ctx.obstacles.radii[m]
-    touching = clearance < ctx.robot_radius
-    contacts = np.stack([a[touching], m[touching]], axis=1)
+    clearance = obstacle_clearance(positions[a], ctx.obstacles.centers[m], ctx.obstacles.radii[m])
+    touch = touching(clearance, ctx.robot_radius)
+    contacts = np.stack([a[touch], m[touch]], axis=1)
 
-    spacing_error = median_nearest = math.nan
+    spacing_error = nearest_median = math.nan
     if len(i):
         nearest = np.full(n, np.inf)
         np.minimum.at(nearest, i, d_ij)
         has = np.isfinite(nearest)
-        median_nearest = float(np.median(nearest[has]))
+        nearest_median = median_nearest(nearest)
         if ctx.spacing is not None:
             spacing_error = float(np.mean(np.abs(nearest[has] - ctx.spacing)))
     speed = np.linalg.norm(velocities, axis=1).sum()
     out = {
         "mean_goal_distance": float(to_goal.mean()),
-        "centroid_goal_distance": float(np.linalg.norm(centroid - prey)),
+        "centroid_goal_distance": float(centroid_goal_distance(positions, prey)),
         "min_pair_distance": _min_pair_distance(positions, i, j),
         "colliding_pairs": float(len(colliding)),
         "min_obstacle_clearance": float(clearance.min()) if len(clearance) else math.inf,
@@ -119,7 +156,7 @@ def step_metrics(positions: np.ndarray, velocities: np.ndarray, prey: np.ndarray
         "union": (n - n_comp) / (n - 1) if n > 1 else 1.0,
         "algebraic_connectivity": algebraic_connectivity(n, i, j, n_comp),
         "spacing_error": spacing_error,
-        "median_nearest": median_nearest,
+        "median_nearest": nearest_median,
         "order": float(np.linalg.norm(velocities.sum(axis=0)) / speed) if speed > 0 else 0.0,
         "energy": float(energy),
     }
@@ -157,7 +194,7 @@ class Summary:
 
     def capture_time(self) -> float | None:
         d = np.asarray(self.series["centroid_goal_distance"])
-        hit = np.flatnonzero(d <= self.capture_radius)
+        hit = np.flatnonzero(caught(d, self.capture_radius))
         return self.times[int(hit[0])] if len(hit) else None
 
     def result(self) -> dict[str, Any]:

@@ -22,7 +22,8 @@ and the variants of :mod:`zswarm.model.interaction` act on those parts, with w_k
 
 The sums are over pairs given either as a flat list (agent index per pair: one agent process, or the
 reference simulator's neighbour grid) or as a dense (B, N, N) block (the batched simulator): the two
-:class:`Pairs` classes below are the only place the layouts differ.
+:class:`Pairs` classes below are the only place the layouts differ. With no interaction (``law`` None)
+:func:`neighbour_force` is the paper's eq 28, summed.
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from zswarm.errors import ParamError
-from zswarm.model.formation import equilibria
+from zswarm.model.formation import equilibria, pair_gain
 from zswarm.model.interaction import Interaction
 from zswarm.model.params import Params, PotentialParams
 
@@ -94,10 +95,17 @@ def gate_block(r: np.ndarray, cos: np.ndarray, law: NeighbourLaw) -> np.ndarray:
 
 
 class PairList:
-    """Pairs as a flat list: pair k belongs to agent ``agent[k]`` of ``n``."""
+    """Pairs as a flat list: pair k belongs to agent ``agent[k]`` of ``n`` (every listed pair counts)."""
 
     def __init__(self, agent: np.ndarray, n: int) -> None:
         self.agent, self.n = np.asarray(agent, dtype=np.intp), n
+
+    @property
+    def count(self) -> int:
+        return len(self.agent)
+
+    def sensed(self) -> np.ndarray:
+        return np.ones(len(self.agent), dtype=bool)
 
     def total(self, v: np.ndarray) -> np.ndarray:
         """Per-agent sum of per-pair values (K,) or vectors (K, D)."""
@@ -125,13 +133,26 @@ class PairList:
 
 
 class DensePairs:
-    """Pairs as a dense block (B, N, N): pair (b, i, j) belongs to agent i of run b."""
+    """Pairs as a dense block (B, N, M): pair (b, i, j) belongs to agent i of run b and counts where
+    ``mask`` holds (the others are out of range, padding, or the agent itself)."""
+
+    def __init__(self, mask: np.ndarray) -> None:
+        self.mask = mask
+
+    @property
+    def count(self) -> int:
+        return self.mask.shape[-1]
+
+    def sensed(self) -> np.ndarray:
+        return self.mask
 
     def total(self, v: np.ndarray) -> np.ndarray:
-        return v.sum(axis=2)
+        """Per-agent sum over the sensed pairs of per-pair values (B, N, M) or vectors (B, N, M, D)."""
+        mask = self.mask if v.ndim == self.mask.ndim else self.mask[..., None]
+        return np.where(mask, v, 0.0).sum(axis=2)
 
     def largest(self, v: np.ndarray) -> np.ndarray:
-        return v.max(axis=2)
+        return np.where(self.mask, v, 0.0).max(axis=2, initial=0.0)
 
     def rank(self, r2: np.ndarray) -> np.ndarray:
         return np.argsort(np.argsort(r2, axis=2, kind="stable"), axis=2, kind="stable")
@@ -143,16 +164,19 @@ class DensePairs:
 Pairs = PairList | DensePairs
 
 
-def neighbour_force(pairs: Pairs, psi: np.ndarray, sensed: np.ndarray, to_goal: np.ndarray, p: PotentialParams,
-                    law: NeighbourLaw) -> tuple[np.ndarray, np.ndarray]:
-    """Every agent's force from its neighbours and the weight of its goal term (1 without the gate).
+def neighbour_force(pairs: Pairs, psi: np.ndarray, to_goal: np.ndarray, p: PotentialParams,
+                    law: NeighbourLaw | None) -> tuple[np.ndarray, np.ndarray]:
+    """Every agent's force from its sensed neighbours and the weight of its goal term (1 without the gate).
 
-    ``psi``: per pair P_i - P_k (..., 2); ``sensed``: per pair, whether it counts (a dense block masks the
-    pairs out of range); ``to_goal``: per agent the unit vector toward its goal (0 at the goal). The
+    ``psi``: per pair P_i - P_k (..., D); ``to_goal``: per agent the unit vector toward its goal (0 at
+    the goal); ``law``: None (or the paper's) for eq 28 summed, F = -sum_k g(|psi_k|) psi_k. The
     potential parameters may be columns that broadcast against the pairs (a batch).
     """
-    spec = law.interaction
-    r2 = np.where(sensed, np.einsum("...j,...j->...", psi, psi), np.inf)
+    r2 = np.einsum("...j,...j->...", psi, psi)
+    if law is None or law.interaction.is_paper:
+        return pairs.total(-pair_gain(r2, p)[..., None] * psi), np.ones(to_goal.shape[:-1])
+    spec, sensed = law.interaction, pairs.sensed()
+    r2 = np.where(sensed, r2, np.inf)
     w = sensed.astype(float)
     if spec.cutoff:
         w = w * cutoff_weight(np.sqrt(np.where(sensed, r2, 0.0)), law.sensing_radius)

@@ -12,56 +12,27 @@ from __future__ import annotations
 import numpy as np
 
 from zswarm.model.design import epsilon
-from zswarm.model.formation import equilibria
+from zswarm.model.law import Law, compile_law, swarm_field
 from zswarm.model.metrics import MetricContext, Summary, step_metrics
-from zswarm.model.neighbour_law import neighbour_law
-from zswarm.model.neighbours import ObstacleIndex, pairs_within
-from zswarm.model.potentials import (
-    Combination,
-    Controller,
-    field,
-    make_controller,
-    obstacle_offsets,
-)
+from zswarm.model.neighbours import ObstacleIndex
+from zswarm.model.potentials import Combination
 from zswarm.model.scenarios import Scenario
-
-_NO_PAIRS = np.zeros(0, dtype=np.intp)
-
-
-def swarm_field(controller: Controller, obstacles: ObstacleIndex, positions: np.ndarray, goal: np.ndarray,
-                pairs: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Every agent's U_i and F_i = -grad_i U_i (eqs 12/14 with eqs 25-28) from what it senses.
-
-    Obstacles are the ones within the sensing radius of ``obstacles``; ``pairs`` is ``(i, psi_f)``,
-    the neighbour terms each agent i uses with psi^f = P_i - P_j as it believes it (default: every
-    pair within the sensing radius, at the true positions). ``goal`` is (2,) or one per agent (N, 2).
-    """
-    c = controller
-    if not c.formation:
-        i, psi_f = _NO_PAIRS, np.zeros((0, positions.shape[1]))
-    elif pairs is None:
-        i, j = pairs_within(positions, obstacles.sensing_radius)
-        psi_f = positions[i] - positions[j]
-    else:
-        i, psi_f = pairs
-    a, m = obstacles.sensed(positions)
-    psi_o = obstacle_offsets(positions[a], obstacles.centers[m], obstacles.radii[m])
-    return field(positions - goal, a, psi_o, i, psi_f, c.p, c.combination, c.c_f, c.law)
 
 
 class SwarmObserver:
     """Measures a swarm step by step and folds the steps into a summary (see the module doc)."""
 
-    def __init__(self, scenario: Scenario, combination: Combination | None = None) -> None:
+    def __init__(self, scenario: Scenario, combination: Combination | None = None, law: Law | None = None) -> None:
+        """``law``: the scenario's compiled law, when the caller has it already (the simulator)."""
         p = scenario.params
         self.scenario = scenario
-        self.combination: Combination = combination or scenario.combination
-        self.controller = make_controller(p.potential, self.combination, scenario.formation, neighbour_law(p))
+        self.law = law or compile_law(p, combination or scenario.combination, scenario.formation)
+        self.combination: Combination = self.law.combination
         centers, radii = scenario.obstacle_arrays()
         self.obstacles = ObstacleIndex(centers, radii, p.swarm.sensing_radius)
         self.context = MetricContext(
             robot_radius=p.swarm.robot_radius, sensing_radius=p.swarm.sensing_radius,
-            spacing=equilibria(p.potential).spacing if scenario.formation else None, obstacles=self.obstacles)
+            spacing=self.law.spacing if scenario.formation else None, obstacles=self.obstacles)
         self.summary = Summary(capture_radius=scenario.capture_radius,
                                epsilon=epsilon(p.potential, scenario.n_agents))
 
@@ -73,7 +44,7 @@ class SwarmObserver:
 
     def energy(self, positions: np.ndarray, goal: np.ndarray) -> float:
         """Sum of the agents' potentials U_i (eq 35), each from what it senses at ``positions``."""
-        u, _ = swarm_field(self.controller, self.obstacles, positions, goal)
+        u, _ = swarm_field(self.law, self.obstacles, positions, goal)
         return float(u.sum())
 
     def observe(self, t: float, ids: np.ndarray, positions: np.ndarray, velocities: np.ndarray,

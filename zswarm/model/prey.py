@@ -68,11 +68,13 @@ class PreyMotion:
 
 
 def step(motion: PreyMotion, prey: np.ndarray, dt: float, agents: np.ndarray) -> np.ndarray:
-    """The prey's position after ``dt`` (agents: (N, 2) positions, used only by the evasive prey)."""
+    """The prey's position after ``dt``, vectorized over runs: ``prey`` (..., D) and the agents' positions
+    ``agents`` (..., N, D) (used only by the evasive prey), with any leading axes (none for one run,
+    (B,) for a batch of runs that share this motion)."""
     prey = np.asarray(prey, dtype=float)
     if motion.kind == "static" or motion.speed == 0.0:
         return prey.copy()
-    dims = len(prey)
+    dims = prey.shape[-1]
     if motion.kind == "straight":
         h = math.radians(motion.heading_deg)
         if dims == 2:
@@ -81,22 +83,25 @@ def step(motion: PreyMotion, prey: np.ndarray, dt: float, agents: np.ndarray) ->
         return prey + motion.speed * dt * np.array([math.cos(c) * math.cos(h), math.cos(c) * math.sin(h), math.sin(c)])
     if motion.kind == "circle":
         c = np.asarray(motion.center[:2], dtype=float)
-        rel = prey[:2] - c
-        angle = math.atan2(rel[1], rel[0]) + motion.speed * dt / motion.radius
-        flat = c + motion.radius * np.array([math.cos(angle), math.sin(angle)])
+        rel = prey[..., :2] - c
+        angle = np.arctan2(rel[..., 1], rel[..., 0]) + motion.speed * dt / motion.radius
+        flat = c + motion.radius * np.stack([np.cos(angle), np.sin(angle)], axis=-1)
         if dims == 2:
             return flat
         z_c = motion.center[2] if len(motion.center) == 3 else 0.0
-        return np.array([flat[0], flat[1], z_c + motion.bob * math.sin(angle)])
-    # evasive
-    agents = np.asarray(agents, dtype=float).reshape(-1, dims)
-    if len(agents) == 0:
+        return np.concatenate([flat, (z_c + motion.bob * np.sin(angle))[..., None]], axis=-1)
+    # evasive: flee the nearest agent within sense_radius, stay inside the bounds (any height in 3-D)
+    agents = np.asarray(agents, dtype=float).reshape(prey.shape[:-1] + (-1, dims))
+    if agents.shape[-2] == 0:
         return prey.copy()
-    away = prey - agents
-    dist = np.sqrt(np.einsum("ij,ij->i", away, away))
-    k = int(np.argmin(dist))
-    if dist[k] > motion.sense_radius or dist[k] == 0.0:
-        return prey.copy()
-    moved = prey + motion.speed * dt * away[k] / dist[k]
+    away = prey[..., None, :] - agents
+    dist = np.sqrt(np.einsum("...ij,...ij->...i", away, away))
+    k = np.argmin(dist, axis=-1)
+    nearest = np.take_along_axis(dist, k[..., None], axis=-1)[..., 0]
+    flee = (nearest <= motion.sense_radius) & (nearest > 0.0)
+    toward = np.take_along_axis(away, k[..., None, None], axis=-2)[..., 0, :]
+    moved = prey + motion.speed * dt * toward / np.where(flee, nearest, 1.0)[..., None]
     x0, y0, x1, y1 = motion.bounds
-    return np.array([min(max(moved[0], x0), x1), min(max(moved[1], y0), y1), *moved[2:]])
+    moved = np.concatenate([np.clip(moved[..., :1], x0, x1), np.clip(moved[..., 1:2], y0, y1), moved[..., 2:]],
+                           axis=-1)
+    return np.where(flee[..., None], moved, prey)

@@ -125,7 +125,8 @@ class Scenario:
         """The region a run plays out in: the spawn box (or starts), every obstacle, the prey's start and
         where its motion can take it (its circle, its straight path over the run, the evasive prey's
         bounds), widened by ``margin``. What a map view should frame. A prey farther from the rest than
-        twice the rest's size (``bench-field``'s, out of reach on purpose) is left out of the frame."""
+        twice the rest's size (``bench-field``'s, out of reach on purpose) is left out of the frame.
+        (x_min, y_min, x_max, y_max); in 3-D (x_min, y_min, z_min, x_max, y_max, z_max)."""
         d = self.dimensions
         xs = [self.spawn[0], self.spawn[d]] + [p[0] for p in self.starts]
         ys = [self.spawn[1], self.spawn[d + 1]] + [p[1] for p in self.starts]
@@ -148,7 +149,17 @@ class Scenario:
         gap = math.hypot(max(min(px) - max(xs), min(xs) - max(px), 0.0), max(min(py) - max(ys), min(ys) - max(py), 0.0))
         if gap <= 2.0 * size:
             xs, ys = xs + px, ys + py
-        return (min(xs) - margin, min(ys) - margin, max(xs) + margin, max(ys) + margin)
+        if d == 2:
+            return (min(xs) - margin, min(ys) - margin, max(xs) + margin, max(ys) + margin)
+        zs = [self.spawn[2], self.spawn[5], self.prey_start[2]] + [p[2] for p in self.starts]
+        zs += [v for o in self.obstacles for v in (o.z - o.radius, o.z + o.radius)]
+        if m.kind == "circle":
+            z_c = m.center[2] if len(m.center) == 3 else 0.0
+            zs += [z_c - m.bob, z_c + m.bob]
+        elif m.kind == "straight":
+            zs.append(self.prey_start[2] + m.speed * self.duration * math.sin(math.radians(m.climb_deg)))
+        return (min(xs) - margin, min(ys) - margin, min(zs) - margin,
+                max(xs) + margin, max(ys) + margin, max(zs) + margin)
 
     def check_placement(self) -> None:
         """Raise :class:`UsageError` (one line) if the spawn region cannot hold the swarm. Whether it can

@@ -37,13 +37,15 @@ class Bridge:
       goes through a callback into the inbox (``batch=True``), for the arrival times it carries.
 
     Every sample carries the wall time it arrived (the latency figures stay transport latency), or,
-    from a channel, the time it was taken out. ``deliver`` may be replaced (the fault injector delays
-    or drops samples there). ``capacity``: how many samples a subscription's channel holds between two
-    drains before the oldest go (liveliness channels always hold ``WIDE_CAPACITY``).
+    from a channel, the time it was taken out. ``deliver`` is the process's inbound chain, built before
+    the bridge (e.g. fault injector -> sensing) and fixed for its life; ``reply_filter`` passes query
+    replies through the same faults. ``capacity``: how many samples a subscription's channel holds
+    between two drains before the oldest go (liveliness channels always hold ``WIDE_CAPACITY``).
     """
 
     def __init__(self, session: zenoh.Session, loop: asyncio.AbstractEventLoop | None, deliver: Deliver,
-                 batch: bool = False, channels: bool = False, capacity: int = WIDE_CAPACITY) -> None:
+                 batch: bool = False, channels: bool = False, capacity: int = WIDE_CAPACITY,
+                 reply_filter: Callable[[list[tuple[str, bytes]]], Any] | None = None) -> None:
         self.session = session
         self.loop = loop
         self.deliver: Deliver = deliver
@@ -54,7 +56,7 @@ class Bridge:
         # liveliness channels, taken out after the others: a pose sent just before its sender died
         # must not be taken in after the token's deletion, as if the sender had come back
         self.tokens: list[tuple[str, Any]] = []
-        self.reply_filter: Callable[[list[tuple[str, bytes]]], Any] | None = None
+        self.reply_filter = reply_filter
         self.closed = False
 
     def _hand_over(self, tag: str) -> Callable[[Any], None]:

@@ -62,6 +62,8 @@ def zenoh_config(mode: str | None = "client", connect: Iterable[str] = (), liste
         conf.insert_json5("mode", json.dumps(mode or "client"))
     connect, listen = list(connect), list(listen)
     for flag, endpoints in (("connect", connect), ("listen", listen)):
+        for endpoint in endpoints:  # at once, one line: not a session retrying what cannot exist
+            endpoint_host_port(endpoint)
         if endpoints:
             try:
                 conf.insert_json5(f"{flag}/endpoints", json.dumps(endpoints))
@@ -84,6 +86,34 @@ DEFAULT_ROUTER = "tcp/127.0.0.1:7447"
 def _first_line(exc: Exception) -> str:
     """A zenoh error without the Rust source location it carries."""
     return (str(exc).splitlines() or [""])[0].split(" at /")[0].split(" at ")[0].strip()
+
+
+ENDPOINT_PROTOCOLS = ("tcp", "udp", "tls", "quic", "ws", "unixsock-stream")
+
+
+def endpoint_host_port(endpoint: str) -> tuple[str, int]:
+    """The host and port of a Zenoh endpoint ``PROTO/HOST:PORT``; a :class:`UsageError` (one line) when it
+    is not one, at once, instead of a session that retries an address that cannot exist."""
+    import ipaddress
+
+    proto, sep, rest = endpoint.partition("/")
+    host, colon, port_text = rest.rpartition(":")
+    host = host.strip("[]")
+    form = "must look like tcp/HOST:PORT (or tls/HOST:PORT)"
+    if not sep or not colon or not host or proto not in ENDPOINT_PROTOCOLS:
+        raise UsageError(f"endpoint {endpoint!r} {form}")
+    try:
+        port = int(port_text)
+    except ValueError:
+        raise UsageError(f"endpoint {endpoint!r} {form}: {port_text!r} is not a port") from None
+    if not 0 < port < 65536:
+        raise UsageError(f"endpoint {endpoint!r}: the port must be in 1..65535 (got {port})")
+    if all(part.isdigit() for part in host.split(".")) or ":" in host:
+        try:
+            ipaddress.ip_address(host)
+        except ValueError:
+            raise UsageError(f"endpoint {endpoint!r}: {host} is not an IP address") from None
+    return host, port
 
 
 def config_from_args(args: argparse.Namespace) -> zenoh.Config:

@@ -19,6 +19,10 @@ import time
 from dataclasses import dataclass, field
 from typing import IO, TYPE_CHECKING, MutableMapping, Sequence
 
+from zswarm.ports import free_port
+
+__all__ = ["free_port"]  # re-exported: where the launcher, the benchmarks and the tests take it from
+
 if TYPE_CHECKING:
     from zswarm.net.runspec import RunSpec
 
@@ -189,12 +193,6 @@ class Fleet:
         child = Child(name, self.procs[name])
         self.kids.children.append(child)
         return child
-
-
-def free_port(host: str = "127.0.0.1") -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind((host, 0))
-        return s.getsockname()[1]
 
 
 def port_in_use(host: str, port: int) -> bool:

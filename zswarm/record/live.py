@@ -21,6 +21,7 @@ from urllib.parse import urlparse
 from zswarm.args import DEFAULT_VIEWER_URL as DEFAULT_URL
 from zswarm.args import ConnectAction
 from zswarm.errors import UsageError
+from zswarm.ports import free_port
 
 SERVE_PORT = 9876
 WEB_PORT = 9090
@@ -116,16 +117,10 @@ def spawn_viewer() -> str:
     """Start a Rerun viewer (its own process, on a free port) and return the URL to stream to."""
     import rerun as rr
 
-    port = _free_port()
+    port = free_port()
     try:
         rr.spawn(port=port, connect=False)
     except Exception as exc:  # no `rerun` on PATH, no display: say so, in one line
         raise UsageError(f"--spawn: cannot start the Rerun viewer ({exc}); run 'rerun' yourself and use "
                          "--connect, or --serve for a browser") from None
     return f"rerun+http://127.0.0.1:{port}/proxy"
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]

@@ -87,7 +87,7 @@ def blueprint(extra_plots: Iterable[tuple[str, tuple[str, ...]]] = (), network: 
             row_shares=[2, 2, 1]))
     return rrb.Blueprint(
         rrb.Horizontal(
-            (rrb.Spatial3DView(origin=MAP, name="swarm") if dimensions == 3 else
+            (rrb.Spatial3DView(origin=MAP, name="swarm", eye_controls=_eye(arena)) if dimensions == 3 else
              rrb.Spatial2DView(origin=MAP, name="swarm", visual_bounds=None if arena is None else
                                rrb.VisualBounds2D(x_range=[arena[0], arena[2]], y_range=[arena[1], arena[3]]))),
             *side,
@@ -96,6 +96,18 @@ def blueprint(extra_plots: Iterable[tuple[str, tuple[str, ...]]] = (), network: 
         rrb.TimePanel(expanded=False),
         collapse_panels=True,
     )
+
+
+def _eye(arena: tuple[float, ...] | None) -> rrb.EyeControls3D | None:
+    """A 3-D map's camera: looking at the arena's centre from its front-left, above, far enough back to
+    hold all of it (spawn, obstacles, the prey's path) in the frame."""
+    if arena is None or len(arena) != 6:
+        return None
+    lo, hi = np.array(arena[:3]), np.array(arena[3:])
+    centre, size = (lo + hi) / 2.0, float(np.linalg.norm(hi - lo))
+    position = centre + size * np.array([-0.45, -0.75, 0.45])
+    return rrb.EyeControls3D(kind=rrb.Eye3DKind.Orbital, position=position.tolist(), look_target=centre.tolist(),
+                             eye_up=[0.0, 0.0, 1.0])
 
 
 def log_config(rec: rr.RecordingStream, config: dict[str, Any]) -> None:

@@ -94,8 +94,10 @@ def start_pose(robot: Robot, world: tuple[float, float], facing: tuple[float, fl
 
 
 def run(session, route: Route, robots: list[SimRobot], rate: float, stop: threading.Event,
-        duration: float | None = None) -> None:
-    """Drive ``robots`` on ``session`` at ``rate`` Hz until ``stop`` is set (or ``duration`` passes)."""
+        duration: float | None = None, idle_exit: float | None = None) -> str:
+    """Drive ``robots`` on ``session`` at ``rate`` Hz until ``stop`` is set, ``duration`` passes, or (with
+    ``idle_exit``) the robots were commanded and then no command came for ``idle_exit`` seconds (the run
+    that drove them has ended). Returns why it stopped."""
     declared = []
     publishers = []
     for r in robots:
@@ -106,8 +108,13 @@ def run(session, route: Route, robots: list[SimRobot], rate: float, stop: thread
     period = 1.0 / rate
     began = next_tick = time.monotonic()
     try:
-        while not stop.is_set() and (duration is None or time.monotonic() - began < duration):
+        while not stop.is_set():
+            if duration is not None and time.monotonic() - began >= duration:
+                return f"{duration:g} s passed"
             now = time.time()
+            last = max(r.command[2] for r in robots)
+            if idle_exit is not None and last > -math.inf and now - last > idle_exit:
+                return f"no command for {idle_exit:g} s: the run that drove the robots has ended"
             for r, pub in zip(robots, publishers):
                 r.step(period, now)
                 if not r.silent:
@@ -115,6 +122,7 @@ def run(session, route: Route, robots: list[SimRobot], rate: float, stop: thread
                     pub.put(payload, attachment=attachment)
             next_tick += period
             stop.wait(max(next_tick - time.monotonic(), 0.0))
+        return "stopped"
     finally:
         for d in (*declared, *publishers):
             d.undeclare()

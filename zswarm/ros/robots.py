@@ -78,7 +78,7 @@ class Robot:
 
 
 @dataclass(frozen=True)
-class Fleet:
+class RobotsFile:
     """A robots file: the route its robots are reached by, and the robots by agent id."""
 
     route: Route
@@ -117,7 +117,19 @@ def _robot(where: str, entry: Any) -> Robot:
                  _number(where, "max_angular", entry.get("max_angular", 4.0), 0.0, 100.0), pose_topic)
 
 
-def load_fleet(path: Path) -> Fleet:
+def robots_for_run(path: Path, scenario: str, dimensions: int, clock: str, time_scale: float) -> RobotsFile:
+    """A robots file the run can use: readable and valid, and a run ROS 2 ground robots can drive in
+    (2-D, free clock, real time). The one home of this rule: the launcher checks it before any process
+    starts, and an agent started by hand checks it again before it opens a session."""
+    robots = load_robots(path)
+    if dimensions != 2:
+        raise UsageError(f"--robots drives ROS 2 ground robots: {scenario} is 3-D")
+    if clock != "free" or time_scale != 1.0:
+        raise UsageError("--robots needs the free clock at --time-scale 1: a robot moves in real time")
+    return robots
+
+
+def load_robots(path: Path) -> RobotsFile:
     """Read and check a robots file."""
     where = str(path)
     data = read_toml(path, "robots file")
@@ -140,4 +152,4 @@ def load_fleet(path: Path) -> Fleet:
         twice = next((v for v in seen if seen.count(v) > 1), None)
         if twice is not None:
             raise UsageError(f"{where}: two robots have {field} {twice!r}")
-    return Fleet(route, robots)
+    return RobotsFile(route, robots)

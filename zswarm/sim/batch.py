@@ -1,7 +1,10 @@
 """Many independent runs stepped together as one array program: the batched reference simulator.
 
 B runs (each its own scenario, seed, parameter set, combination and faults; all with the same N, dt
-and dimension D) are held as (B, N, D) arrays and stepped by the equations of :mod:`zswarm.sim.simulator`:
+and dimension D) are held as (B, N, D) arrays and stepped by the one law (:func:`zswarm.model.law.field`,
+called once per group of runs that share an interaction, each run's parameters as columns), the one
+prey motion (:func:`zswarm.model.prey.step`, vectorized over the runs that share a motion) and the
+one body step, as :mod:`zswarm.sim.simulator` steps a batch of one:
 
     v_k = sat(-grad U_i(P_k), v_max),  P_{k+1} = P_k + dt v_k,  prey_{k+1} = prey.step(prey_k, P_k)
 
@@ -16,7 +19,8 @@ order of floating-point sums (``tests/test_batch.py`` holds every position withi
 
 Only the metrics a search needs are kept per run (:class:`BatchOutcome`): capture time, the closest
 two agents came, collisions (onsets, as :class:`zswarm.model.metrics.Summary` counts them), the
-closest an agent came to an obstacle, obstacle contacts and the final distance to the prey.
+closest an agent came to an obstacle, obstacle contacts and the final distance to the prey, each
+with the definition :mod:`zswarm.model.metrics` gives it.
 """
 
 from __future__ import annotations
@@ -29,19 +33,13 @@ from typing import Any
 import numpy as np
 
 from zswarm.model import body as bodies
+from zswarm.model import metrics
 from zswarm.model import prey as prey_motion
 from zswarm.model.faults import FaultModel
-from zswarm.model.metrics import components
-from zswarm.model.formation import pair_gain
-from zswarm.model.neighbour_law import DensePairs, NeighbourLaw, neighbour_force, neighbour_law, unit_toward
+from zswarm.model.law import field
+from zswarm.model.neighbour_law import DensePairs, NeighbourLaw, neighbour_law
 from zswarm.model.params import PotentialParams
-from zswarm.model.potentials import (
-    Combination,
-    goal_terms,
-    obstacle_offsets,
-    obstacle_terms,
-    saturate,
-)
+from zswarm.model.potentials import Combination, obstacle_offsets, saturate
 from zswarm.model.prey import PreyMotion
 from zswarm.model.scenarios import Scenario
 from zswarm.sim.batch_channel import BatchChannel
@@ -95,20 +93,38 @@ class _Potentials:
             setattr(self, name, _column([getattr(p, name) for p in params], dims))
 
 
-def _variant_groups(scen: list[Scenario]) -> list[tuple[np.ndarray, NeighbourLaw, _Potentials]]:
-    """The runs whose interaction is not the paper's, grouped by interaction and k; each group's gate
-    distance, sensing radius and potentials as columns (b, 1, 1) over its pairs."""
+@dataclass(frozen=True)
+class _LawGroup:
+    """The runs of a batch that share an interaction: the law steps them in one call of
+    :func:`zswarm.model.law.field`, with their parameters as columns."""
+
+    rows: np.ndarray | slice  # a slice when the group is the whole batch (no copy)
+    law: NeighbourLaw | None  # None: the paper's eq 28 (or no formation)
+    per_agent: _Potentials  # (b, 1) columns against (b, N)
+    per_pair: _Potentials  # (b, 1, 1) columns against (b, N, N|M)
+    multiplicative: np.ndarray  # (b, 1)
+
+
+def _law_groups(scen: list[Scenario], combinations: list[Combination]) -> list[_LawGroup]:
+    """The runs grouped by interaction (and k): a run without formation, or with the paper's
+    interaction, belongs to the paper's group; each group's gate distance and sensing radius as
+    (b, 1, 1) columns."""
     groups: dict[tuple[str, int], list[int]] = {}
     laws = [neighbour_law(s.params) for s in scen]
     for r, law in enumerate(laws):
-        if scen[r].formation and not law.interaction.is_paper:
-            groups.setdefault((law.interaction.name, law.k_nearest), []).append(r)
+        key = (law.interaction.name, law.k_nearest) if scen[r].formation and not law.interaction.is_paper \
+            else ("paper", 0)
+        groups.setdefault(key, []).append(r)
     out = []
-    for rows in groups.values():
+    for key, rows in groups.items():
         first = laws[rows[0]]
-        law = NeighbourLaw(first.interaction, _column([laws[r].sensing_radius for r in rows], 3),
-                           _column([laws[r].gate_out for r in rows], 3), first.k_nearest)
-        out.append((np.array(rows), law, _Potentials([scen[r].params.potential for r in rows], 3)))
+        law = None if key[0] == "paper" else NeighbourLaw(
+            first.interaction, _column([laws[r].sensing_radius for r in rows], 3),
+            _column([laws[r].gate_out for r in rows], 3), first.k_nearest)
+        pots = [scen[r].params.potential for r in rows]
+        index = slice(None) if len(rows) == len(scen) else np.array(rows)
+        out.append(_LawGroup(index, law, _Potentials(pots, 2), _Potentials(pots, 3),
+                             np.array([combinations[r] == "multiplicative" for r in rows])[:, None]))
     return out
 
 
@@ -143,10 +159,7 @@ class BatchSimulator:
         self.members = members
         b = len(members)
         scen = [m.scenario for m in members]
-        pots = [s.params.potential for s in scen]
-        self.per_agent, self.per_pair = _Potentials(pots, 2), _Potentials(pots, 3)  # (B, N) and (B, N, N|M)
-        self.multiplicative = np.array([(m.combination or m.scenario.combination) == "multiplicative"
-                                        for m in members])[:, None]
+        self.laws = _law_groups(scen, [m.combination or m.scenario.combination for m in members])
         self.formation = _column([float(s.formation) for s in scen], 3)
         self.radius = np.array([s.params.swarm.sensing_radius for s in scen])
         self.v_max = np.array([s.params.swarm.v_max for s in scen])
@@ -172,15 +185,16 @@ class BatchSimulator:
                                      self.radius[self.faulty], dims=self.dims) if len(self.faulty) else None)
         self.off_diagonal = ~np.eye(self.n, dtype=bool)
         self.step_index = 0
-        self.variants = _variant_groups(scen)
 
     # -- the control law -------------------------------------------------------------------------------
 
     def velocities(self) -> np.ndarray:
-        """Every agent's commanded velocity (B, N, 2) from what it senses now (eqs 12-15, 25-28, 36)."""
-        x, pa, pp = self.positions, self.per_agent, self.per_pair
+        """Every agent's commanded velocity (B, N, D) from what it senses now: the one law
+        (:func:`zswarm.model.law.field`) on dense blocks, one call per group of runs that share an
+        interaction."""
+        x = self.positions
         goal = np.broadcast_to(self.prey[:, None, :], x.shape)
-        psi_f = x[:, :, None, :] - x[:, None, :, :]  # (B, N, N, 2): P_i - P_j
+        psi_f = x[:, :, None, :] - x[:, None, :, :]  # (B, N, N, D): P_i - P_j
         r2 = np.einsum("bijk,bijk->bij", psi_f, psi_f)
         near = (r2 <= np.square(self.radius)[:, None, None]) & self.off_diagonal
         blind = None
@@ -193,34 +207,20 @@ class BatchSimulator:
             goal[f_idx] = np.where(blind[f_idx, :, None], x[f_idx], heard_goal)
             psi_f = psi_f.copy()
             psi_f[f_idx] = x[f_idx][:, :, None, :] - believed
-            r2 = r2.copy()
-            r2[f_idx] = np.einsum("bijk,bijk->bij", psi_f[f_idx], psi_f[f_idx])
             near = near.copy()
             near[f_idx] = sensed
         near &= self.formation > 0
-        # the interaction of each run (eqs 26-28, or a variant of zswarm.model.neighbour_law)
-        paper = np.ones(len(x), dtype=bool)
-        f_n, goal_weight = np.zeros_like(x), np.ones(x.shape[:2])
-        for rows, law, pots in self.variants:
-            paper[rows] = False
-            f_n[rows], goal_weight[rows] = neighbour_force(DensePairs(), psi_f[rows], near[rows],
-                                                           unit_toward(x[rows] - goal[rows]), pots, law)
-        u_g, f_g = goal_terms(x - goal, pa)  # eqs 7-8
-        f_g = goal_weight[..., None] * f_g
         # obstacles (eqs 9-11): the sensed ones, |P - C| - rho within the sensing radius
         d = x[:, :, None, :] - self.centers[:, None, :, :]
         dist = np.sqrt(np.einsum("bimk,bimk->bim", d, d))
         sensed_o = self.has_obstacle[:, None, :] & (dist - self.radii[:, None, :] <= self.radius[:, None, None])
         psi_o = obstacle_offsets(x[:, :, None, :], self.centers[:, None, :, :], self.radii[:, None, :])
-        e_o, f_o = obstacle_terms(psi_o, pp)
-        u_o = np.where(sensed_o, e_o, 0.0).sum(axis=2)
-        f_o = np.where(sensed_o[..., None], f_o, 0.0).sum(axis=2)
-        # combination (eqs 13 and 15), each run its own
-        mult = self.multiplicative[..., None]
-        f = np.where(mult, (u_g / pa.c_g)[..., None] * f_o + (1.0 + u_o / pa.c_g)[..., None] * f_g, f_o + f_g)
-        # formation (eqs 26-28): F = -g(|psi|) psi per sensed pair, or the run's variant
-        f_f = np.where(near[..., None], -pair_gain(r2, pp)[..., None] * psi_f, 0.0).sum(axis=2)
-        f = f + np.where(paper[:, None, None], f_f, f_n)
+        psi_g = x - goal
+        f = np.empty_like(x)
+        for g in self.laws:
+            r = g.rows
+            f[r] = field(psi_g[r], DensePairs(sensed_o[r]), psi_o[r], DensePairs(near[r]), psi_f[r], g.per_agent,
+                         g.multiplicative, law=g.law, p_pairs=g.per_pair, energy=False)[1]
         v = saturate(f, self.v_max[:, None])
         if blind is not None:
             v[blind] = 0.0
@@ -242,36 +242,10 @@ class BatchSimulator:
         self.step_index += 1
 
     def _prey_step(self) -> np.ndarray:
-        """:func:`zswarm.model.prey.step` for every run, vectorized over the runs that share a motion."""
-        out, dt = self.prey.copy(), self.dt
-        if self.dims == 3:  # the reference's own step, run by run (the 3-D motions are not vectorized here)
-            for motion, rows in self.motions.items():
-                for r in rows.nonzero()[0]:
-                    out[r] = prey_motion.step(motion, self.prey[r], dt, self.positions[r])
-            return out
+        """:func:`zswarm.model.prey.step` for every run, one call per motion the runs share."""
+        out = self.prey.copy()
         for motion, rows in self.motions.items():
-            prey = self.prey[rows]
-            if motion.kind == "static" or motion.speed == 0.0:
-                continue
-            if motion.kind == "straight":
-                h = math.radians(motion.heading_deg)
-                out[rows] = prey + motion.speed * dt * np.array([math.cos(h), math.sin(h)])
-            elif motion.kind == "circle":
-                c = np.asarray(motion.center, dtype=float)
-                rel = prey - c
-                angle = np.arctan2(rel[:, 1], rel[:, 0]) + motion.speed * dt / motion.radius
-                out[rows] = c + motion.radius * np.stack([np.cos(angle), np.sin(angle)], axis=1)
-            else:  # evasive: flee the nearest agent within sense_radius, stay inside the bounds
-                away = prey[:, None, :] - self.positions[rows]
-                dist = np.sqrt(np.einsum("bij,bij->bi", away, away))
-                k = np.argmin(dist, axis=1)
-                nearest = dist[np.arange(len(k)), k]
-                flee = (nearest <= motion.sense_radius) & (nearest > 0.0)
-                step = motion.speed * dt * away[np.arange(len(k)), k] / np.where(flee, nearest, 1.0)[:, None]
-                x0, y0, x1, y1 = motion.bounds
-                moved = np.stack([np.clip(prey[:, 0] + step[:, 0], x0, x1), np.clip(prey[:, 1] + step[:, 1], y0, y1)],
-                                 axis=1)
-                out[rows] = np.where(flee[:, None], moved, prey)
+            out[rows] = prey_motion.step(motion, self.prey[rows], self.dt, self.positions[rows])
         return out
 
 
@@ -295,25 +269,23 @@ class _Tally:
 
     def observe(self) -> None:
         sim, x = self.sim, self.sim.positions
-        self.centroid_distance = np.linalg.norm(x.mean(axis=1) - sim.prey, axis=1)
-        caught = (self.capture_step < 0) & (self.centroid_distance <= self.capture_radius)
-        self.capture_step[caught] = sim.step_index
+        self.centroid_distance = metrics.centroid_goal_distance(x, sim.prey)
+        now = (self.capture_step < 0) & metrics.caught(self.centroid_distance, self.capture_radius)
+        self.capture_step[now] = sim.step_index
         d = x[:, :, None, :] - x[:, None, :, :]
         dist = np.sqrt(np.einsum("bijk,bijk->bij", d, d))
         self.min_pair = np.minimum(self.min_pair, np.where(self.upper, dist, np.inf).min(axis=(1, 2)))
         within = dist <= sim.radius[:, None, None]  # Summary counts pairs of the sensing graph
-        close = within & self.upper & (dist < 2.0 * self.robot[:, None, None])
+        close = within & self.upper & metrics.too_close(dist, self.robot[:, None, None])
         self.collisions += (close & ~self.was_close).sum(axis=(1, 2))
         self.was_close = close
-        o = x[:, :, None, :] - sim.centers[:, None, :, :]
-        dist_o = np.sqrt(np.einsum("bimk,bimk->bim", o, o))
-        rho = sim.radii[:, None, :]
-        sensed = sim.has_obstacle[:, None, :] & (dist_o - rho <= sim.radius[:, None, None])
-        clearance = np.where(sensed, dist_o - rho, np.inf)
+        clearance = metrics.obstacle_clearance(x[:, :, None, :], sim.centers[:, None, :, :], sim.radii[:, None, :])
+        sensed = sim.has_obstacle[:, None, :] & (clearance <= sim.radius[:, None, None])
+        clearance = np.where(sensed, clearance, np.inf)
         self.min_clearance = np.minimum(self.min_clearance, clearance.min(axis=(1, 2), initial=np.inf))
-        touching = clearance < self.robot[:, None, None]
-        self.contacts += (touching & ~self.was_touching).sum(axis=(1, 2))
-        self.was_touching = touching
+        touch = metrics.touching(clearance, self.robot[:, None, None])
+        self.contacts += (touch & ~self.was_touching).sum(axis=(1, 2))
+        self.was_touching = touch
 
     def final_shape(self) -> tuple[list[int], list[float | None]]:
         """Groups of the sensing graph and median nearest-neighbour distance of each run, now."""
@@ -323,9 +295,9 @@ class _Tally:
             d = np.linalg.norm(x[r][:, None] - x[r][None], axis=-1)
             np.fill_diagonal(d, np.inf)
             i, j = np.nonzero(d <= radius[r])
-            groups.append(len(np.unique(components(len(d), i, j))))
-            near = np.where(d <= radius[r], d, np.inf).min(axis=1)
-            nearest.append(float(np.median(near[np.isfinite(near)])) if np.isfinite(near).any() else None)
+            groups.append(len(np.unique(metrics.components(len(d), i, j))))
+            median = metrics.median_nearest(np.where(d <= radius[r], d, np.inf).min(axis=1))
+            nearest.append(None if math.isnan(median) else median)
         return groups, nearest
 
     def outcomes(self) -> list[BatchOutcome]:

@@ -26,10 +26,10 @@ from zswarm.model import body as bodies
 from zswarm.model import prey as prey_motion
 from zswarm.model.faults import FaultModel
 from zswarm.model.metrics import Summary
-from zswarm.model.neighbour_law import neighbour_law
+from zswarm.model.law import compile_law, swarm_field
 from zswarm.model.neighbours import ObstacleIndex
-from zswarm.model.observer import SwarmObserver, swarm_field
-from zswarm.model.potentials import Combination, make_controller, saturate
+from zswarm.model.observer import SwarmObserver
+from zswarm.model.potentials import Combination, saturate
 from zswarm.model.scenarios import Scenario
 from zswarm.provenance import versions
 from zswarm.sim.channel import FaultyChannel
@@ -44,7 +44,7 @@ class Simulator:
         self.seed = seed
         self.combination: Combination = combination or scenario.combination
         p = scenario.params
-        self.controller = make_controller(p.potential, self.combination, scenario.formation, neighbour_law(p))
+        self.law = compile_law(p, self.combination, scenario.formation)  # once, shared with the observer
         self.rng = np.random.default_rng(seed)
         self.body = bodies.body_spec(p)
         self.state = bodies.start(self.body, scenario.initial_positions(self.rng), np.asarray(scenario.prey_start))
@@ -78,7 +78,7 @@ class Simulator:
             blind = np.isnan(goal[:, 0])  # no prey heard yet: it does not move
             goal = np.where(blind[:, None], positions, goal)
             pairs = (i, positions[i] - believed)
-        u, f = swarm_field(self.controller, self.obstacles, positions, goal, pairs)
+        u, f = swarm_field(self.law, self.obstacles, positions, goal, pairs)
         v = saturate(f, self.scenario.params.swarm.v_max)
         if blind is not None:
             v[blind] = 0.0
@@ -119,7 +119,7 @@ def simulate(scenario: Scenario, seed: int, *, combination: Combination | None =
     sim = Simulator(scenario, seed, combination, faults)
     p = scenario.params
     steps = int(round((duration if duration is not None else scenario.duration) / scenario.dt))
-    observer = SwarmObserver(scenario, sim.combination)
+    observer = SwarmObserver(scenario, law=sim.law)
     traj = np.empty((steps + 1, *sim.positions.shape)) if keep_trajectory else None
     prey_traj = np.empty((steps + 1, len(sim.prey))) if keep_trajectory else None
     header = {"scenario": scenario.name, "n_agents": int(len(sim.positions)), "seed": seed,

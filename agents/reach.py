@@ -1,0 +1,88 @@
+"""What one agent asks of the network: the cells it listens to, the obstacles near it, the latency
+probe's subscription and, in lockstep, the poses of a step it still lacks.
+
+The outbound half of sensing. Everything asked for comes back through the bridge's one inbound chain
+into :class:`agents.sensing.Sensing` (replies to a query asked without an event loop join the inbox,
+to be taken in at a later tick like any other sample).
+
+Cells: those the sensing disc (ball), grown by 2 v_max dt, overlaps (:mod:`agents.cell_view`).
+Obstacles: asked of the world's queryable within 2R of where the agent is, again after it moved R
+(:mod:`agents.obstacle_view`).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import time
+
+from agents.cell_view import CellView
+from agents.sensing import Sensing
+from zswarm.net.bridge import Bridge
+from zswarm.net.keys import cells_in_disc
+
+
+class Reach:
+    def __init__(self, sensing: Sensing, bridge: Bridge) -> None:
+        self.sensing, self.bridge, self.keys = sensing, bridge, sensing.keys
+        self.cell_view = CellView(self.keys, bridge, sensing.body, sensing.subscription_radius)
+
+    @property
+    def cells(self) -> dict[tuple[int, ...], object]:
+        return self.cell_view.cells
+
+    # --- without an event loop (the free clock): ask, and take the answers in at a later tick -------
+
+    def request_obstacles(self, now: float, timeout: float = 2.0) -> None:
+        self.sensing.obstacle_view.request(self.bridge, now, timeout)
+
+    def follow_cells(self) -> None:
+        """Listen to the cells the sensing disc overlaps; the new cells' agents are asked at once."""
+        for cell in self.cell_view.move():
+            self.bridge.get_into_inbox(self.keys.cell_poses(cell), "pose", 1.0)
+
+    def follow_probe(self) -> None:
+        """Ring-channel inbox: keep the latency probe on the nearest live neighbour (:mod:`agents.probe`)."""
+        if self.sensing.latency_from_probe:
+            self.sensing.latency_probe.follow(self.bridge)
+
+    # --- on an event loop (lockstep) ----------------------------------------------------------------
+
+    async def refresh_obstacles(self, timeout: float = 2.0) -> bool:
+        return await self.sensing.obstacle_view.refresh(self.bridge, timeout)
+
+    async def update_cells(self) -> None:
+        """Subscribe to the cells the sensing disc overlaps; ask new cells for their agents at once."""
+        for cell in self.cell_view.move():
+            for key, payload in await self.bridge.get(self.keys.cell_poses(cell), timeout=1.0):
+                self.sensing.handle(("pose", key, payload, False, time.time()))
+
+    async def await_step_poses(self, step: int, wait: float) -> None:
+        """Make sure it has the step pose of every agent that can be within its radius now.
+
+        It subscribes to the cells within R + 2 v_max dt, so every agent that can be within R at
+        step k was heard at step k-1. It waits (up to ``wait`` seconds) for those; for any still
+        missing, and for cells it subscribed to during this step (a subscription may reach the router
+        after a neighbour published), it asks the cells where they can be for their pose of this step.
+        """
+        s = self.sensing
+        reach = s.subscription_radius
+        expected = [nb for nb in s.neighbours.entries.values()
+                    if step not in nb.by_step and (step - 1 in nb.by_step or nb.latest.step >= step - 1)
+                    and s.body.distance(nb.latest) <= reach]
+        loop = asyncio.get_running_loop()
+        deadline = loop.time() + wait
+        while expected and loop.time() < deadline:
+            s.pose_arrived.clear()
+            try:
+                await asyncio.wait_for(s.pose_arrived.wait(), deadline - loop.time())
+            except asyncio.TimeoutError:
+                break
+            expected = [nb for nb in expected if step not in nb.by_step]
+        cells = {c for c, since in self.cell_view.since.items() if since >= step}
+        for nb in expected:
+            cells |= cells_in_disc(self.keys, nb.latest.position, 2.0 * s.v_max * s.dt)
+        replies = await asyncio.gather(*(self.bridge.get(f"{self.keys.cell_poses(c)}?step={step}", timeout=1.0)
+                                         for c in cells))
+        now = time.time()
+        for key, payload in (r for batch in replies for r in batch):
+            s.handle(("pose", key, payload, False, now))

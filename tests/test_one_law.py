@@ -1,0 +1,108 @@
+"""One law, one prey motion, one body step: every consumer equals :func:`zswarm.model.law.field`.
+
+The reference simulator (a batch of one, flat pairs from its cell grid), the batched simulator (a
+batch of many, dense blocks), a 3-D agent (the law on one row) and a 2-D agent (the plain-float
+specialisation) command the same velocity, to 1e-12, on random states, for every interaction,
+combination, formation flag and dimension. Break any of them (a sign, a term, a sum) and this fails.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from zswarm.model import body as bodies
+from zswarm.model import prey as prey_motion
+from zswarm.model.agent_law import agent_velocity, point_step
+from zswarm.model.law import compile_law, sense_one, swarm_field
+from zswarm.model.neighbours import ObstacleIndex
+from zswarm.model.potentials import saturate
+from zswarm.model.prey import PreyMotion
+from zswarm.model.scenarios import get_scenario
+from zswarm.sim.batch import BatchSimulator, Member
+
+INTERACTIONS = ["paper", "mean", "cutoff", "gate", "nearest", "mean+gate", "mean+cutoff+gate+nearest"]
+CASES = [(scenario, interaction, combination)
+         for scenario in ("moving-prey", "moving-prey-3d")
+         for interaction in INTERACTIONS
+         for combination in ("additive", "multiplicative")]
+
+
+def _members(name: str, interaction: str, combination: str, n: int) -> list[Member]:
+    """Runs that differ in their set (one without formation), so the batch steps several laws at once."""
+    base = {"interaction": interaction, "k_nearest": 3, "n_agents": n}
+    return [Member(get_scenario(name, base), 0, combination=combination),
+            Member(get_scenario(name, {**base, "c_o": 5.0, "l_a": 1.7}), 1, combination=combination),
+            Member(dataclasses.replace(get_scenario(name, base), formation=False), 2, combination=combination),
+            Member(get_scenario(name, {**base, "interaction": "paper"}), 3, combination="multiplicative")]
+
+
+@pytest.mark.parametrize("name,interaction,combination", CASES)
+def test_every_consumer_commands_what_the_one_law_commands(name, interaction, combination):
+    rng = np.random.default_rng(hash((name, interaction, combination)) % 2**32)
+    n = 9
+    members = _members(name, interaction, combination, n)
+    batch = BatchSimulator(members)
+    for _ in range(6):
+        centre = rng.uniform(-1.0, 1.0, batch.dims)
+        x = centre + rng.uniform(-1.3, 1.3, (len(members), n, batch.dims))  # dense: many pairs in range
+        prey = centre + rng.uniform(-2.0, 2.0, (len(members), batch.dims))
+        batch.state = bodies.BodyState(x, np.zeros_like(x), np.full(x.shape[:2], np.nan))
+        batch.prey = prey
+        got_batch = batch.velocities()
+        for r, m in enumerate(members):
+            s = m.scenario
+            law = compile_law(s.params, m.combination, s.formation)
+            centers, radii = s.obstacle_arrays()
+            radius = s.params.swarm.sensing_radius
+            obstacles = ObstacleIndex(centers, radii, radius)
+            want = saturate(swarm_field(law, obstacles, x[r], prey[r])[1], law.v_max)  # the reference's step
+            np.testing.assert_allclose(got_batch[r], want, rtol=0, atol=1e-12, err_msg=f"batch run {r}")
+            for i in range(n):
+                others = np.delete(x[r], i, axis=0)
+                if batch.dims == 3:  # the 3-D agent: the law on one row
+                    sensed = sense_one(x[r, i], centers, radii, others, radius)
+                    agent = law.velocity(x[r, i], prey[r], sensed)
+                else:  # the 2-D agent: plain floats
+                    circles = [(float(c[0]), float(c[1]), float(rho)) for c, rho in zip(centers, radii)]
+                    agent = agent_velocity(float(x[r, i, 0]), float(x[r, i, 1]), tuple(prey[r]), circles,
+                                           [tuple(q) for q in others], radius, law.p, law.combination,
+                                           law.formation, law.v_max, law.neighbours)
+                np.testing.assert_allclose(agent, want[i], rtol=0, atol=1e-12, err_msg=f"agent {i} of run {r}")
+
+
+def test_the_agents_float_point_body_is_the_body_step():
+    rng = np.random.default_rng(3)
+    spec = bodies.BodySpec("point", 1.0)
+    for dims in (2, 3):
+        for _ in range(200):
+            x, v, dt = rng.normal(0, 3, dims), rng.normal(0, 1, dims), float(rng.uniform(0.001, 0.2))
+            moved = bodies.step(spec, bodies.BodyState(x, np.zeros(dims), np.array(np.nan)), v, dt)
+            (px, py, pz), velocity = point_step(x[0], x[1], x[2] if dims == 3 else None, tuple(v), dt)
+            assert [px, py, pz][:dims] == moved.position.tolist()  # exactly: the same arithmetic
+            assert list(velocity)[:dims] == moved.velocity.tolist()
+            assert (pz is None) == (dims == 2)
+
+
+MOTIONS = [PreyMotion("static"), PreyMotion("straight", 0.4, 30.0, climb_deg=10.0),
+           PreyMotion("circle", 0.5, center=(0.5, -0.5, 1.0), radius=2.0, bob=0.3),
+           PreyMotion("evasive", 0.6, sense_radius=1.5, bounds=(-2.0, -2.0, 2.0, 2.0))]
+
+
+@pytest.mark.parametrize("motion", MOTIONS, ids=lambda m: m.kind)
+@pytest.mark.parametrize("dims", [2, 3])
+def test_the_prey_moves_the_same_in_a_batch_as_alone(motion, dims):
+    rng = np.random.default_rng(5)
+    prey = rng.uniform(-2.5, 2.5, (32, dims))
+    agents = prey[:, None, :] + rng.uniform(-2.0, 2.0, (32, 7, dims))
+    together = prey_motion.step(motion, prey, 0.05, agents)
+    alone = np.array([prey_motion.step(motion, prey[r], 0.05, agents[r]) for r in range(len(prey))])
+    np.testing.assert_allclose(together, alone, rtol=0, atol=1e-12)
+    moved = np.linalg.norm(together - prey, axis=1)
+    if motion.kind != "static":
+        assert moved.max() > 0.0  # the case moved something (the evasive prey: the ones that sensed an agent)
+    if motion.kind == "evasive":
+        assert (moved == 0.0).any() and (moved > 0.0).any()  # some fled, some sensed nobody
+        assert np.all(np.abs(together[moved > 0.0, :2]) <= 2.0 + 1e-12)  # a prey that fled stays in bounds
