@@ -42,7 +42,7 @@ def wait_for_world(agent: Agent, injector: FaultInjector | None, timeout: float,
         if stopped() or time.monotonic() > deadline or s.obstacle_view.foreign_dims is not None:
             return False
         agent.reach.request_obstacles(time.time(), timeout=1.0)
-        time.sleep(0.05)
+        time.sleep(0.2)  # a few wake-ups a second: hundreds of agents waiting together must not load the machine
         take_in(agent, injector)
     agent.reach.follow_cells()
     return True

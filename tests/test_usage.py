@@ -72,6 +72,7 @@ CASES = [
     # launch
     ([LAUNCH, "--nope"], "unrecognized arguments"),
     ([LAUNCH, "--agents", "0"], "--agents must be"),
+    ([LAUNCH, "--agents", "500", "--duration", "1"], "more than 4 times what it can step"),
     ([LAUNCH, "--role", "agents"], "--connect"),
     ([LAUNCH, "--ids", "x-y"], "--ids"),
     ([LAUNCH, "--routers", "0"], "--routers must be between 1 and 64"),

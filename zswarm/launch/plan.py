@@ -108,7 +108,10 @@ def plan_from_args(args: argparse.Namespace) -> Plan:
     if args.robots is not None:
         notes.append(robots_note(check_robots(args.robots, spec), args.robots, ids))
     if "agents" in args.role and spec.clock == "free":  # last: a usage error above comes alone
-        line = pace_warning(len(ids), spec.scenario.dt, spec.time_scale, available_cores())
+        cores = available_cores()
+        if pace_load(len(ids), spec.scenario.dt, spec.time_scale, cores) > HOPELESS:
+            raise UsageError(pace_warning(len(ids), spec.scenario.dt, spec.time_scale, cores, refused=True))
+        line = pace_warning(len(ids), spec.scenario.dt, spec.time_scale, cores)
         if line:
             print(f"warning: {line}", file=sys.stderr, flush=True)
     return Plan(spec=spec, roles=tuple(args.role), routers=args.routers, ids=ids, record=args.record,
@@ -207,19 +210,33 @@ def available_cores() -> int:
         return os.cpu_count() or 1
 
 
-def pace_warning(n_local: int, dt: float, time_scale: float, cores: int) -> str | None:
+#: A run asking for more than this many times the CPU its agents can have is refused: its agents could
+#: not even all start before the run ended (500 agents of moving-prey on 2 cores, 10 times over: 70 s to
+#: fork them, the world starting with a fifth of them, the rest failing after it was gone).
+HOPELESS = 4.0
+
+
+def pace_load(n_local: int, dt: float, time_scale: float, cores: int) -> float:
+    """How many times over its agents' share of this machine a free-clock run's control steps are."""
+    need = n_local * (time_scale / dt) * AGENT_TICK_MS / 1000.0  # cores, for the control steps alone
+    return need / (AGENT_SHARE * cores)
+
+
+def pace_warning(n_local: int, dt: float, time_scale: float, cores: int, refused: bool = False) -> str | None:
     """A free-clock run whose agents need more CPU than the machine has falls behind: poses arrive late,
     agents act on stale neighbours and collide, whatever the design says. The warning names a time scale
-    that fits (measured: large-swarm, 100 agents at dt = 0.025 on 2 cores: 0.25 on time, 0.5 not)."""
+    that fits (measured: large-swarm, 100 agents at dt = 0.025 on 2 cores: 0.25 on time, 0.5 not);
+    ``refused``: the line of a run refused for needing more than :data:`HOPELESS` times that."""
     need = n_local * (time_scale / dt) * AGENT_TICK_MS / 1000.0  # cores, for the control steps alone
     budget = AGENT_SHARE * cores
     if need <= budget:
         return None
     fits = math.floor(20.0 * time_scale * budget / need) / 20.0
     advice = f"--time-scale {fits:g}" if fits >= 0.05 else "fewer agents on this machine (--ids)"
+    what = (f"more than {HOPELESS:g} times what it can step: the agents could not all start in time; give {advice}"
+            if refused else f"the run may fall behind and act on stale poses; use {advice}")
     return (f"{n_local} agents stepping {time_scale / dt:g} times a second need about {need:.2g} cores "
-            f"({AGENT_TICK_MS:g} ms a step) and this machine has {cores}: the run may fall behind and act on "
-            f"stale poses; use {advice}")
+            f"({AGENT_TICK_MS:g} ms a step) and this machine has {cores}: {what}")
 
 
 def design_command(spec: RunSpec) -> str:

@@ -34,6 +34,12 @@ from zswarm.net.procs import (
 )
 
 
+#: How long a world waits for its agents: 30 s, and 0.1 s more per agent (a large swarm forks its
+#: agents one by one on a loaded machine: 500 took about a minute on 2 cores).
+def world_start_timeout(n_agents: int) -> float:
+    return 30.0 + 0.1 * n_agents
+
+
 def _say(text: str, err: bool = True) -> None:
     print(f"launch: {text}", file=sys.stderr if err else sys.stdout, flush=True)
 
@@ -99,7 +105,11 @@ class Launch:
         if "world" in plan.roles:
             self._spawn_world(resume=False)
         if "agents" in plan.roles:
-            for i in plan.ids:
+            for k, i in enumerate(plan.ids):
+                if self.world is not None and not self.world.alive():  # the run is over: start no more
+                    _say(f"the world ended before every agent started ({k} of {len(plan.ids)} started): "
+                         "fewer agents, or a slower --time-scale, let this machine start them in time")
+                    break
                 self._spawn_agent(i)
         if not plan.quiet:
             routers = f"router {self.endpoint}" if len(self.endpoints) == 1 else \
@@ -138,7 +148,7 @@ class Launch:
         """Start the world (``resume``: a replacement that records into the next segment)."""
         plan = self.plan
         extra = [*self.configs.get("world", []), "--record", str(plan.record), "--summary", str(plan.summary),
-                 "--progress", "0" if plan.quiet else "2"]
+                 "--progress", "0" if plan.quiet else "2", "--start-timeout", f"{world_start_timeout(len(plan.ids)):g}"]
         if plan.trajectory is not None:
             extra += ["--trajectory", str(plan.trajectory)]
         if resume:
