@@ -363,3 +363,19 @@ def test_random_scenario_files_are_run_or_refused_in_one_line_leaving_nothing_be
 
     one()
     assert seen.get(0) and seen.get(2), seen  # it reaches both runs and refusals
+
+
+def test_the_last_line_names_a_viewer_command_that_exists_here(monkeypatch, tmp_path):
+    """"open with: rerun run.rrd" only works where rerun is on PATH; from a virtual environment that was
+    not activated the line names the rerun installed beside this Python."""
+    import shutil
+    import sys
+
+    from zswarm.launch.ending import viewer_command
+
+    monkeypatch.setenv("PATH", str(tmp_path))  # nothing on it
+    command = viewer_command()
+    assert Path(command).name == "rerun" and (Path.cwd() / command).exists()
+    assert (Path.cwd() / command).parent.absolute() == Path(sys.executable).parent.absolute()
+    monkeypatch.setenv("PATH", str(Path(sys.executable).parent))
+    assert shutil.which("rerun") is not None and viewer_command() == "rerun"
