@@ -42,11 +42,8 @@ def test_flood_of_hostile_messages_changes_nothing(tmp_path):
     run = "hostile"
     with processes() as kids:
         endpoint = start_router(kids)
-        # at twice real time (the outcome does not hang on wall speed; tests/test_distributed.py runs the
-        # same swarm so): 15 s of wall time, 10 of them under the flood
-        fast = ("--duration", "30", "--time-scale", "2")
-        world, summary_path, _, _ = start_world(kids, endpoint, run, "moving-prey", tmp_path, *fast)
-        agents = [start_agent(kids, endpoint, run, "moving-prey", i, "--time-scale", "2") for i in range(10)]
+        world, summary_path, _, _ = start_world(kids, endpoint, run, "moving-prey", tmp_path, "--duration", "30")
+        agents = [start_agent(kids, endpoint, run, "moving-prey", i) for i in range(10)]
         keys = Keys(run, 1.0)
         cells = [(cx, cy) for cx in range(-5, -1) for cy in range(-2, 2)]
         with Watch(endpoint, run) as watch, zenoh.open(zenoh_config("client", [endpoint])) as peer:
@@ -67,7 +64,7 @@ def test_flood_of_hostile_messages_changes_nothing(tmp_path):
                 time.sleep(0.02)
         assert wait_exit(world, 120) == 0
         assert all(wait_exit(a, 20) == 0 for a in agents)
-    s = with_reference(summary_path, run, "moving-prey", "--duration", "30", "--time-scale", "2")
+    s = with_reference(summary_path, run, "moving-prey", "--duration", "30")
     assert sent > 1000
     rejected = s["rejected_by_reason"]
     # not "size": Zenoh may drop a 256 KiB message on a congested link before anyone sees it (shared
