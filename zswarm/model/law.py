@@ -75,16 +75,15 @@ def field(psi_g: np.ndarray, obstacles: np.ndarray | Pairs, psi_o: np.ndarray, n
         f_f, weight = neighbour_force(neighbours, psi_f, unit_toward(psi_g), pp, law)
         if law is not None and law.interaction.gate:
             goal_weight = weight[..., None]
-    additive = f_o + goal_weight * f_g
-    multiplicative = (u_g / p.c_g)[..., None] * f_o + goal_weight * ((1.0 + u_o / p.c_g)[..., None] * f_g)
     if isinstance(combination, str):
         if combination not in COMBINATIONS:
             raise ValueError(f"unknown combination {combination!r}; use one of {COMBINATIONS}")
         mult = combination == "multiplicative"
-        f = multiplicative if mult else additive
+        f = _combined(mult, f_o, f_g, u_o, u_g, goal_weight, p)
     else:
         mult = np.asarray(combination, dtype=bool)
-        f = np.where(mult[..., None], multiplicative, additive)
+        f = np.where(mult[..., None], _combined(True, f_o, f_g, u_o, u_g, goal_weight, p),
+                     _combined(False, f_o, f_g, u_o, u_g, goal_weight, p))
     if f_f is not None:
         f = f + f_f
     if not energy:
@@ -93,6 +92,14 @@ def field(psi_g: np.ndarray, obstacles: np.ndarray | Pairs, psi_o: np.ndarray, n
     if neighbours.count:
         u = u + neighbours.total(formation_terms(psi_f, pp, c_f)[0])
     return u, f
+
+
+def _combined(multiplicative: bool, f_o: np.ndarray, f_g: np.ndarray, u_o: np.ndarray, u_g: np.ndarray,
+              goal_weight, p: PotentialParams) -> np.ndarray:
+    """F^o and F^g combined: eq 13 (additive) or eq 15 (multiplicative), the goal term weighted."""
+    if multiplicative:
+        return (u_g / p.c_g)[..., None] * f_o + goal_weight * ((1.0 + u_o / p.c_g)[..., None] * f_g)
+    return f_o + goal_weight * f_g
 
 
 def swarm_field(law: "Law", obstacles: ObstacleIndex, positions: np.ndarray, goal: np.ndarray,
