@@ -140,3 +140,47 @@ def test_router_crash_ends_the_run_with_a_valid_recording_and_summary(tmp_path):
     s = load_summary(record.with_suffix(".json"))
     assert s["steps"] > 20 and s["collisions"] == 0
     assert our_processes("routerdie") == [] and our_processes(f"127.0.0.1:{port}") == []
+
+
+def test_the_world_repeats_the_final_tick_until_every_agent_has_said_goodbye(tmp_path):
+    """An agent that missed the world's one final tick would run on alone forever: the world publishes it
+    again every 0.25 s for as long as (up to 3 s) an agent alive at the end has not sent its final stats.
+    A stand-in agent here holds a liveliness token and never answers."""
+    import threading
+
+    import zenoh
+
+    from zswarm.net import messages as msg
+    from zswarm.net.config import open_session, zenoh_config
+    from zswarm.net.keys import Keys
+    from zswarm.net.procs import start_router
+
+    run = "lastword"
+    finals: list[float] = []
+    lock = threading.Lock()
+
+    def on_tick(sample) -> None:
+        try:
+            m = msg.decode(sample.payload.to_bytes())
+        except msg.DecodeError:
+            return
+        if isinstance(m, msg.Tick) and m.final:
+            with lock:
+                finals.append(time.monotonic())
+
+    with processes() as kids:
+        endpoint = start_router(kids)
+        keys = Keys(run, 1.0)
+        with open_session(zenoh_config("client", [endpoint]), "t", retry_for=30.0) as session:
+            sub = session.declare_subscriber(keys.tick, on_tick)
+            token = session.liveliness().declare_token(keys.alive(0))
+            world, summary_path, _, _ = start_world(kids, endpoint, run, "moving-prey", tmp_path, "--set", "n_agents=1",
+                                                    "--duration", "1", "--start-timeout", "20")
+            assert wait_exit(world, 60) == 0
+            time.sleep(0.3)  # the last ticks in flight
+            token.undeclare()
+            sub.undeclare()
+    with lock:
+        assert len(finals) >= 6, finals  # about 12 in its 3 s wait; a world that says it once sends 1
+        assert finals[-1] - finals[0] > 2.0
+    assert load_summary(summary_path)["agents_reporting"] == 0  # the stand-in never reported

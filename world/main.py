@@ -22,6 +22,10 @@ from zswarm.net.runspec import RunSpec, add_run_args, spec_from_args
 from zswarm.record.live import Viewer, add_viewer_args, viewer_from_args
 
 
+#: Until every agent has sent its final stats (3 s at most), the final tick is published again this often.
+FINAL_TICK_REPEAT = 0.25
+
+
 def build_parser() -> Parser:
     parser = Parser(prog="world", description="The zswarm world: obstacles, prey, recording, metrics.")
     add_run_args(parser)
@@ -75,11 +79,16 @@ async def run_world(args: argparse.Namespace, spec: RunSpec, viewer: Viewer | No
             await world.run_free(bridge, spec.steps, args.progress)
         expected = set(world.census.alive)
         world.ending = True
-        world.publish(keys.tick, msg.Tick(world.clock.step + 1, time.time(), *map(float, world.prey), final=True))
+        final = msg.Tick(world.clock.step + 1, time.time(), *map(float, world.prey), final=True)
+        world.publish(keys.tick, final)
         deadline = loop.time() + 3.0  # let the agents' final stats arrive
+        again = loop.time() + FINAL_TICK_REPEAT
         while loop.time() < deadline and not all(world.stats.final(i) for i in expected):
             await asyncio.sleep(0.05)
             bridge.drain()
+            if loop.time() >= again:  # an agent that missed the one final tick would run on, alone, forever
+                world.publish(keys.tick, final)
+                again += FINAL_TICK_REPEAT
         return world.finish()
     finally:
         teardown(bridge, declared, session)
