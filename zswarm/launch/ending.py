@@ -44,13 +44,8 @@ def viewer_command() -> str:
 
     if shutil.which("rerun") is not None:
         return "rerun"
-    return _short(Path(sys.executable).parent / "rerun")
-
-
-def _short(path) -> str:
-    from pathlib import Path
-
+    beside = Path(sys.executable).parent / "rerun"
     try:
-        return str(Path(path).relative_to(Path.cwd()))
+        return str(beside.relative_to(Path.cwd()))
     except ValueError:
-        return str(path)
+        return str(beside)

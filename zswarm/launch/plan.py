@@ -144,8 +144,9 @@ def run_files(record: Path | None, summary: Path | None, force: bool) -> tuple[P
 
 def robots_note(robots: RobotsFile, path: Path, ids: Sequence[int]) -> str:
     """Which of this machine's agents drive a robot of the file, and which keep a simulated body."""
-    driving = [i for i in ids if robots.robot(i) is not None]
-    simulated = [i for i in ids if robots.robot(i) is None]
+    named = {r.id for r in robots.robots}
+    driving = [i for i in ids if i in named]
+    simulated = [i for i in ids if i not in named]
     line = (f"robots ({path}): agents {_ids(driving)} drive ROS 2 robots" if driving else
             f"robots ({path}): none of this machine's agents is named there: every agent keeps a simulated body")
     if driving and simulated:
@@ -227,10 +228,11 @@ def pace_warning(n_local: int, dt: float, time_scale: float, cores: int, refused
     agents act on stale neighbours and collide, whatever the design says. The warning names a time scale
     that fits (measured: large-swarm, 100 agents at dt = 0.025 on 2 cores: 0.25 on time, 0.5 not);
     ``refused``: the line of a run refused for needing more than :data:`HOPELESS` times that."""
-    need = n_local * (time_scale / dt) * AGENT_TICK_MS / 1000.0  # cores, for the control steps alone
-    budget = AGENT_SHARE * cores
-    if need <= budget:
+    load = pace_load(n_local, dt, time_scale, cores)
+    if load <= 1.0:
         return None
+    budget = AGENT_SHARE * cores
+    need = load * budget
     fits = math.floor(20.0 * time_scale * budget / need) / 20.0
     advice = f"--time-scale {fits:g}" if fits >= 0.05 else "fewer agents on this machine (--ids)"
     what = (f"more than {HOPELESS:g} times what it can step: the agents could not all start in time; give {advice}"

@@ -185,8 +185,9 @@ def neighbour_force(pairs: Pairs, psi: np.ndarray, to_goal: np.ndarray, p: Poten
     use = w > 0.0
     r2u = np.where(use, r2, 0.0)
     wv = w[..., None]
-    rep = pairs.total(np.where(use[..., None], -wv * repulsion_gain(r2u, p)[..., None] * psi, 0.0))
-    att = pairs.total(np.where(use[..., None], -wv * attraction_gain(r2u, p)[..., None] * psi, 0.0))
+    # w is 0 on a pair not used (and r2u 0, so its gain is finite): its terms are 0 without masking them again
+    rep = pairs.total(-wv * repulsion_gain(r2u, p)[..., None] * psi)
+    att = pairs.total(-wv * attraction_gain(r2u, p)[..., None] * psi)
     if spec.mean:
         att = att / np.maximum(pairs.total(w), 1.0)[..., None]
     weight = np.ones(rep.shape[:-1])

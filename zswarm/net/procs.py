@@ -19,9 +19,7 @@ import time
 from dataclasses import dataclass, field
 from typing import IO, TYPE_CHECKING, MutableMapping, Sequence
 
-from zswarm.ports import free_port
-
-__all__ = ["free_port"]  # re-exported: where the launcher, the benchmarks and the tests take it from
+from zswarm.ports import free_port  # noqa: F401  (re-exported: the launcher, benchmarks and tests take it here)
 
 if TYPE_CHECKING:
     from zswarm.net.runspec import RunSpec

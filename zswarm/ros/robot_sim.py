@@ -112,9 +112,10 @@ def run(session, route: Route, robots: list[SimRobot], rate: float, stop: thread
             if duration is not None and time.monotonic() - began >= duration:
                 return f"{duration:g} s passed"
             now = time.time()
-            last = max(r.command[2] for r in robots)
-            if idle_exit is not None and last > -math.inf and now - last > idle_exit:
-                return f"no command for {idle_exit:g} s: the run that drove the robots has ended"
+            if idle_exit is not None:
+                last = max(r.command[2] for r in robots)
+                if last > -math.inf and now - last > idle_exit:
+                    return f"no command for {idle_exit:g} s: the run that drove the robots has ended"
             for r, pub in zip(robots, publishers):
                 r.step(period, now)
                 if not r.silent:
