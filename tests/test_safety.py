@@ -1,0 +1,113 @@
+"""The safety filter (zswarm.model.safety): exact, closest, and safe where the law alone is not."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from zswarm.model import safety as sf
+from zswarm.model.scenarios import get_scenario
+
+quadprog = pytest.importorskip("quadprog")
+
+
+def _random_problem(rng: np.random.Generator, dims: int):
+    """One agent at the origin, a crowd of neighbours and obstacles close by, random data ages."""
+    s = sf.Safety(distance=0.1, clearance=0.05, v_max=1.0, period=0.05, sensing_radius=1.0)
+    k = int(rng.integers(0, 9))
+    psi = rng.normal(size=(k, dims))
+    psi *= (rng.uniform(0.02, 0.6, size=k) / np.linalg.norm(psi, axis=1))[:, None]
+    age = rng.choice([0.0, 0.05, 0.2, 0.5], size=k)
+    m = int(rng.integers(0, 3))
+    psi_o = rng.normal(size=(m, dims))
+    radius_o = rng.uniform(0.0, 0.3, size=m)
+    psi_o *= ((radius_o + rng.uniform(0.0, 0.4, size=m)) / np.linalg.norm(psi_o, axis=1))[:, None]
+    r = sf.rows(s, 1, np.zeros(k, dtype=np.intp), psi, age, np.zeros(m, dtype=np.intp), psi_o, radius_o)
+    u_hat = rng.normal(size=(1, dims))
+    u_hat *= rng.uniform(0.0, 1.0) / np.linalg.norm(u_hat)
+    return r, u_hat
+
+
+def _quadprog(u_hat: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """min 1/2 |u|^2 - u^.u  s.t.  a u <= b   (quadprog: C^T x >= c0)."""
+    dims = len(u_hat)
+    if len(a) == 0:
+        return u_hat.copy()
+    return quadprog.solve_qp(np.eye(dims), u_hat, -a.T, -b)[0]
+
+
+@pytest.mark.parametrize("dims", [2, 3])
+def test_the_filtered_command_satisfies_every_row_and_is_the_solvers_optimum(dims):
+    rng = np.random.default_rng(dims)
+    active = 0
+    for _ in range(400):
+        r, u_hat = _random_problem(rng, dims)
+        u = sf.project(u_hat, r.agent, r.a, r.b)
+        assert np.all(r.a @ u[0] - r.b <= 1e-9), "a returned command violates a row"
+        assert np.linalg.norm(u) <= np.linalg.norm(u_hat) + 1e-12  # the speed limit holds
+        want = _quadprog(u_hat[0], r.a, r.b)
+        assert np.allclose(u[0], want, atol=1e-8), (u, want)
+        active += not np.allclose(u, u_hat)
+    assert active > 100, "the cases must make the filter act"
+
+
+def test_many_agents_at_once_equal_one_at_a_time():
+    rng = np.random.default_rng(7)
+    problems = [_random_problem(rng, 2) for _ in range(300)]
+    agent = np.concatenate([np.full(len(r.agent), i) for i, (r, _) in enumerate(problems)])
+    a = np.concatenate([r.a for r, _ in problems])
+    b = np.concatenate([r.b for r, _ in problems])
+    u_hat = np.concatenate([u for _, u in problems])
+    together = sf.project(u_hat, agent, a, b)
+    alone = np.concatenate([sf.project(u, r.agent, r.a, r.b) for r, u in problems])
+    assert np.allclose(together, alone, atol=1e-12)
+
+
+def test_stale_data_inflates_the_margin_and_data_past_the_bound_brakes():
+    s = sf.Safety(distance=0.1, clearance=0.05, v_max=1.0, period=0.05, sensing_radius=1.0)
+    psi = np.array([[0.22, 0.0]])  # the neighbour 0.22 to the left; the agent heads straight at it
+    u_hat = np.array([[-1.0, 0.0]])
+    fresh = sf.apply(u_hat, sf.rows(s, 1, np.zeros(1, np.intp), psi, np.array([0.0]), np.zeros(0, np.intp),
+                                    np.zeros((0, 2)), np.zeros(0)))
+    old = sf.apply(u_hat, sf.rows(s, 1, np.zeros(1, np.intp), psi, np.array([0.3]), np.zeros(0, np.intp),
+                                  np.zeros((0, 2)), np.zeros(0)))
+    past = sf.apply(u_hat, sf.rows(s, 1, np.zeros(1, np.intp), psi, np.array([s.max_age + 0.01]),
+                                   np.zeros(0, np.intp), np.zeros((0, 2)), np.zeros(0)))
+    # fresh: D' = 0.2 and it may close half of the 0.02 gap in one period (0.2/s); 0.3 s old: D' = 0.5,
+    # no gap, it may not come closer at all
+    assert fresh.command[0] == pytest.approx([-0.5 * 0.02 / 0.05, 0.0]) and fresh.acted[0]
+    assert old.command[0] == pytest.approx([0.0, 0.0]) and old.acted[0] and old.stalled[0]
+    assert past.braked[0] and np.all(past.command == 0.0)
+    assert not fresh.braked[0] and not old.braked[0]
+
+
+def test_fresh_data_keeps_a_head_on_pair_apart_in_discrete_time():
+    """Two agents driven straight at each other at full speed: apart by D_s at every step, exactly."""
+    s = sf.Safety(distance=0.1, clearance=0.05, v_max=1.0, period=0.05, sensing_radius=1.0)
+    p = np.array([[0.0, 0.0], [0.6, 0.0]])
+    closest = np.inf
+    for _ in range(100):
+        u_hat = np.array([[1.0, 0.0], [-1.0, 0.0]])
+        psi = np.array([p[0] - p[1], p[1] - p[0]])
+        r = sf.rows(s, 2, np.array([0, 1]), psi, np.zeros(2), np.zeros(0, np.intp), np.zeros((0, 2)), np.zeros(0))
+        p = p + s.period * sf.apply(u_hat, r).command
+        closest = min(closest, float(np.linalg.norm(p[0] - p[1])))
+    assert closest >= s.distance - 1e-12
+    unfiltered_gap = 0.6 - 2 * 1.0 * 0.05 * 100
+    assert unfiltered_gap < s.distance  # without the filter they would have passed through each other
+
+
+def test_a_unicycle_filters_its_lookahead_point_with_the_radius_grown():
+    params = get_scenario("moving-prey").params
+    plain, ahead = sf.safety_for(params, 0.05), sf.safety_for(params, 0.05, lookahead=0.25)
+    assert ahead.distance == pytest.approx(plain.distance + 0.5)
+    assert ahead.clearance == pytest.approx(plain.clearance + 0.25)
+    with pytest.raises(ValueError, match="sensing radius"):
+        sf.safety_for(dataclasses.replace(params, swarm=dataclasses.replace(params.swarm, sensing_radius=0.09)), 0.05)
+
+
+def test_bad_mode_is_one_line():
+    with pytest.raises(ValueError, match="off, barrier"):
+        sf.parse_mode("orca")

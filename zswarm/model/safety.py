@@ -1,0 +1,196 @@
+"""The safety filter: the command closest to the law's that keeps every agent apart, on data of any age.
+
+Between the law (:mod:`zswarm.model.law`) and the body, agent i replaces its command u^ by
+
+    u_i = argmin |u - u^|^2   subject to   a_r . u <= b_r  for every row r of agent i          (S1)
+
+one row per sensed neighbour j and per sensed obstacle (a discrete-time barrier, derived in
+``docs/safety.md``; the same rows in 2-D and 3-D):
+
+    neighbour j:  -n_ij . u <= (kappa / 2T) max(0, |psi_ij| - D'_j),   D'_j = D_s + v (tau_j + 2T)   (S2)
+    obstacle o:   -n_io . u <= (kappa / T)  max(0, |P_i - C_o| - rho_o - D_o)                     (S3)
+
+with psi_ij = P_i - P_j as agent i believes it (P_j heard tau_j seconds ago), n = psi/|psi|, D_s = 2 d^r
+(two bodies touching: the collision distance the metrics count), D_o = d^r, v = v_max, T the control
+period and kappa in (0, 1] the share of the gap the pair may close in one period. Each agent takes half
+of a neighbour's gap (the other agent takes the other half); an obstacle does not move, so the agent
+takes all of it. The distance to a point is convex, so one period of motion can only leave a pair
+farther apart than its first-order change says: with fresh data (S2) keeps |P_i - P_j| >= D_s exactly
+in discrete time, and the margin v (tau_j + 2T) covers where j can have gone since its pose was taken,
+and that the two agents act on different data (``docs/safety.md``).
+
+- Every right side is >= 0, so u = 0 (stop) is always feasible: the set is never empty, and the
+  projection of u^ onto a convex set holding 0 is never longer than u^, so the speed limit holds.
+- A neighbour pose older than ``max_age`` (the age at which D'_j reaches the sensing radius: j may be
+  anywhere the agent senses) whose row could bind: the agent brakes (u = 0).
+- (S1) is solved exactly (:func:`project`): the optimum is the projection of u^ onto the affine set of
+  at most D linearly independent active rows (KKT and Caratheodory), so every such set is tried and
+  the closest command that satisfies every row is kept; u = 0 is always among the candidates. No
+  iteration, nothing stopped early: a returned command satisfies its rows to rounding.
+
+Everything is vectorized: rows are a flat list (row r belongs to agent ``agent[r]``), for one agent,
+a swarm or a batch of swarms flattened.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from itertools import combinations
+from typing import NamedTuple
+
+import numpy as np
+
+MODES: tuple[str, ...] = ("off", "barrier")
+TOL = 1e-12  # a candidate satisfies a row when a.u - b <= TOL (rounding of the exact solutions)
+STALL_SHARE = 0.1  # an agent is stalled when the filter left it under this share of the law's speed
+_CHUNK = 256  # agents solved at once (bounds the candidates' memory)
+
+
+def parse_mode(text: object) -> str:
+    if not isinstance(text, str) or text.strip() not in MODES:
+        raise ValueError(f"--safety must be one of {', '.join(MODES)} (got {text!r})")
+    return text.strip()
+
+
+@dataclass(frozen=True)
+class Safety:
+    """The filter's numbers (``docs/safety.md``): D_s, D_o, v, T, kappa, and the largest data age."""
+
+    distance: float  # D_s: centres closer than this collide (2 d^r)
+    clearance: float  # D_o: the body's radius, kept off an obstacle's boundary
+    v_max: float
+    period: float  # T: how long a command is held
+    sensing_radius: float
+    kappa: float = 1.0
+
+    @property
+    def max_age(self) -> float:
+        """The oldest neighbour data the guarantee holds for: the age at which D'_j reaches the sensing
+        radius (beyond it, j may be anywhere within the agent's sensing disc)."""
+        return (self.sensing_radius - self.distance) / self.v_max - 2.0 * self.period
+
+    def margin(self, age: np.ndarray | float) -> np.ndarray | float:
+        """D'_j of (S2): the collision distance, what j can have moved since its pose, two periods."""
+        return self.distance + self.v_max * (np.asarray(age) + 2.0 * self.period)
+
+
+def safety_for(params, dt: float, lookahead: float = 0.0) -> Safety:
+    """The filter of a parameter set at control period ``dt``. ``lookahead`` (a unicycle's tracked point
+    ahead of its axle): the filter acts on that point, so the distances grow by 2 l and l
+    (the Robotarium's unicycle mapping; ``docs/safety.md``)."""
+    s = params.swarm
+    if s.sensing_radius <= 2.0 * s.robot_radius + 2.0 * lookahead:
+        raise ValueError("the safety filter needs a sensing radius above 2 d^r (+ 2 lookahead)")
+    return Safety(2.0 * s.robot_radius + 2.0 * lookahead, s.robot_radius + lookahead, s.v_max, dt, s.sensing_radius)
+
+
+class Rows(NamedTuple):
+    """The constraints a . u <= b: row r belongs to agent ``agent[r]``; ``stale`` marks agents that
+    must brake (a neighbour older than the guarantee's bound that could bind)."""
+
+    agent: np.ndarray  # (R,)
+    a: np.ndarray  # (R, D)
+    b: np.ndarray  # (R,)
+    stale: np.ndarray  # (N,) bool
+
+
+def rows(safety: Safety, n: int, agent: np.ndarray, psi: np.ndarray, age: np.ndarray,
+         obstacle_agent: np.ndarray, psi_o: np.ndarray, radius_o: np.ndarray) -> Rows:
+    """(S2) for every pair (``agent``, ``psi`` = P_i - P_j as believed, ``age`` tau_j) and (S3) for every
+    sensed obstacle (``obstacle_agent``, ``psi_o`` = P_i - C_o, ``radius_o``), of n agents."""
+    rate = safety.kappa / safety.period
+    d = np.linalg.norm(psi, axis=-1)
+    margin = safety.margin(age)
+    b = 0.5 * rate * np.maximum(d - margin, 0.0)
+    dist_o = np.linalg.norm(psi_o, axis=-1)
+    b_o = rate * np.maximum(dist_o - radius_o - safety.clearance, 0.0)
+    binding = b < safety.v_max  # a row with b >= v_max never binds a command no longer than v_max
+    old = (np.asarray(age) > safety.max_age) & binding
+    stale = np.zeros(n, dtype=bool)
+    stale[agent[old]] = True
+    a = -np.concatenate([_unit(psi, d), _unit(psi_o, dist_o)])
+    return Rows(np.concatenate([agent, obstacle_agent]).astype(np.intp), a, np.concatenate([b, b_o]), stale)
+
+
+def _unit(v: np.ndarray, norm: np.ndarray) -> np.ndarray:
+    """v / |v|; a zero offset (coincident centres) gets no direction and its row reads 0 <= b."""
+    return np.divide(v, norm[:, None], out=np.zeros_like(v, dtype=float), where=norm[:, None] > 0)
+
+
+class Filtered(NamedTuple):
+    command: np.ndarray  # (N, D) the filtered commands
+    acted: np.ndarray  # (N,) the filter changed the command
+    stalled: np.ndarray  # (N,) ... to under STALL_SHARE of the law's speed
+    braked: np.ndarray  # (N,) stopped: data older than the guarantee's bound
+
+
+def apply(u_hat: np.ndarray, r: Rows) -> Filtered:
+    """(S1) for every agent: the exact projection of its command, braking where ``r.stale`` says."""
+    u = project(u_hat, r.agent, r.a, r.b)
+    u[r.stale] = 0.0
+    change = np.linalg.norm(u - u_hat, axis=-1)
+    speed = np.linalg.norm(u_hat, axis=-1)
+    acted = change > 1e-9 * np.maximum(speed, 1.0)
+    stalled = acted & (np.linalg.norm(u, axis=-1) < STALL_SHARE * speed)
+    return Filtered(u, acted, stalled, r.stale.copy())
+
+
+def project(u_hat: np.ndarray, agent: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """argmin |u - u^_i|^2 s.t. a_r . u <= b_r (rows of agent i), every b_r >= 0; exact (module doc)."""
+    u = np.array(u_hat, dtype=float, copy=True)
+    if len(agent) == 0:
+        return u
+    slack = np.einsum("rd,rd->r", a, u[agent]) - b
+    need = np.unique(agent[slack > TOL])
+    if len(need) == 0:
+        return u
+    speed = np.linalg.norm(u, axis=-1)
+    # a row with b >= |u^| cannot bind: the projection onto a convex set holding 0 is no longer than u^
+    keep = np.isin(agent, need) & (b < speed[agent] + TOL)
+    for start in range(0, len(need), _CHUNK):
+        chunk = need[start:start + _CHUNK]
+        sel = keep & np.isin(agent, chunk)
+        u[chunk] = _solve(u[chunk], np.searchsorted(chunk, agent[sel]), a[sel], b[sel])
+    return u
+
+
+def _solve(u_hat: np.ndarray, owner: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The exact projections of M commands (M, D), rows grouped by ``owner`` (0..M-1)."""
+    m, dims = u_hat.shape
+    order = np.argsort(owner, kind="stable")
+    owner, a, b = owner[order], a[order], b[order]
+    counts = np.bincount(owner, minlength=m)
+    k = int(counts.max())
+    slot = np.arange(len(owner)) - np.repeat(np.cumsum(counts) - counts, counts)
+    A = np.zeros((m, k, dims))
+    B = np.full((m, k), np.inf)
+    A[owner, slot], B[owner, slot] = a, b
+    valid = np.zeros((m, k), dtype=bool)
+    valid[owner, slot] = True
+    cands = [u_hat[:, None, :], np.zeros((m, 1, dims))]
+    for size in range(1, min(dims, k) + 1):
+        cands.append(_active_set_projections(u_hat, A, B, valid, size))
+    c = np.concatenate(cands, axis=1)  # (M, Q, D)
+    slack = np.einsum("mqd,mkd->mqk", c, A) - np.where(valid, B, 0.0)[:, None, :]
+    ok = np.all(~valid[:, None, :] | (slack <= TOL), axis=-1) & np.all(np.isfinite(c), axis=-1)
+    dist = np.where(ok, np.sum((c - u_hat[:, None, :]) ** 2, axis=-1), np.inf)
+    return c[np.arange(m), np.argmin(dist, axis=1)]
+
+
+def _active_set_projections(u_hat: np.ndarray, A: np.ndarray, B: np.ndarray, valid: np.ndarray,
+                            size: int) -> np.ndarray:
+    """For every set S of ``size`` rows: u^ - A_S^T (A_S A_S^T)^-1 (A_S u^ - b_S), the projection onto
+    {a_r . u = b_r, r in S}; NaN where S is not a set of valid, linearly independent rows."""
+    m, k, dims = A.shape
+    sets = np.array(list(combinations(range(k), size)), dtype=np.intp)  # (S, size)
+    AS = A[:, sets]  # (M, S, size, D)
+    BS = np.where(valid, B, 0.0)[:, sets]
+    gram = np.einsum("msid,msjd->msij", AS, AS)
+    rhs = np.einsum("msid,md->msi", AS, u_hat) - BS
+    det = np.linalg.det(gram)
+    good = np.all(valid[:, sets], axis=-1) & (np.abs(det) > 1e-12)
+    gram = np.where(good[..., None, None], gram, np.eye(size))
+    lam = np.linalg.solve(gram, rhs[..., None])[..., 0]
+    out = u_hat[:, None, :] - np.einsum("msid,msi->msd", AS, lam)
+    out[~good] = np.nan
+    return out
