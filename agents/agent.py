@@ -27,6 +27,7 @@ from agents.sensing import Body, Sensing
 from zswarm.model import body as bodies
 from zswarm.model.agent_law import agent_velocity, point_step
 from zswarm.model.law import Law, sense_one
+from zswarm.model.safety import Safety, filter_one
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Bridge
 from zswarm.net.injector import FaultInjector
@@ -52,9 +53,9 @@ class Agent:
 
     def __init__(self, spec: RunSpec, agent_id: int, body: Body, sensing: Sensing, reach: Reach, bridge: Bridge,
                  law: Law, injector: FaultInjector | None = None, robot: Any = None, staleness: float = 0.5,
-                 lockstep_wait: float = 0.25) -> None:
+                 lockstep_wait: float = 0.25, safety: Safety | None = None) -> None:
         self.spec, self.id, self.body, self.sensing, self.reach, self.bridge = spec, agent_id, body, sensing, reach, bridge
-        self.law, self.injector, self.robot = law, injector, robot
+        self.law, self.injector, self.robot, self.safety = law, injector, robot, safety
         self.keys = spec.keys
         self.dt = spec.scenario.dt
         self.body_spec = bodies.body_spec(spec.scenario.params)
@@ -72,14 +73,15 @@ class Agent:
 
     # --- control ---------------------------------------------------------------------------------------
 
-    def move(self, goal: tuple[float, ...], neighbours: list[tuple[float, ...]]) -> None:
-        """The command sat(-grad U_i) from what it sensed (eq 5 with the speed limit), and one step of its
-        body under it (:func:`zswarm.model.body.step`; the point body in plain floats, the same
-        arithmetic), or, beside a robot, the robot's command."""
+    def move(self, goal: tuple[float, ...], neighbours: list[tuple[float, ...]], step: int | None = None) -> None:
+        """The command sat(-grad U_i) from what it sensed (eq 5 with the speed limit), through the safety
+        filter, and one step of its body under it (:func:`zswarm.model.body.step`; the point body in
+        plain floats, the same arithmetic), or, beside a robot, the robot's command. ``step``: the
+        lockstep step whose poses it steers on (None: free, the newest)."""
         if self.robot is not None:
-            self.drive_robot(goal, neighbours)
+            self.drive_robot(goal, neighbours, step)
             return
-        b, v_d = self.body, self.command(goal, neighbours)
+        b, v_d = self.body, self.safe(self.command(goal, neighbours), step)
         if self.body_spec.kind == "point":
             (b.x, b.y, b.z), (b.vx, b.vy, b.vz) = point_step(b.x, b.y, b.z, v_d, self.dt)
             return
@@ -101,12 +103,30 @@ class Agent:
         b.vx, b.vy = pose.u * math.cos(pose.yaw), pose.u * math.sin(pose.yaw)
         return True
 
-    def drive_robot(self, goal: tuple[float, ...], neighbours: list[tuple[float, ...]]) -> None:
-        """The command from where the robot is, sent to it as a Twist; a silent robot is stopped and
-        the agent leaves (:meth:`agents.robot_link.RobotLink.check`)."""
+    def drive_robot(self, goal: tuple[float, ...], neighbours: list[tuple[float, ...]], step: int | None) -> None:
+        """The command from where the robot is, through the safety filter, sent to it as a Twist; a
+        silent robot is stopped and the agent leaves (:meth:`agents.robot_link.RobotLink.check`)."""
         self.robot.check(time.time())
         if self.follow_robot():
-            self.robot.drive(self.command(goal, neighbours))
+            self.robot.drive(self.safe(self.command(goal, neighbours), step))
+
+    def safe(self, v_d: tuple[float, ...], step: int | None) -> tuple[float, ...]:
+        """The command the safety filter lets through (:func:`zswarm.model.safety.filter_one`), from
+        every neighbour it knows of and the age of that knowledge; counted in its stats."""
+        if self.safety is None:
+            return v_d
+        b, lookahead = self.body, (self.body_spec.lookahead if self.body_spec.headed else 0.0)
+        point = b.position
+        if lookahead and b.heading is not None:
+            point = (b.x + lookahead * math.cos(b.heading), b.y + lookahead * math.sin(b.heading))
+        sensed = self.sensing.safety_neighbours(step, self.spec.time_scale, lookahead)
+        command, done = filter_one(self.safety, point, v_d, sensed, self.sensing.obstacles)
+        if done is not None:
+            c = self.counters
+            c.interventions += bool(done.acted[0])
+            c.stalled_ticks += bool(done.stalled[0])
+            c.braked_ticks += bool(done.braked[0])
+        return command
 
     def command(self, goal: tuple[float, ...], neighbours: list[tuple[float, ...]]) -> tuple[float, ...]:
         """The desired velocity from what it sensed: in plain floats in 2-D, the one law on one row in
@@ -197,7 +217,7 @@ class Agent:
                 k = self.body.step
                 await self.reach.await_step_poses(k, self.lockstep_wait)
                 await self.reach.refresh_obstacles()
-                self.move(self.prey_by_step.get(k, tick.position), s.neighbour_positions(k, self.staleness))
+                self.move(self.prey_by_step.get(k, tick.position), s.neighbour_positions(k, self.staleness), k)
                 self.body.step += 1
                 self.prey_by_step.pop(k - 2, None)
             await self.reach.update_cells()

@@ -18,6 +18,7 @@ from agents.reach import Reach
 from agents.sensing import Sensing
 from zswarm.args import Parser, UsageError, run_main
 from zswarm.model.law import compile_law
+from zswarm.model.safety_tally import safety_of
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Bridge, Deliver, Inbound, teardown
 from zswarm.net.config import add_zenoh_args, config_from_args, open_session
@@ -119,7 +120,7 @@ class Process:
                              channels=rings, capacity=CELL_CAPACITY,
                              reply_filter=injector.filter_replies if injector is not None else None)
         self.agent = Agent(spec, args.id, body, sensing, Reach(sensing, self.bridge), self.bridge, law, injector,
-                           link, args.staleness, args.lockstep_wait)
+                           link, args.staleness, args.lockstep_wait, safety_of(spec.scenario, spec.safety))
         self.injector = injector
         self.declared = [self.bridge.subscribe_liveliness(keys.all_alive, "alive"),
                          self.bridge.subscribe(keys.prey, "prey"), self.bridge.subscribe(keys.tick, "tick")]

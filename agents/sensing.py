@@ -227,3 +227,24 @@ class Sensing:
                 self.counters.add(self.counters.ages, (now - pose.stamp) * 1000.0)
             out.append(pose.position)
         return out
+
+    def safety_neighbours(self, step: int | None, time_scale: float,
+                          lookahead: float = 0.0) -> list[tuple[tuple[float, ...], float]]:
+        """What the safety filter guards against: every neighbour holding a liveliness token, however old
+        its newest pose, as (where the filter acts on it, age in simulated seconds). Lockstep: the
+        step-k poses, exact for step k (age 0). Free: the newest pose, its age from its stamp scaled by
+        ``time_scale``. ``lookahead``: a unicycle's tracked point ahead of its axle, from the heading."""
+        now = time.time()
+        out = []
+        for who, nb in self.neighbours.entries.items():
+            if who not in self.alive:
+                continue
+            pose = nb.by_step.get(step) if step is not None else nb.latest
+            if pose is None:
+                continue
+            age = 0.0 if step is not None else max(now - pose.stamp, 0.0) * time_scale
+            point = pose.position
+            if lookahead and pose.heading is not None:
+                point = (point[0] + lookahead * math.cos(pose.heading), point[1] + lookahead * math.sin(pose.heading))
+            out.append((point, age))
+        return out

@@ -104,10 +104,38 @@ def test_a_unicycle_filters_its_lookahead_point_with_the_radius_grown():
     plain, ahead = sf.safety_for(params, 0.05), sf.safety_for(params, 0.05, lookahead=0.25)
     assert ahead.distance == pytest.approx(plain.distance + 0.5)
     assert ahead.clearance == pytest.approx(plain.clearance + 0.25)
-    with pytest.raises(ValueError, match="sensing radius"):
-        sf.safety_for(dataclasses.replace(params, swarm=dataclasses.replace(params.swarm, sensing_radius=0.09)), 0.05)
+    blind = sf.safety_for(dataclasses.replace(params, swarm=dataclasses.replace(params.swarm, sensing_radius=0.09)), 0.05)
+    assert blind.max_age < 0  # it cannot sense far enough: a binding neighbour, however fresh, brakes it
+    r = sf.rows(blind, 1, np.zeros(1, np.intp), np.array([[0.15, 0.0]]), np.zeros(1), np.zeros(0, np.intp),
+                np.zeros((0, 2)), np.zeros(0))
+    assert r.stale[0]
 
 
 def test_bad_mode_is_one_line():
     with pytest.raises(ValueError, match="off, barrier"):
         sf.parse_mode("orca")
+
+
+@pytest.mark.parametrize("dims", [2, 3])
+def test_the_agents_float_filter_equals_the_vectorized_one(dims):
+    """An agent process filters in floats (filter_one); the simulators use rows + apply: the same."""
+    rng = np.random.default_rng(10 + dims)
+    s = sf.Safety(distance=0.1, clearance=0.05, v_max=1.0, period=0.05, sensing_radius=1.0)
+    acted = braked = 0
+    for _ in range(300):
+        point = rng.uniform(-1, 1, size=dims)
+        k, m = int(rng.integers(0, 7)), int(rng.integers(0, 3))
+        q = point + rng.uniform(-0.5, 0.5, size=(k, dims))
+        age = rng.choice([0.0, 0.1, 0.4, 0.9], size=k)
+        centres = point + rng.uniform(-0.6, 0.6, size=(m, dims))
+        radii = rng.uniform(0, 0.2, size=m)
+        u_hat = rng.uniform(-0.7, 0.7, size=dims)
+        got, done = sf.filter_one(s, tuple(point), tuple(u_hat), [(tuple(x), float(a)) for x, a in zip(q, age)],
+                                  [(*c, r) for c, r in zip(centres.tolist(), radii.tolist())])
+        want = sf.apply(u_hat[None], sf.rows(s, 1, np.zeros(k, np.intp), point - q, age, np.zeros(m, np.intp),
+                                             point - centres, radii))
+        np.testing.assert_allclose(got, want.command[0], atol=1e-12)
+        assert (done is not None and bool(done.acted[0])) == bool(want.acted[0])
+        acted += bool(want.acted[0])
+        braked += bool(want.braked[0])
+    assert acted > 50 and braked > 5

@@ -35,13 +35,14 @@ def add_sim_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     parser.add_argument("--require-design", action="store_true",
                         help="refuse to start (exit 2) when the set this run would use fails zswarm design")
-    from zswarm.net.runspec import add_fault_args
+    from zswarm.net.runspec import add_fault_args, add_safety_arg
 
+    add_safety_arg(parser)
     add_fault_args(parser)
 
 
 def run_sim(args: argparse.Namespace) -> int:
-    from zswarm.net.runspec import faults_from_args
+    from zswarm.net.runspec import faults_from_args, safety_mode
     from zswarm.record.live import viewer_from_args
     from zswarm.sim.simulator import simulate
 
@@ -57,11 +58,13 @@ def run_sim(args: argparse.Namespace) -> int:
         if args.require_design:
             raise UsageError(line + " (--require-design)")
         print(f"warning: {line}", file=sys.stderr, flush=True)
+    faults = faults_from_args(args)
+    safety = safety_mode(scenario, args.safety, faults.active)
     viewer = viewer_from_args(args)
     result = simulate(scenario, args.seed, combination=args.potential, duration=args.duration,
                       record=args.record, record_every=args.record_every,
-                      sensing_discs=args.sensing_discs, faults=faults_from_args(args), viewer=viewer,
-                      sensing_graph={"auto": None, "on": True, "off": False}[args.sensing_graph])
+                      sensing_discs=args.sensing_discs, faults=faults, viewer=viewer,
+                      sensing_graph={"auto": None, "on": True, "off": False}[args.sensing_graph], safety=safety)
     result.summary["design"] = design
     if args.json:
         print(json.dumps(result.summary, sort_keys=True))

@@ -21,7 +21,7 @@ def reference_comparison(result: dict[str, Any], spec: RunSpec) -> dict[str, Any
     from zswarm.sim.simulator import simulate
 
     scenario = spec.scenario
-    ref = simulate(scenario, spec.seed, combination=spec.combination,
+    ref = simulate(scenario, spec.seed, combination=spec.combination, safety=spec.safety,
                    duration=max(float(result.get("duration") or 0.0), scenario.dt)).summary
     reference = {k: ref[k] for k in COMPARED}
     return {"reference": reference,

@@ -55,7 +55,7 @@ def simulate_cell(cell: Cell, args: argparse.Namespace, jitter: float, **kw):
     from zswarm.sim.simulator import simulate
 
     spec = cell_spec(cell, args, jitter)
-    return simulate(spec.scenario, spec.seed, duration=spec.duration, faults=spec.faults, **kw)
+    return simulate(spec.scenario, spec.seed, duration=spec.duration, faults=spec.faults, safety=spec.safety, **kw)
 
 
 def _stats(values: list[Any]) -> tuple[float | None, float | None]:

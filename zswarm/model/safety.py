@@ -34,11 +34,14 @@ a swarm or a batch of swarms flattened.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from itertools import combinations
 from typing import NamedTuple
 
 import numpy as np
+
+from zswarm.model.neighbours import pairs_within
 
 MODES: tuple[str, ...] = ("off", "barrier")
 TOL = 1e-12  # a candidate satisfies a row when a.u - b <= TOL (rounding of the exact solutions)
@@ -66,7 +69,8 @@ class Safety:
     @property
     def max_age(self) -> float:
         """The oldest neighbour data the guarantee holds for: the age at which D'_j reaches the sensing
-        radius (beyond it, j may be anywhere within the agent's sensing disc)."""
+        radius (beyond it, j may be anywhere within the agent's sensing disc). Below 0 (a sensing
+        radius under D_s + 2 v T): no data is young enough, and an agent brakes whenever a row binds."""
         return (self.sensing_radius - self.distance) / self.v_max - 2.0 * self.period
 
     def margin(self, age: np.ndarray | float) -> np.ndarray | float:
@@ -79,8 +83,6 @@ def safety_for(params, dt: float, lookahead: float = 0.0) -> Safety:
     ahead of its axle): the filter acts on that point, so the distances grow by 2 l and l
     (the Robotarium's unicycle mapping; ``docs/safety.md``)."""
     s = params.swarm
-    if s.sensing_radius <= 2.0 * s.robot_radius + 2.0 * lookahead:
-        raise ValueError("the safety filter needs a sensing radius above 2 d^r (+ 2 lookahead)")
     return Safety(2.0 * s.robot_radius + 2.0 * lookahead, s.robot_radius + lookahead, s.v_max, dt, s.sensing_radius)
 
 
@@ -194,3 +196,64 @@ def _active_set_projections(u_hat: np.ndarray, A: np.ndarray, B: np.ndarray, val
     out = u_hat[:, None, :] - np.einsum("msid,msi->msd", AS, lam)
     out[~good] = np.nan
     return out
+
+
+def lookahead_points(positions: np.ndarray, headings: np.ndarray | None, lookahead: float) -> np.ndarray:
+    """Where the filter acts: the body's position, or a unicycle's tracked point P + l (cos th, sin th)."""
+    if headings is None or lookahead == 0.0:
+        return positions
+    out = np.array(positions, dtype=float, copy=True)
+    out[..., 0] += lookahead * np.cos(headings)
+    out[..., 1] += lookahead * np.sin(headings)
+    return out
+
+
+def swarm_rows(safety: Safety, obstacles, points: np.ndarray,
+               pairs: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> Rows:
+    """The rows of every agent of a swarm at ``points``: its sensed obstacles (an
+    :class:`~zswarm.model.neighbours.ObstacleIndex`) and ``pairs`` = (i, psi_ij, tau_j), what each
+    agent believes of its neighbours and how old it is (default: every pair within the sensing radius,
+    exact and fresh)."""
+    if pairs is None:
+        i, j = pairs_within(points, safety.sensing_radius)
+        pairs = (i, points[i] - points[j], np.zeros(len(i)))
+    a, m = obstacles.sensed(points)
+    return rows(safety, len(points), *pairs, a, points[a] - obstacles.centers[m], obstacles.radii[m])
+
+
+def filter_one(safety: Safety, point: tuple[float, ...], u_hat: tuple[float, ...],
+               neighbours: list[tuple[tuple[float, ...], float]],
+               obstacles: list[tuple[float, ...]]) -> tuple[tuple[float, ...], Filtered | None]:
+    """One agent's filter in plain floats (an agent process, every tick): :func:`apply` of
+    :func:`rows` for one agent at ``point`` with ``neighbours`` as (believed point, age) and
+    ``obstacles`` as (centre..., radius). Most ticks no row binds and the command passes at the cost
+    of a few float operations; otherwise the rows that can bind go to :func:`project`. Returns the
+    command and what the filter did (None: nothing)."""
+    rate, v, dims = safety.kappa / safety.period, safety.v_max, len(point)
+    speed = math.sqrt(sum(c * c for c in u_hat))
+    binding: list[tuple[tuple[float, ...], float]] = []
+    violated = stale = False
+    for q, age in neighbours:
+        psi = [point[k] - q[k] for k in range(dims)]
+        d = math.sqrt(sum(c * c for c in psi))
+        b = 0.5 * rate * max(d - safety.distance - v * (age + 2.0 * safety.period), 0.0)
+        if b < v:
+            stale |= age > safety.max_age
+            a = tuple(-c / d for c in psi) if d > 0 else (0.0,) * dims
+            binding.append((a, b))
+            violated |= sum(a[k] * u_hat[k] for k in range(dims)) - b > TOL
+    for obstacle in obstacles:
+        psi = [point[k] - obstacle[k] for k in range(dims)]
+        d = math.sqrt(sum(c * c for c in psi))
+        b = rate * max(d - obstacle[dims] - safety.clearance, 0.0)
+        if b < v:
+            a = tuple(-c / d for c in psi) if d > 0 else (0.0,) * dims
+            binding.append((a, b))
+            violated |= sum(a[k] * u_hat[k] for k in range(dims)) - b > TOL
+    if not violated and not stale:
+        return u_hat, None
+    a_rows = np.array([a for a, _ in binding], dtype=float).reshape(-1, dims)
+    b_rows = np.array([b for _, b in binding], dtype=float)
+    r = Rows(np.zeros(len(binding), dtype=np.intp), a_rows, b_rows, np.array([stale]))
+    f = apply(np.array([u_hat], dtype=float), r)
+    return tuple(f.command[0].tolist()), f

@@ -133,10 +133,15 @@ class Health:
     queue_max: int = 0
     tick_lag_max_ms: float = 0.0
     poses: int = 0  # other agents' poses taken in (however they arrived)
+    # the safety filter (zswarm.model.safety_tally): ticks it changed the command, left it under a
+    # tenth of the law's speed, and braked on data too old
+    interventions: int = 0
+    stalled_ticks: int = 0
+    braked_ticks: int = 0
 
 
 HEALTH_INTS = ("obstacle_queries_failed", "seq_received", "seq_lost", "injected_drops", "injected_passed",
-               "queue_max", "poses")
+               "queue_max", "poses", "interventions", "stalled_ticks", "braked_ticks")
 
 
 @dataclass(frozen=True)

@@ -22,6 +22,7 @@ from zswarm.errors import UsageError
 from zswarm.model.faults import FaultModel, parse_duration
 from zswarm.model.params import parse_assignments
 from zswarm.model.potentials import COMBINATIONS, Combination
+from zswarm.model.safety import MODES
 from zswarm.model.scenarios import Scenario, get_scenario
 from zswarm.net.keys import Keys, check_run_id
 
@@ -45,9 +46,12 @@ class RunSpec:
     time_scale: float = 1.0
     duration: float | None = None
     faults: FaultModel = field(default_factory=FaultModel)
+    safety: str = "barrier"
 
     def __post_init__(self) -> None:
         check_run_id(self.run)
+        if self.safety not in MODES:
+            raise UsageError(f"--safety must be one of {', '.join(MODES)} (got {self.safety!r})")
         if not isinstance(self.seed, int) or not 0 <= self.seed < 2**63:
             raise UsageError(f"--seed must be an integer in [0, 2^63) (got {self.seed!r})")
         if self.clock not in CLOCKS:
@@ -99,13 +103,13 @@ class RunSpec:
         """What the run was asked to do, as plain data (the recording's ``run/config``)."""
         return {"run": self.run, "scenario": self.scenario.name, "seed": self.seed, "potential": self.combination,
                 "clock": self.clock, "time_scale": self.time_scale, "n_agents": self.scenario.n_agents,
-                "duration": self.steps * self.scenario.dt, "faults": self.faults.requested(),
+                "duration": self.steps * self.scenario.dt, "faults": self.faults.requested(), "safety": self.safety,
                 "scenario_definition": self.scenario.to_dict()}
 
     def to_argv(self) -> list[str]:
         """The run arguments that :func:`spec_from_args` turns back into this spec."""
         out = ["--run", self.run, "--scenario", self.scenario_name, "--seed", str(self.seed),
-               "--clock", self.clock, "--time-scale", repr(self.time_scale)]
+               "--clock", self.clock, "--time-scale", repr(self.time_scale), "--safety", self.safety]
         for name, value in self.overrides:
             out += ["--set", f"{name}={value}" if isinstance(value, str) else f"{name}={value!r}"]
         if self.potential is not None:
@@ -133,6 +137,7 @@ def add_run_args(parser: argparse.ArgumentParser, run_help: str = f"run id: name
                        help="simulated seconds per wall second in free mode (default 1: dt=0.05 s at 20 Hz)")
     group.add_argument("--duration", type=float, default=None,
                        help="simulated seconds (default: the scenario's)")
+    add_safety_arg(group)
     add_fault_args(parser)
 
 
@@ -145,6 +150,28 @@ def add_fault_args(parser: argparse.ArgumentParser) -> None:
                        help="mean loss-burst length (Gilbert-Elliott); 0: independent losses")
     group.add_argument("--distance-loss", type=float, default=0.0,
                        help="pose loss probability at the sensing radius, growing with distance squared")
+
+
+def add_safety_arg(parser) -> None:
+    parser.add_argument("--safety", choices=MODES, default=None,
+                        help="barrier: every command passes the safety filter, robust to the age of each "
+                             "neighbour's data (docs/safety.md); off: the law alone (default barrier, off for a "
+                             "double-integrator body, which the filter cannot keep safe)")
+
+
+def safety_mode(scenario: Scenario, asked: str | None, simulated_faults: bool = False) -> str:
+    """The filter a run uses: as asked, checked against the body (one line, exit 2, where it cannot keep
+    that body safe), or by default barrier wherever it can and off elsewhere."""
+    from zswarm.errors import ParamError
+    from zswarm.model.safety_tally import safety_of
+
+    try:
+        safety_of(scenario, asked or "barrier", simulated_faults)
+    except ParamError as exc:
+        if asked is None:
+            return "off"
+        raise UsageError(str(exc)) from None
+    return asked or "barrier"
 
 
 def faults_from_args(args: argparse.Namespace) -> FaultModel:
@@ -165,5 +192,4 @@ def spec_from_args(args: argparse.Namespace, run: str | None = None, extra: dict
     spec = RunSpec(run=args.run or run or DEFAULT_RUN, scenario_name=args.scenario,
                    overrides=tuple(overrides.items()), seed=args.seed, potential=args.potential, clock=args.clock,
                    time_scale=args.time_scale, duration=args.duration, faults=faults_from_args(args))
-    spec.scenario  # noqa: B018  (builds and validates it)
-    return spec
+    return dataclasses.replace(spec, safety=safety_mode(spec.scenario, getattr(args, "safety", None)))

@@ -30,6 +30,8 @@ from zswarm.model.law import compile_law, swarm_field
 from zswarm.model.neighbours import ObstacleIndex
 from zswarm.model.observer import SwarmObserver
 from zswarm.model.potentials import Combination, saturate
+from zswarm.model import safety as sf
+from zswarm.model.safety_tally import SafetyTally, safety_of
 from zswarm.model.scenarios import Scenario
 from zswarm.provenance import versions
 from zswarm.sim.channel import FaultyChannel
@@ -39,7 +41,7 @@ class Simulator:
     """State of a simulated swarm and its step function."""
 
     def __init__(self, scenario: Scenario, seed: int, combination: Combination | None = None,
-                 faults: FaultModel | None = None) -> None:
+                 faults: FaultModel | None = None, safety: str = "off") -> None:
         self.scenario = scenario
         self.seed = seed
         self.combination: Combination = combination or scenario.combination
@@ -56,6 +58,9 @@ class Simulator:
         self.channel = (FaultyChannel(len(self.positions), faults, scenario.dt, p.swarm.sensing_radius,
                                       seed=faults.seed, dims=scenario.dimensions)
                         if faults is not None and faults.active else None)
+        self.safety = safety_of(scenario, safety, faulted=self.channel is not None)
+        self.filtered: sf.Filtered | None = None  # what the filter did at the last step
+        self.tally = SafetyTally(scenario.dt)
 
     @property
     def positions(self) -> np.ndarray:
@@ -82,7 +87,20 @@ class Simulator:
         v = saturate(f, self.scenario.params.swarm.v_max)
         if blind is not None:
             v[blind] = 0.0
+        if self.safety is not None:
+            v = self.filter(positions, v)
         return u, v
+
+    def filter(self, positions: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """The safety filter (:mod:`zswarm.model.safety`) on every agent's command, from what it senses:
+        exact neighbour positions, or, through the faulty channel, the newest it heard and its age."""
+        pairs = None
+        if self.channel is not None:
+            pairs = self.channel.known(self.step_index, positions, self.safety.sensing_radius)
+        points = sf.lookahead_points(positions, self.headings, self.body.lookahead if self.body.headed else 0.0)
+        self.filtered = sf.apply(v, sf.swarm_rows(self.safety, self.obstacles, points, pairs))
+        self.tally.add(self.filtered)
+        return self.filtered.command
 
     def moving(self, commands: np.ndarray) -> np.ndarray:
         """The velocity each body moves with this step under ``commands`` (the point body: the commands)."""
@@ -109,14 +127,15 @@ def simulate(scenario: Scenario, seed: int, *, combination: Combination | None =
              duration: float | None = None, record: Path | None = None, record_every: int = 1,
              metrics_every: int = 1, keep_trajectory: bool = False, sensing_discs: bool = False,
              argv: list[str] | None = None, faults: FaultModel | None = None, viewer=None,
-             sensing_graph: bool | None = None) -> RunResult:
+             sensing_graph: bool | None = None, safety: str = "off") -> RunResult:
     """Run a scenario to its end; optionally record it to Rerun (a file, and/or live to ``viewer``, a
     :class:`zswarm.record.live.Viewer`) and keep the trajectories.
 
     ``sensing_graph``: draw who senses whom in the recording (None: for N <= 100).
     ``faults``: pass neighbour and prey data through a seeded faulty channel (:mod:`zswarm.sim.channel`).
+    ``safety``: "barrier" filters every command (:mod:`zswarm.model.safety`).
     """
-    sim = Simulator(scenario, seed, combination, faults)
+    sim = Simulator(scenario, seed, combination, faults, safety)
     p = scenario.params
     steps = int(round((duration if duration is not None else scenario.duration) / scenario.dt))
     observer = SwarmObserver(scenario, law=sim.law)
@@ -124,7 +143,7 @@ def simulate(scenario: Scenario, seed: int, *, combination: Combination | None =
     prey_traj = np.empty((steps + 1, len(sim.prey))) if keep_trajectory else None
     header = {"scenario": scenario.name, "n_agents": int(len(sim.positions)), "seed": seed,
               "potential": sim.combination, "duration": steps * scenario.dt, "steps": steps,
-              "dt": scenario.dt}
+              "dt": scenario.dt, "safety": safety}
     rec = None
     if record is not None or (viewer is not None and viewer.wanted):
         from zswarm.record import swarm_log
@@ -153,7 +172,7 @@ def simulate(scenario: Scenario, seed: int, *, combination: Combination | None =
                           observer.thresholds(), p.swarm.sensing_radius if graph else None)
         if k < steps:
             sim.advance(command)
-    result = {**header, **observer.summary.result()}
+    result = {**header, **observer.summary.result(), **sim.tally.result()}
     if sim.channel is not None:
         result["requested_faults"] = faults.requested()
         result["observed_dropout"] = sim.channel.observed_dropout

@@ -1,0 +1,62 @@
+"""What the safety filter did over a run, the same counts for the simulators and the processes.
+
+- ``interventions``: agent-steps whose command the filter changed;
+- ``stalled_steps``: agent-steps it left under a tenth of the law's speed (a deadlock shows as a run of
+  these: two agents facing each other, each waiting for the other), ``stalled_at_end`` the agents
+  stalled at the last step and ``stalled_agents`` those stalled for at least a second in a row;
+- ``braked_steps``: agent-steps stopped because a neighbour's data was older than the guarantee's bound.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from zswarm.errors import ParamError
+from zswarm.model import safety as sf
+
+
+def safety_of(scenario, mode: str, faulted: bool = False) -> sf.Safety | None:
+    """The filter a run of ``scenario`` uses under ``mode`` (None: off); raises :class:`ParamError`
+    for a combination the filter cannot keep safe."""
+    sf.parse_mode(mode)
+    if mode == "off":
+        return None
+    body = scenario.params.body
+    if body.body == "double-integrator":
+        raise ParamError("--safety barrier needs a body that can stop within a step; a double-integrator "
+                         "needs v^2/(2 accel) to stop, which this filter does not model: use --safety off")
+    if body.body == "unicycle" and faulted:
+        raise ParamError("--safety barrier with a unicycle in the simulator needs its neighbours' headings, "
+                         "which the simulated faulty channel does not carry: run it as processes, or --safety off")
+    return sf.safety_for(scenario.params, scenario.dt, body.lookahead if body.body == "unicycle" else 0.0)
+
+
+class SafetyTally:
+    def __init__(self, dt: float = 0.05) -> None:
+        self.steps = 0
+        self.interventions = self.stalled_steps = self.braked_steps = 0
+        self.stalled_now = np.zeros(0, dtype=bool)
+        self.run = np.zeros(0, dtype=np.int64)
+        self.long = np.zeros(0, dtype=bool)
+        self.second = max(int(round(1.0 / dt)), 1)
+
+    def add(self, f: sf.Filtered) -> None:
+        if len(self.run) != len(f.acted):
+            self.run = np.zeros(len(f.acted), dtype=np.int64)
+            self.long = np.zeros(len(f.acted), dtype=bool)
+        self.steps += 1
+        self.interventions += int(f.acted.sum())
+        self.stalled_steps += int(f.stalled.sum())
+        self.braked_steps += int(f.braked.sum())
+        self.run = np.where(f.stalled, self.run + 1, 0)
+        self.long |= self.run >= self.second
+        self.stalled_now = f.stalled
+
+    def result(self) -> dict[str, Any]:
+        if self.steps == 0:
+            return {}
+        return {"interventions": self.interventions, "stalled_steps": self.stalled_steps,
+                "stalled_at_end": int(self.stalled_now.sum()), "stalled_agents": int(self.long.sum()),
+                "braked_steps": self.braked_steps}
