@@ -121,11 +121,14 @@ class Agent:
             point = (b.x + lookahead * math.cos(b.heading), b.y + lookahead * math.sin(b.heading))
         sensed = self.sensing.safety_neighbours(step, self.spec.time_scale, lookahead)
         command, done = filter_one(self.safety, point, v_d, sensed, self.sensing.obstacles)
+        c = self.counters
+        stalled = done is not None and bool(done.stalled[0])
         if done is not None:
-            c = self.counters
             c.interventions += bool(done.acted[0])
-            c.stalled_ticks += bool(done.stalled[0])
+            c.stalled_ticks += stalled
             c.braked_ticks += bool(done.braked[0])
+        c.stalled_run = c.stalled_run + 1 if stalled else 0
+        c.stalled_long |= c.stalled_run * self.dt >= 1.0
         return command
 
     def command(self, goal: tuple[float, ...], neighbours: list[tuple[float, ...]]) -> tuple[float, ...]:

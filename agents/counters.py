@@ -20,6 +20,8 @@ class Counters:
     interventions: int = 0  # the safety filter: ticks it changed the command
     stalled_ticks: int = 0  # ... left it under a tenth of the law's speed
     braked_ticks: int = 0  # ... stopped the agent on data older than its bound
+    stalled_run: int = 0  # ticks in a row stalled now
+    stalled_long: bool = False  # stalled for a second or more in a row, at some point
     ages: dict[int, int] = field(default_factory=dict)  # histogram: age of neighbour data when used
     latency: dict[int, int] = field(default_factory=dict)  # histogram: publish-to-receipt of poses
     obstacle_queries_failed: int = 0
@@ -43,7 +45,8 @@ class Counters:
                             seq_lost=self.seq_lost, injected_drops=injected[0], injected_passed=injected[1],
                             queue_max=self.window_queue_max, tick_lag_max_ms=float(self.window_lag_ms),
                             poses=self.poses, interventions=self.interventions,
-                            stalled_ticks=self.stalled_ticks, braked_ticks=self.braked_ticks)
+                            stalled_ticks=self.stalled_ticks, braked_ticks=self.braked_ticks,
+                            stalled_long=int(self.stalled_long))
         return msg.Stats(agent, self.sent, self.received, dict(self.rejections.counts), self.late_ticks, self.ticks,
                          dict(self.ages), dict(self.latency), final, health, tuple(sorted(self.heard))[:msg.MAX_HEARD],
                          dict(self.departed), dict(self.returned))

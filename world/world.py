@@ -353,7 +353,8 @@ class World:
         s, c = self.spec, self.clock
         result = {"scenario": self.scenario.name, "n_agents": self.scenario.n_agents, "seed": s.seed,
                   "potential": s.combination, "duration": c.t, "steps": c.step, "dt": self.scenario.dt,
-                  **self.observer.summary.result(), "clock": s.clock, "run": s.run,
+                  **self.observer.summary.result(), "clock": s.clock, "time_scale": s.time_scale,
+                  "safety": s.safety, "run": s.run,
                   **transport_summary(self.stats.all(), self.rejected.counts)}
         result["messages_sent"] += self.sent
         result["messages_received"] += self.received

@@ -50,6 +50,7 @@ def parse_roles(text: str) -> list[str]:
 def build_parser(prog: str = "zswarm run") -> Parser:
     p = Parser(prog=prog, description="Start a zswarm run: router, world and agents.")
     add_run_args(p, run_help="run id: namespaces every key (default: run-SEED-TIME)")
+    p.set_defaults(time_scale="auto")
     p.add_argument("--agents", type=int, default=None,
                    help="number of agents N (default: the scenario's; same as --set n_agents=N)")
     p.add_argument("--record", type=Path, default=None,

@@ -19,6 +19,8 @@ from typing import TYPE_CHECKING, Sequence
 
 from zswarm.errors import UsageError
 from zswarm.files import check_run_files
+from zswarm.model.params import parse_assignments
+from zswarm.model.scenarios import get_scenario
 from zswarm.net.config import endpoint_host_port
 from zswarm.net.runspec import RunSpec, spec_from_args
 from zswarm.record.live import Viewer, viewer_from_args
@@ -59,6 +61,7 @@ def plan_from_args(args: argparse.Namespace) -> Plan:
     """Check everything a child would reject, before any child starts."""
     if args.agents is not None and args.agents < 1:
         raise UsageError(f"--agents must be >= 1 (got {args.agents})")
+    pace_note = auto_time_scale(args)
     spec = spec_from_args(args, run=f"run-{args.seed}-{int(time.time())}",
                           extra={"n_agents": args.agents} if args.agents is not None else None)
     n = spec.scenario.n_agents
@@ -105,6 +108,8 @@ def plan_from_args(args: argparse.Namespace) -> Plan:
     if args.secure is not None:
         check_secure_dir(args.secure, ids if "agents" in args.role else ())
     notes = [files_note] if files_note else []
+    if pace_note:
+        notes.append(pace_note)
     if args.robots is not None:
         notes.append(robots_note(check_robots(args.robots, spec), args.robots, ids))
     if "agents" in args.role and spec.clock == "free":  # last: a usage error above comes alone
@@ -239,6 +244,28 @@ def pace_warning(n_local: int, dt: float, time_scale: float, cores: int, refused
             if refused else f"the run may fall behind and act on stale poses; use {advice}")
     return (f"{n_local} agents stepping {time_scale / dt:g} times a second need about {need:.2g} cores "
             f"({AGENT_TICK_MS:g} ms a step) and this machine has {cores}: {what}")
+
+
+def auto_time_scale(args: argparse.Namespace) -> str | None:
+    """``--time-scale auto`` (the default of ``zswarm run``): the pace this machine can hold for its
+    agents (:func:`pace_load` at most 1), at most real time, in steps of 0.05; lockstep and runs without
+    agents here take 1. Sets ``args.time_scale``; returns what it picked, to say at start."""
+    if args.time_scale != "auto":
+        return None
+    args.time_scale = 1.0
+    if args.clock != "free" or "agents" not in args.role:
+        return None
+    scenario = get_scenario(args.scenario, {**parse_assignments(args.assignments),
+                                            **({"n_agents": args.agents} if args.agents is not None else {})})
+    n = len(args.ids) if args.ids is not None else scenario.n_agents
+    cores = available_cores()
+    load = pace_load(n, scenario.dt, 1.0, cores)
+    if load <= 1.0:
+        return None
+    args.time_scale = max(math.floor(20.0 / load) / 20.0, 0.05)
+    return (f"time scale: auto picked {args.time_scale:g} (real time would need {load:.2g} times the CPU "
+            f"{n} agents can have on {cores} cores; --time-scale 1 runs at real time, the safety filter keeping "
+            f"it safe on stale data)")
 
 
 def design_command(spec: RunSpec) -> str:

@@ -1,10 +1,13 @@
 """What the safety filter did over a run, the same counts for the simulators and the processes.
 
-- ``interventions``: agent-steps whose command the filter changed;
-- ``stalled_steps``: agent-steps it left under a tenth of the law's speed (a deadlock shows as a run of
-  these: two agents facing each other, each waiting for the other), ``stalled_at_end`` the agents
-  stalled at the last step and ``stalled_agents`` those stalled for at least a second in a row;
-- ``braked_steps``: agent-steps stopped because a neighbour's data was older than the guarantee's bound.
+- ``safety_interventions``: agent-steps (ticks) whose command the filter changed;
+- ``safety_stalled_ticks``: agent-steps it left under a tenth of the law's speed (a deadlock shows as a
+  run of these: two agents facing each other, each waiting for the other; so does a swarm held at its
+  goal against a law that would crush it), ``safety_stalled_agents`` the agents stalled for at least a
+  second in a row at some point, ``safety_stalled_at_end`` those stalled at the last step;
+- ``safety_braked_ticks``: agent-steps stopped because a neighbour's data was older than the bound.
+
+An agent process counts the same per tick (``agents.counters``); the world sums them.
 """
 
 from __future__ import annotations
@@ -57,6 +60,6 @@ class SafetyTally:
     def result(self) -> dict[str, Any]:
         if self.steps == 0:
             return {}
-        return {"interventions": self.interventions, "stalled_steps": self.stalled_steps,
-                "stalled_at_end": int(self.stalled_now.sum()), "stalled_agents": int(self.long.sum()),
-                "braked_steps": self.braked_steps}
+        return {"safety_interventions": self.interventions, "safety_stalled_ticks": self.stalled_steps,
+                "safety_stalled_at_end": int(self.stalled_now.sum()), "safety_stalled_agents": int(self.long.sum()),
+                "safety_braked_ticks": self.braked_steps}

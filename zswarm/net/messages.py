@@ -138,10 +138,12 @@ class Health:
     interventions: int = 0
     stalled_ticks: int = 0
     braked_ticks: int = 0
+    stalled_long: int = 0  # 1: stalled for a second or more in a row at some point
 
 
 HEALTH_INTS = ("obstacle_queries_failed", "seq_received", "seq_lost", "injected_drops", "injected_passed",
-               "queue_max", "poses", "interventions", "stalled_ticks", "braked_ticks")
+               "queue_max", "poses", "interventions", "stalled_ticks", "braked_ticks",
+               "stalled_long")
 
 
 @dataclass(frozen=True)

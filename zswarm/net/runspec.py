@@ -133,12 +133,23 @@ def add_run_args(parser: argparse.ArgumentParser, run_help: str = f"run id: name
                        help="obstacle-goal combination (default: the scenario's)")
     group.add_argument("--clock", choices=CLOCKS, default="free",
                        help="free: each agent on its own timer; lockstep: the world ticks (default free)")
-    group.add_argument("--time-scale", type=float, default=1.0,
-                       help="simulated seconds per wall second in free mode (default 1: dt=0.05 s at 20 Hz)")
+    group.add_argument("--time-scale", type=time_scale_arg, default=1.0,
+                       help="simulated seconds per wall second in free mode (default 1: dt=0.05 s at 20 Hz; "
+                            "zswarm run: auto, the pace this machine can hold)")
     group.add_argument("--duration", type=float, default=None,
                        help="simulated seconds (default: the scenario's)")
     add_safety_arg(group)
     add_fault_args(parser)
+
+
+def time_scale_arg(text: str) -> float | str:
+    """A number, or ``auto`` (``zswarm run`` only: the launcher picks the pace, :mod:`zswarm.launch.plan`)."""
+    if text.strip() == "auto":
+        return "auto"
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"a number of simulated seconds per wall second, or auto (got {text!r})")
 
 
 def add_fault_args(parser: argparse.ArgumentParser) -> None:
@@ -189,6 +200,8 @@ def spec_from_args(args: argparse.Namespace, run: str | None = None, extra: dict
     ``extra`` adds overrides (e.g. ``zswarm run --agents N``). The scenario is built here, so every
     mistake in it is reported before anything starts."""
     overrides = {**parse_assignments(args.assignments), **(extra or {})}
+    if args.time_scale == "auto":
+        raise UsageError("--time-scale auto is for zswarm run, which picks the pace; give a number here")
     spec = RunSpec(run=args.run or run or DEFAULT_RUN, scenario_name=args.scenario,
                    overrides=tuple(overrides.items()), seed=args.seed, potential=args.potential, clock=args.clock,
                    time_scale=args.time_scale, duration=args.duration, faults=faults_from_args(args))

@@ -99,7 +99,6 @@ class Simulator:
             pairs = self.channel.known(self.step_index, positions, self.safety.sensing_radius)
         points = sf.lookahead_points(positions, self.headings, self.body.lookahead if self.body.headed else 0.0)
         self.filtered = sf.apply(v, sf.swarm_rows(self.safety, self.obstacles, points, pairs))
-        self.tally.add(self.filtered)
         return self.filtered.command
 
     def moving(self, commands: np.ndarray) -> np.ndarray:
@@ -109,6 +108,9 @@ class Simulator:
     def advance(self, commands: np.ndarray) -> None:
         """Move the prey (from the agents' current positions), then the agents' bodies under ``commands``."""
         dt = self.scenario.dt
+        if self.filtered is not None:  # counted when applied, as an agent counts its ticks
+            self.tally.add(self.filtered)
+            self.filtered = None
         self.prey = prey_motion.step(self.scenario.prey, self.prey, dt, self.positions)
         self.state = bodies.step(self.body, self.state, commands, dt)
         self.step_index += 1
