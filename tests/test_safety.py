@@ -67,7 +67,7 @@ def test_many_agents_at_once_equal_one_at_a_time():
 
 def test_stale_data_inflates_the_margin_and_data_past_the_bound_brakes():
     s = sf.Safety(distance=0.1, clearance=0.05, v_max=1.0, period=0.05, sensing_radius=1.0)
-    psi = np.array([[0.22, 0.0]])  # the neighbour 0.22 to the left; the agent heads straight at it
+    psi = np.array([[0.12, 0.0]])  # the neighbour 0.12 to the left; the agent heads straight at it
     u_hat = np.array([[-1.0, 0.0]])
     fresh = sf.apply(u_hat, sf.rows(s, 1, np.zeros(1, np.intp), psi, np.array([0.0]), np.zeros(0, np.intp),
                                     np.zeros((0, 2)), np.zeros(0)))
@@ -75,7 +75,7 @@ def test_stale_data_inflates_the_margin_and_data_past_the_bound_brakes():
                                   np.zeros((0, 2)), np.zeros(0)))
     past = sf.apply(u_hat, sf.rows(s, 1, np.zeros(1, np.intp), psi, np.array([s.max_age + 0.01]),
                                    np.zeros(0, np.intp), np.zeros((0, 2)), np.zeros(0)))
-    # fresh: D' = 0.2 and it may close half of the 0.02 gap in one period (0.2/s); 0.3 s old: D' = 0.5,
+    # fresh: D' = 0.1 and it may close half of the 0.02 gap in one period (0.2/s); 0.3 s old: D' = 0.4,
     # no gap, it may not come closer at all
     assert fresh.command[0] == pytest.approx([-0.5 * 0.02 / 0.05, 0.0]) and fresh.acted[0]
     assert old.command[0] == pytest.approx([0.0, 0.0]) and old.acted[0] and old.stalled[0]
@@ -104,9 +104,9 @@ def test_a_unicycle_filters_its_lookahead_point_with_the_radius_grown():
     plain, ahead = sf.safety_for(params, 0.05), sf.safety_for(params, 0.05, lookahead=0.25)
     assert ahead.distance == pytest.approx(plain.distance + 0.5)
     assert ahead.clearance == pytest.approx(plain.clearance + 0.25)
-    blind = sf.safety_for(dataclasses.replace(params, swarm=dataclasses.replace(params.swarm, sensing_radius=0.09)), 0.05)
+    blind = sf.safety_for(dataclasses.replace(params, swarm=dataclasses.replace(params.swarm, sensing_radius=0.099)), 0.05)
     assert blind.max_age < 0  # it cannot sense far enough: a binding neighbour, however fresh, brakes it
-    r = sf.rows(blind, 1, np.zeros(1, np.intp), np.array([[0.15, 0.0]]), np.zeros(1), np.zeros(0, np.intp),
+    r = sf.rows(blind, 1, np.zeros(1, np.intp), np.array([[0.095, 0.0]]), np.array([0.01]), np.zeros(0, np.intp),
                 np.zeros((0, 2)), np.zeros(0))
     assert r.stale[0]
 
@@ -126,7 +126,7 @@ def test_the_agents_float_filter_equals_the_vectorized_one(dims):
         point = rng.uniform(-1, 1, size=dims)
         k, m = int(rng.integers(0, 7)), int(rng.integers(0, 3))
         q = point + rng.uniform(-0.5, 0.5, size=(k, dims))
-        age = rng.choice([0.0, 0.1, 0.4, 0.9], size=k)
+        age = rng.choice([0.0, 0.1, 0.4, 1.0], size=k)
         centres = point + rng.uniform(-0.6, 0.6, size=(m, dims))
         radii = rng.uniform(0, 0.2, size=m)
         u_hat = rng.uniform(-0.7, 0.7, size=dims)

@@ -248,8 +248,8 @@ def pace_warning(n_local: int, dt: float, time_scale: float, cores: int, refused
 
 def auto_time_scale(args: argparse.Namespace) -> str | None:
     """``--time-scale auto`` (the default of ``zswarm run``): the pace this machine can hold for its
-    agents (:func:`pace_load` at most 1), at most real time, in steps of 0.05; lockstep and runs without
-    agents here take 1. Sets ``args.time_scale``; returns what it picked, to say at start."""
+    agents (:func:`pace_load` at most 1), at most real time, in steps of 0.05; lockstep, runs without
+    agents here, and runs too large for this machine even to start in time (refused later) take 1. Sets ``args.time_scale``; returns what it picked, to say at start."""
     if args.time_scale != "auto":
         return None
     args.time_scale = 1.0
@@ -260,7 +260,7 @@ def auto_time_scale(args: argparse.Namespace) -> str | None:
     n = len(args.ids) if args.ids is not None else scenario.n_agents
     cores = available_cores()
     load = pace_load(n, scenario.dt, 1.0, cores)
-    if load <= 1.0:
+    if load <= 1.0 or load > HOPELESS:  # beyond HOPELESS the run is refused below, naming a pace that fits
         return None
     args.time_scale = max(math.floor(20.0 / load) / 20.0, 0.05)
     return (f"time scale: auto picked {args.time_scale:g} (real time would need {load:.2g} times the CPU "

@@ -7,7 +7,7 @@ Between the law (:mod:`zswarm.model.law`) and the body, agent i replaces its com
 one row per sensed neighbour j and per sensed obstacle (a discrete-time barrier, derived in
 ``docs/safety.md``; the same rows in 2-D and 3-D):
 
-    neighbour j:  -n_ij . u <= (kappa / 2T) max(0, |psi_ij| - D'_j),   D'_j = D_s + v (tau_j + 2T)   (S2)
+    neighbour j:  -n_ij . u <= (kappa / 2T) max(0, |psi_ij| - D'_j),   D'_j = D_s + v tau_j          (S2)
     obstacle o:   -n_io . u <= (kappa / T)  max(0, |P_i - C_o| - rho_o - D_o)                     (S3)
 
 with psi_ij = P_i - P_j as agent i believes it (P_j heard tau_j seconds ago), n = psi/|psi|, D_s = 2 d^r
@@ -16,8 +16,9 @@ period and kappa in (0, 1] the share of the gap the pair may close in one period
 of a neighbour's gap (the other agent takes the other half); an obstacle does not move, so the agent
 takes all of it. The distance to a point is convex, so one period of motion can only leave a pair
 farther apart than its first-order change says: with fresh data (S2) keeps |P_i - P_j| >= D_s exactly
-in discrete time, and the margin v (tau_j + 2T) covers where j can have gone since its pose was taken,
-and that the two agents act on different data (``docs/safety.md``).
+in discrete time, and the margin v tau_j covers where j can have gone since its pose was taken
+(``docs/safety.md``; an agent on the free clock, whose neighbours tick on their own timers, adds one
+period T to the age it measures).
 
 - Every right side is >= 0, so u = 0 (stop) is always feasible: the set is never empty, and the
   projection of u^ onto a convex set holding 0 is never longer than u^, so the speed limit holds.
@@ -70,12 +71,12 @@ class Safety:
     def max_age(self) -> float:
         """The oldest neighbour data the guarantee holds for: the age at which D'_j reaches the sensing
         radius (beyond it, j may be anywhere within the agent's sensing disc). Below 0 (a sensing
-        radius under D_s + 2 v T): no data is young enough, and an agent brakes whenever a row binds."""
-        return (self.sensing_radius - self.distance) / self.v_max - 2.0 * self.period
+        radius under D_s): no data is young enough, and an agent brakes whenever a row binds."""
+        return (self.sensing_radius - self.distance) / self.v_max
 
     def margin(self, age: np.ndarray | float) -> np.ndarray | float:
-        """D'_j of (S2): the collision distance, what j can have moved since its pose, two periods."""
-        return self.distance + self.v_max * (np.asarray(age) + 2.0 * self.period)
+        """D'_j of (S2): the collision distance and what j can have moved since its pose."""
+        return self.distance + self.v_max * np.asarray(age)
 
 
 def safety_for(params, dt: float, lookahead: float = 0.0) -> Safety:
@@ -236,7 +237,7 @@ def filter_one(safety: Safety, point: tuple[float, ...], u_hat: tuple[float, ...
     for q, age in neighbours:
         psi = [point[k] - q[k] for k in range(dims)]
         d = math.sqrt(sum(c * c for c in psi))
-        b = 0.5 * rate * max(d - safety.distance - v * (age + 2.0 * safety.period), 0.0)
+        b = 0.5 * rate * max(d - safety.distance - v * age, 0.0)
         if b < v:
             stale |= age > safety.max_age
             a = tuple(-c / d for c in psi) if d > 0 else (0.0,) * dims
