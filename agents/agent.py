@@ -122,11 +122,11 @@ class Agent:
         sensed = self.sensing.safety_neighbours(step, self.spec.time_scale, self.dt, lookahead)
         command, done = filter_one(self.safety, point, v_d, sensed, self.sensing.obstacles)
         c = self.counters
-        stalled = done is not None and bool(done.stalled[0])
+        stalled = done is not None and done.stalled
         if done is not None:
-            c.interventions += bool(done.acted[0])
+            c.interventions += done.acted
             c.stalled_ticks += stalled
-            c.braked_ticks += bool(done.braked[0])
+            c.braked_ticks += done.braked
         c.stalled_run = c.stalled_run + 1 if stalled else 0
         c.stalled_long |= c.stalled_run * self.dt >= 1.0
         return command

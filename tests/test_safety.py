@@ -135,7 +135,9 @@ def test_the_agents_float_filter_equals_the_vectorized_one(dims):
         want = sf.apply(u_hat[None], sf.rows(s, 1, np.zeros(k, np.intp), point - q, age, np.zeros(m, np.intp),
                                              point - centres, radii))
         np.testing.assert_allclose(got, want.command[0], atol=1e-12)
-        assert (done is not None and bool(done.acted[0])) == bool(want.acted[0])
+        assert (done is not None and done.acted) == bool(want.acted[0])
+        assert (done is not None and done.braked) == bool(want.braked[0])
+        assert (done is not None and done.stalled) == bool(want.stalled[0])
         acted += bool(want.acted[0])
         braked += bool(want.braked[0])
     assert acted > 50 and braked > 5

@@ -222,16 +222,24 @@ def swarm_rows(safety: Safety, obstacles, points: np.ndarray,
     return rows(safety, len(points), *pairs, a, points[a] - obstacles.centers[m], obstacles.radii[m])
 
 
+class Acted(NamedTuple):
+    """What the filter did to one agent's command."""
+
+    acted: bool
+    stalled: bool
+    braked: bool
+
+
 def filter_one(safety: Safety, point: tuple[float, ...], u_hat: tuple[float, ...],
                neighbours: list[tuple[tuple[float, ...], float]],
-               obstacles: list[tuple[float, ...]]) -> tuple[tuple[float, ...], Filtered | None]:
+               obstacles: list[tuple[float, ...]]) -> tuple[tuple[float, ...], Acted | None]:
     """One agent's filter in plain floats (an agent process, every tick): :func:`apply` of
     :func:`rows` for one agent at ``point`` with ``neighbours`` as (believed point, age) and
-    ``obstacles`` as (centre..., radius). Most ticks no row binds and the command passes at the cost
-    of a few float operations; otherwise the rows that can bind go to :func:`project`. Returns the
-    command and what the filter did (None: nothing)."""
+    ``obstacles`` as (centre..., radius), the same rows and the same exact enumeration written for the
+    few rows one agent has (numpy's per-call cost would be most of it). Most ticks no row binds and the
+    command passes at the cost of a few float operations. Returns the command and what the filter did
+    (None: nothing)."""
     rate, v, dims = safety.kappa / safety.period, safety.v_max, len(point)
-    speed = math.sqrt(sum(c * c for c in u_hat))
     binding: list[tuple[tuple[float, ...], float]] = []
     violated = stale = False
     for q, age in neighbours:
@@ -251,10 +259,60 @@ def filter_one(safety: Safety, point: tuple[float, ...], u_hat: tuple[float, ...
             a = tuple(-c / d for c in psi) if d > 0 else (0.0,) * dims
             binding.append((a, b))
             violated |= sum(a[k] * u_hat[k] for k in range(dims)) - b > TOL
-    if not violated and not stale:
+    speed = math.sqrt(sum(c * c for c in u_hat))
+    if stale:
+        return (0.0,) * dims, Acted(speed > 0.0, speed > 0.0, True)
+    if not violated:
         return u_hat, None
-    a_rows = np.array([a for a, _ in binding], dtype=float).reshape(-1, dims)
-    b_rows = np.array([b for _, b in binding], dtype=float)
-    r = Rows(np.zeros(len(binding), dtype=np.intp), a_rows, b_rows, np.array([stale]))
-    f = apply(np.array([u_hat], dtype=float), r)
-    return tuple(f.command[0].tolist()), f
+    u = _project_floats(u_hat, [r for r in binding if r[1] < speed + TOL])
+    change = math.sqrt(sum((u[k] - u_hat[k]) ** 2 for k in range(dims)))
+    acted = change > 1e-9 * max(speed, 1.0)
+    return u, Acted(acted, acted and math.sqrt(sum(c * c for c in u)) < STALL_SHARE * speed, False)
+
+
+def _project_floats(u_hat: tuple[float, ...], rows_: list[tuple[tuple[float, ...], float]]) -> tuple[float, ...]:
+    """:func:`_solve` for one agent in floats: the projections onto every active set of at most D
+    linearly independent rows, tried from the closest to u^; the first that satisfies every row is
+    the optimum (0 always does)."""
+    dims = len(u_hat)
+    cands = []
+    for size in range(1, min(dims, len(rows_)) + 1):
+        for chosen in combinations(rows_, size):
+            u = _affine_projection(u_hat, chosen)
+            if u is not None:
+                cands.append((sum((u[k] - u_hat[k]) ** 2 for k in range(dims)), u))
+    cands.sort(key=lambda c: c[0])
+    for _, u in cands:
+        if all(sum(a[k] * u[k] for k in range(dims)) - b <= TOL for a, b in rows_):
+            return u
+    return (0.0,) * dims
+
+
+def _affine_projection(u_hat: tuple[float, ...], chosen) -> tuple[float, ...] | None:
+    """u^ - A^T (A A^T)^-1 (A u^ - b) for 1, 2 or 3 rows (Cramer's rule); None if they are dependent."""
+    dims = len(u_hat)
+    dot = lambda x, y: sum(x[k] * y[k] for k in range(dims))  # noqa: E731
+    a = [r[0] for r in chosen]
+    rhs = [dot(r[0], u_hat) - r[1] for r in chosen]
+    g = [[dot(x, y) for y in a] for x in a]
+    n = len(chosen)
+    if n == 1:
+        if g[0][0] <= 1e-12:
+            return None
+        lam = [rhs[0] / g[0][0]]
+    elif n == 2:
+        det = g[0][0] * g[1][1] - g[0][1] * g[1][0]
+        if abs(det) <= 1e-12:
+            return None
+        lam = [(rhs[0] * g[1][1] - g[0][1] * rhs[1]) / det, (g[0][0] * rhs[1] - rhs[0] * g[1][0]) / det]
+    else:
+        det = _det3(g)
+        if abs(det) <= 1e-12:
+            return None
+        lam = [_det3([[rhs[i] if j == c else g[i][j] for j in range(3)] for i in range(3)]) / det for c in range(3)]
+    return tuple(u_hat[k] - sum(lam[i] * a[i][k] for i in range(n)) for k in range(dims))
+
+
+def _det3(m: list[list[float]]) -> float:
+    return (m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+            + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]))
