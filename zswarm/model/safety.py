@@ -47,6 +47,7 @@ from zswarm.model.neighbours import pairs_within
 MODES: tuple[str, ...] = ("off", "barrier")
 TOL = 1e-12  # a candidate satisfies a row when a.u - b <= TOL (rounding of the exact solutions)
 STALL_SHARE = 0.1  # an agent is stalled when the filter left it under this share of the law's speed
+HAIR = 1e-6  # D_s and D_o are kept this share above the touching distances
 _CHUNK = 256  # agents solved at once (bounds the candidates' memory)
 
 
@@ -84,7 +85,9 @@ def safety_for(params, dt: float, lookahead: float = 0.0) -> Safety:
     ahead of its axle): the filter acts on that point, so the distances grow by 2 l and l
     (the Robotarium's unicycle mapping; ``docs/safety.md``)."""
     s = params.swarm
-    return Safety(2.0 * s.robot_radius + 2.0 * lookahead, s.robot_radius + lookahead, s.v_max, dt, s.sensing_radius)
+    hair = 1.0 + HAIR  # the filter holds D_s exactly in exact arithmetic; rounding must not count a collision
+    return Safety((2.0 * s.robot_radius + 2.0 * lookahead) * hair, (s.robot_radius + lookahead) * hair, s.v_max, dt,
+                  s.sensing_radius)
 
 
 class Rows(NamedTuple):

@@ -35,12 +35,14 @@ import numpy as np
 from zswarm.model import body as bodies
 from zswarm.model import metrics
 from zswarm.model import prey as prey_motion
+from zswarm.model import safety as sf
 from zswarm.model.faults import FaultModel
 from zswarm.model.law import field
 from zswarm.model.neighbour_law import DensePairs, NeighbourLaw, neighbour_law
 from zswarm.model.params import PotentialParams
 from zswarm.model.potentials import Combination, obstacle_offsets, saturate
 from zswarm.model.prey import PreyMotion
+from zswarm.model.safety_tally import safety_of
 from zswarm.model.scenarios import Scenario
 from zswarm.sim.batch_channel import BatchChannel
 
@@ -56,6 +58,7 @@ class Member:
     seed: int
     faults: FaultModel | None = None
     combination: Combination | None = None
+    safety: str = "off"
 
     @property
     def faulty(self) -> bool:
@@ -74,6 +77,9 @@ class BatchOutcome:
     final_centroid_goal_distance: float
     final_components: int  # groups of the sensing graph at the end
     final_median_nearest: float | None  # median distance to the nearest neighbour within R, at the end
+    safety_interventions: int = 0  # agent-steps the safety filter changed (zswarm.model.safety_tally)
+    safety_stalled_ticks: int = 0
+    safety_braked_ticks: int = 0
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -126,6 +132,18 @@ def _law_groups(scen: list[Scenario], combinations: list[Combination]) -> list[_
         out.append(_LawGroup(index, law, _Potentials(pots, 2), _Potentials(pots, 3),
                              np.array([combinations[r] == "multiplicative" for r in rows])[:, None]))
     return out
+
+
+def _safety_groups(members: list[Member]) -> list[tuple[np.ndarray, sf.Safety]]:
+    """The runs that filter their commands, grouped by their filter's numbers."""
+    groups: dict[sf.Safety, list[int]] = {}
+    for r, m in enumerate(members):
+        safety = safety_of(m.scenario, m.safety, m.faulty)
+        if safety is not None:
+            if m.scenario.params.body.body != "point":
+                raise ValueError("the batched simulator filters point bodies only: use simulate() for the others")
+            groups.setdefault(safety, []).append(r)
+    return [(np.array(rows), safety) for safety, rows in groups.items()]
 
 
 def _body_groups(scen: list) -> list[tuple[np.ndarray, bodies.BodySpec]]:
@@ -185,6 +203,9 @@ class BatchSimulator:
                                      self.radius[self.faulty], dims=self.dims) if len(self.faulty) else None)
         self.off_diagonal = ~np.eye(self.n, dtype=bool)
         self.step_index = 0
+        self.filters = _safety_groups(members)
+        self.safety_counts = np.zeros((b, 3), dtype=np.int64)  # interventions, stalled, braked (agent-steps)
+        self._pending_counts: np.ndarray | None = None
 
     # -- the control law -------------------------------------------------------------------------------
 
@@ -224,7 +245,37 @@ class BatchSimulator:
         v = saturate(f, self.v_max[:, None])
         if blind is not None:
             v[blind] = 0.0
+        if self.filters:
+            v = self._filter(x, v, sensed_o)
         return v
+
+    def _filter(self, x: np.ndarray, v: np.ndarray, sensed_o: np.ndarray) -> np.ndarray:
+        """The safety filter (:mod:`zswarm.model.safety`) on the commands of the runs that use it, all of
+        a group's agents in one exact projection: exact neighbours, or through the faulty channel the
+        newest each agent heard (fresh or not) with its age."""
+        b, n, dims = x.shape
+        near = (np.einsum("bijk,bijk->bij", x[:, :, None] - x[:, None], x[:, :, None] - x[:, None])
+                <= np.square(self.radius)[:, None, None]) & self.off_diagonal
+        psi = x[:, :, None, :] - x[:, None, :, :]
+        age = np.zeros((b, n, n))
+        if self.channel is not None:
+            f_idx = self.faulty
+            heard, believed, heard_age = self.channel.known(self.step_index, x[f_idx])
+            near, psi, age = near.copy(), psi.copy(), age.copy()
+            near[f_idx], psi[f_idx], age[f_idx] = heard & self.off_diagonal, x[f_idx][:, :, None, :] - believed, heard_age
+        out = v.copy()
+        counts = np.zeros((b, 3), dtype=np.int64)
+        for runs, safety in self.filters:
+            rr, ii, jj = np.nonzero(near[runs])
+            ro, io, mo = np.nonzero(sensed_o[runs])
+            run_of = runs[ro]
+            r = sf.rows(safety, len(runs) * n, rr * n + ii, psi[runs][rr, ii, jj], age[runs][rr, ii, jj],
+                        ro * n + io, x[run_of, io] - self.centers[run_of, mo], self.radii[run_of, mo])
+            done = sf.apply(v[runs].reshape(-1, dims), r)
+            out[runs] = done.command.reshape(len(runs), n, dims)
+            counts[runs] = np.stack([done.acted, done.stalled, done.braked], axis=-1).reshape(len(runs), n, 3).sum(axis=1)
+        self._pending_counts = counts
+        return out
 
     @property
     def positions(self) -> np.ndarray:
@@ -233,6 +284,9 @@ class BatchSimulator:
     def advance(self, v: np.ndarray) -> None:
         """Move each run's prey (from the agents' current positions), then the agents' bodies under the
         commands ``v``."""
+        if self._pending_counts is not None:  # counted when applied, as the simulator and the agents do
+            self.safety_counts += self._pending_counts
+            self._pending_counts = None
         self.prey = self._prey_step()
         x, u, h = self.state.position.copy(), self.state.velocity.copy(), self.state.heading.copy()
         for rows, spec in self.bodies:
@@ -309,7 +363,9 @@ class _Tally:
             min_obstacle_clearance=float(self.min_clearance[r]) if math.isfinite(self.min_clearance[r]) else None,
             obstacle_collisions=int(self.contacts[r]),
             final_centroid_goal_distance=float(self.centroid_distance[r]),
-            final_components=groups[r], final_median_nearest=nearest[r])
+            final_components=groups[r], final_median_nearest=nearest[r],
+            safety_interventions=int(self.sim.safety_counts[r, 0]), safety_stalled_ticks=int(self.sim.safety_counts[r, 1]),
+            safety_braked_ticks=int(self.sim.safety_counts[r, 2]))
             for r, s in enumerate(self.capture_step)]
 
 

@@ -92,3 +92,12 @@ class BatchChannel:
         believed = self.belief_pos[:, :, :n]
         near = fresh[:, :, :n] & (np.linalg.norm(positions[:, :, None, :] - believed, axis=-1) <= self.radius)
         return believed, near, goal
+
+    def known(self, k: int, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """After :meth:`step` k, what the safety filter guards against: every neighbour an agent has heard
+        at all (fresh or stale) whose newest position is within the sensing radius of it, as (mask
+        (B, N, N), believed positions (B, N, N, D), ages in seconds (B, N, N))."""
+        stamp = self.belief_stamp[:, :, : self.n]
+        believed = self.belief_pos[:, :, : self.n]
+        heard = (stamp >= 0) & (np.linalg.norm(positions[:, :, None, :] - believed, axis=-1) <= self.radius)
+        return heard, believed, (k - stamp) * self.dt

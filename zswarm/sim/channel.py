@@ -40,15 +40,12 @@ class FaultyChannel:
         i, j = np.nonzero(near[0])
         return i, j, believed[0][i, j], goal[0]
 
-    def known(self, k: int, positions: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def known(self, k: int, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """After :meth:`step` k: every neighbour each agent has heard at all (fresh or stale) whose
-        newest position is within ``radius`` of it, as (i, P_i - P_j believed, age in seconds)."""
-        stamp = self.batch.belief_stamp[0, :, : self.n]
-        believed = self.batch.belief_pos[0, :, : self.n]
-        heard = stamp >= 0
-        heard &= np.linalg.norm(positions[:, None, :] - believed, axis=-1) <= radius
-        i, j = np.nonzero(heard)
-        return i, positions[i] - believed[i, j], (k - stamp[i, j]) * self.dt
+        newest position is within the sensing radius of it, as (i, P_i - P_j believed, age in seconds)."""
+        heard, believed, age = self.batch.known(k, positions[None])
+        i, j = np.nonzero(heard[0])
+        return i, positions[i] - believed[0][i, j], age[0][i, j]
 
     @property
     def lost(self) -> int:

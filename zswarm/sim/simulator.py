@@ -96,7 +96,7 @@ class Simulator:
         exact neighbour positions, or, through the faulty channel, the newest it heard and its age."""
         pairs = None
         if self.channel is not None:
-            pairs = self.channel.known(self.step_index, positions, self.safety.sensing_radius)
+            pairs = self.channel.known(self.step_index, positions)
         points = sf.lookahead_points(positions, self.headings, self.body.lookahead if self.body.headed else 0.0)
         self.filtered = sf.apply(v, sf.swarm_rows(self.safety, self.obstacles, points, pairs))
         return self.filtered.command
