@@ -78,15 +78,34 @@ def test_interrupted_distributed_sweep_resumes(tmp_path):
     args = [sys.executable, str(ROOT / "launch.py"), "sweep", "--scenario", "moving-prey", "--latency", "0",
             "--dropout", "0,0.3", "--repeats", "1", "--agents", "3", "--duration", "3", "--out", str(out)]
     proc = subprocess.Popen(args, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    first = out / "cells" / "lat0ms_drop0_rep0" / "run.json"
+    first = out / "cells" / "lat0ms_drop0_rep0_barrier" / "run.json"
     assert interrupt_when_exists(proc, first)
     mtime = first.stat().st_mtime_ns
     res = subprocess.run(args, cwd=tmp_path, capture_output=True, text=True, timeout=180)
     assert res.returncode == 0, res.stderr
     assert first.stat().st_mtime_ns == mtime  # the finished cell was not run again
-    assert (out / "cells" / "lat0ms_drop0.3_rep0" / "run.json").exists()
+    assert (out / "cells" / "lat0ms_drop0.3_rep0_barrier" / "run.json").exists()
     rows = [line for line in (out / "results.md").read_text().splitlines() if line.startswith("| distributed")]
     assert len(rows) == 2
+
+
+def test_a_sweep_puts_the_safety_filter_beside_the_law_alone(tmp_path):
+    """goal-near-obstacle's 8 agents under the paper's law collide; with the filter, at every latency, none."""
+    import csv
+
+    out = tmp_path / "sw"
+    res = launch("sweep", "--scenario", "goal-near-obstacle", "--latency", "0,300ms", "--dropout", "0.3",
+                 "--repeats", "1", "--duration", "8", "--out", str(out), "--sim-only", "--safety", "off,barrier",
+                 cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    rows = list(csv.DictReader(open(out / "results.csv")))
+    assert sorted((r["safety"], r["latency_ms"]) for r in rows) == [("barrier", "0.0"), ("barrier", "300.0"),
+                                                                    ("off", "0.0"), ("off", "300.0")]
+    assert all(float(r["collisions_mean"]) == 0 for r in rows if r["safety"] == "barrier")
+    assert all(float(r["collisions_mean"]) > 0 for r in rows if r["safety"] == "off")
+    assert "| barrier |" in (out / "results.md").read_text()
+    assert launch("sweep", "--scenario", "moving-prey", "--safety", "orca", "--out", str(tmp_path / "x"),
+                  cwd=tmp_path).returncode == 2
 
 
 def test_the_sweep_figure_says_when_nothing_was_caught_and_frames_a_single_latency(tmp_path):

@@ -46,6 +46,6 @@ def test_a_wheel_installed_elsewhere_runs_a_swarm_and_a_sweep(tmp_path):
                             "--repeats", "1", "--agents", "3", "--duration", "3", "--out", "sw"],
                            capture_output=True, text=True, env=env, cwd=work, timeout=300)
     assert sweep.returncode == 0, sweep.stderr[-2000:]
-    cell = work / "sw" / "cells" / "lat0ms_drop0_rep0"
+    cell = work / "sw" / "cells" / "lat0ms_drop0_rep0_barrier"
     assert json.loads((cell / "run.json").read_text())["agents_reporting"] == 3
     assert (work / "sw" / "results.md").read_text().count("| distributed |") == 1

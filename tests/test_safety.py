@@ -71,16 +71,40 @@ def test_stale_data_inflates_the_margin_and_data_past_the_bound_brakes():
     u_hat = np.array([[-1.0, 0.0]])
     fresh = sf.apply(u_hat, sf.rows(s, 1, np.zeros(1, np.intp), psi, np.array([0.0]), np.zeros(0, np.intp),
                                     np.zeros((0, 2)), np.zeros(0)))
-    old = sf.apply(u_hat, sf.rows(s, 1, np.zeros(1, np.intp), psi, np.array([0.3]), np.zeros(0, np.intp),
+    old = sf.apply(u_hat, sf.rows(s, 1, np.zeros(1, np.intp), psi, np.array([0.05]), np.zeros(0, np.intp),
                                   np.zeros((0, 2)), np.zeros(0)))
+    any_side = sf.apply(u_hat, sf.rows(s, 1, np.zeros(1, np.intp), psi, np.array([0.3]), np.zeros(0, np.intp),
+                                       np.zeros((0, 2)), np.zeros(0)))
     past = sf.apply(u_hat, sf.rows(s, 1, np.zeros(1, np.intp), psi, np.array([s.max_age + 0.01]),
                                    np.zeros(0, np.intp), np.zeros((0, 2)), np.zeros(0)))
-    # fresh: D' = 0.1 and it may close half of the 0.02 gap in one period (0.2/s); 0.3 s old: D' = 0.4,
-    # no gap, it may not come closer at all
+    # fresh: D' = 0.1 and it may close half of the 0.02 gap in one period (0.2/s); 0.05 s old: D' = 0.15,
+    # no gap, it may not come closer at all; 0.3 s old: it may be on any side (0.3 > 0.12), it brakes
     assert fresh.command[0] == pytest.approx([-0.5 * 0.02 / 0.05, 0.0]) and fresh.acted[0]
     assert old.command[0] == pytest.approx([0.0, 0.0]) and old.acted[0] and old.stalled[0]
     assert past.braked[0] and np.all(past.command == 0.0)
+    assert any_side.braked[0] and np.all(any_side.command == 0.0)
     assert not fresh.braked[0] and not old.braked[0]
+
+
+def test_stale_rows_hold_for_every_direction_the_data_allow():
+    """A neighbour 0.2 away heard 0.05 s ago may be anywhere within 0.05 of where it was heard: the
+    filtered command closes no true gap beyond the row's share, whichever of those places it is at."""
+    s = sf.Safety(distance=0.1, clearance=0.05, v_max=1.0, period=0.05, sensing_radius=1.0)
+    rng = np.random.default_rng(3)
+    for dims in (2, 3):
+        for _ in range(300):
+            psi = rng.normal(size=dims)
+            psi *= rng.uniform(0.12, 0.4) / np.linalg.norm(psi)
+            age = rng.uniform(0.0, 0.1)
+            r = sf.rows(s, 1, np.zeros(1, np.intp), psi[None], np.array([age]), np.zeros(0, np.intp),
+                        np.zeros((0, dims)), np.zeros(0))
+            u = sf.apply(rng.uniform(-1, 1, size=(1, dims)), r).command[0]
+            b = 0.5 / s.period * max(np.linalg.norm(psi) - s.margin(age), 0.0)
+            for _ in range(20):  # where j may truly be: within v tau of where it was heard
+                e = rng.normal(size=dims)
+                e *= s.v_max * age * rng.uniform() ** (1 / dims) / np.linalg.norm(e)
+                true = psi + e
+                assert true @ u / np.linalg.norm(true) >= -b - 1e-9
 
 
 def test_fresh_data_keeps_a_head_on_pair_apart_in_discrete_time():

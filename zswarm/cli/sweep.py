@@ -32,6 +32,9 @@ def build_parser(prog: str = "zswarm sweep") -> Parser:
     p.add_argument("--jitter", default="0", help="jitter of every cell, e.g. 10ms (default 0)")
     p.add_argument("--burst", type=float, default=0.0,
                    help="mean loss-burst length of every cell (default 0: independent)")
+    p.add_argument("--safety", default="barrier", metavar="MODES",
+                   help="safety filter modes, a comma-separated list of off and barrier: both side by side with "
+                        "off,barrier (default barrier)")
     p.add_argument("--repeats", type=int, default=3, help="runs per cell, seeds seed..seed+repeats-1 (default 3)")
     p.add_argument("--seed", type=seed_arg, default=0, help="repeat r uses seed + r (default 0)")
     p.add_argument("--agents", type=int, default=None, help="N (default: the scenario's)")
@@ -41,8 +44,11 @@ def build_parser(prog: str = "zswarm sweep") -> Parser:
     return p
 
 
-def parse_lists(args: argparse.Namespace) -> tuple[list[float], list[float]]:
+def parse_lists(args: argparse.Namespace) -> tuple[list[float], list[float], list[str]]:
+    from zswarm.model.safety import parse_mode
+
     try:
+        modes = list(dict.fromkeys(parse_mode(m) for m in args.safety.split(",") if m.strip()))
         lat = parse_duration_list(args.latency)
         drop = [float(x) for x in args.dropout.split(",") if x.strip()]
         for d in drop:
@@ -50,14 +56,14 @@ def parse_lists(args: argparse.Namespace) -> tuple[list[float], list[float]]:
         FaultModel(burst=args.burst)
     except ValueError as exc:
         raise UsageError(str(exc)) from None
-    if not lat or not drop or args.repeats < 1:
-        raise UsageError("give at least one latency, one dropout and --repeats >= 1")
-    return lat, drop
+    if not lat or not drop or not modes or args.repeats < 1:
+        raise UsageError("give at least one latency, one dropout, one --safety mode and --repeats >= 1")
+    return lat, drop, modes
 
 
 def main(argv: Sequence[str] | None, prog: str = "zswarm sweep") -> int:
     args = build_parser(prog).parse_args(argv)
-    lat, drop = parse_lists(args)
+    lat, drop, modes = parse_lists(args)
     from zswarm.model.faults import parse_duration
 
     try:
@@ -75,7 +81,7 @@ def main(argv: Sequence[str] | None, prog: str = "zswarm sweep") -> int:
         args.out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise UsageError(f"cannot create --out {args.out}: {exc.strerror}") from None
-    cells = [Cell(la, d, r) for la in lat for d in drop for r in range(args.repeats)]
+    cells = [Cell(la, d, r, m) for m in modes for la in lat for d in drop for r in range(args.repeats)]
     todo = [c for c in cells if not (args.out / "cells" / c.name / "sim.json").exists()
             or (not args.sim_only and not (args.out / "cells" / c.name / "run.json").exists())]
     print(f"sweep: {len(cells)} cells, {len(cells) - len(todo)} already finished", flush=True)

@@ -32,10 +32,11 @@ class Cell:
     latency: float
     dropout: float
     repeat: int
+    safety: str = "barrier"
 
     @property
     def name(self) -> str:
-        return f"lat{round(self.latency * 1000)}ms_drop{self.dropout:g}_rep{self.repeat}"
+        return f"lat{round(self.latency * 1000)}ms_drop{self.dropout:g}_rep{self.repeat}_{self.safety}"
 
 
 def cell_spec(cell: Cell, args: argparse.Namespace, jitter: float) -> RunSpec:
@@ -44,7 +45,7 @@ def cell_spec(cell: Cell, args: argparse.Namespace, jitter: float) -> RunSpec:
     return RunSpec(run=f"sweep-{cell.name}".replace(".", "_"), scenario_name=args.scenario,
                    overrides=(("n_agents", args.agents),) if args.agents is not None else (), seed=seed,
                    duration=args.duration, faults=FaultModel(latency=cell.latency, jitter=jitter, dropout=cell.dropout,
-                                                             burst=args.burst, seed=seed))
+                                                             burst=args.burst, seed=seed), safety=cell.safety)
 
 
 def run_cell_distributed(cell: Cell, args: argparse.Namespace, folder: Path, jitter: float) -> None:
@@ -67,15 +68,16 @@ def _stats(values: list[Any]) -> tuple[float | None, float | None]:
 
 def aggregate(cells: list[Cell], out: Path, sources: Sequence[str]) -> list[dict[str, Any]]:
     rows = []
-    keys = sorted({(c.latency, c.dropout) for c in cells})
+    keys = sorted({(c.latency, c.dropout, c.safety) for c in cells})
     for source in sources:
         fname = "run.json" if source == "distributed" else "sim.json"
-        for lat, drop in keys:
+        for lat, drop, safety in keys:
             summaries = [json.loads((out / "cells" / c.name / fname).read_text()) for c in cells
-                         if (c.latency, c.dropout) == (lat, drop) and (out / "cells" / c.name / fname).exists()]
+                         if (c.latency, c.dropout, c.safety) == (lat, drop, safety)
+                         and (out / "cells" / c.name / fname).exists()]
             if not summaries:
                 continue
-            row: dict[str, Any] = {"source": source, "latency_ms": lat * 1000, "dropout": drop,
+            row: dict[str, Any] = {"source": source, "latency_ms": lat * 1000, "dropout": drop, "safety": safety,
                                    "runs": len(summaries),
                                    "capture_rate": np.mean([s["capture_time"] is not None for s in summaries])}
             for k in OUTCOMES:
@@ -107,12 +109,12 @@ def write_tables(rows: list[dict[str, Any]], out: Path) -> None:
         w = csv.DictWriter(f, fieldnames=fields)
         w.writeheader()
         w.writerows(rows)
-    lines = ["| source | latency ms | dropout | runs | captured | capture time s | collisions | min clearance "
+    lines = ["| source | latency ms | dropout | safety | runs | captured | capture time s | collisions | min clearance "
              "| max components | observed loss | observed delay ms |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         ct = "-" if r["capture_time_mean"] is None else f"{r['capture_time_mean']:.1f} ± {r['capture_time_std']:.1f}"
-        lines.append(f"| {r['source']} | {r['latency_ms']:g} | {r['dropout']:g} | {r['runs']} | "
+        lines.append(f"| {r['source']} | {r['latency_ms']:g} | {r['dropout']:g} | {r['safety']} | {r['runs']} | "
                      f"{r['capture_rate'] * 100:.0f} % | {ct} | {_fmt(r['collisions_mean'])} | "
                      f"{_fmt(r['min_obstacle_clearance'])} | {r['max_components']} | "
                      f"{_fmt(r['observed_dropout_mean'])} | {_fmt(r['observed_latency_ms_mean'])} |")

@@ -7,7 +7,9 @@ Between the law (:mod:`zswarm.model.law`) and the body, agent i replaces its com
 one row per sensed neighbour j and per sensed obstacle (a discrete-time barrier, derived in
 ``docs/safety.md``; the same rows in 2-D and 3-D):
 
-    neighbour j:  -n_ij . u <= (kappa / 2T) max(0, |psi_ij| - D'_j),   D'_j = D_s + v tau_j          (S2)
+    neighbour j:  -n_ij . u <= c_j b_ij   and   -(c_j n_ij - s_j e) . u <= b_ij  for each e in E_ij,
+                  b_ij = (kappa / 2T) max(0, |psi_ij| - D'_j),   D'_j = D_s + v tau_j,
+                  s_j = sin theta_j = v tau_j / |psi_ij|,  c_j = cos theta_j                             (S2)
     obstacle o:   -n_io . u <= (kappa / T)  max(0, |P_i - C_o| - rho_o - D_o)                     (S3)
 
 with psi_ij = P_i - P_j as agent i believes it (P_j heard tau_j seconds ago), n = psi/|psi|, D_s = 2 d^r
@@ -16,14 +18,19 @@ period and kappa in (0, 1] the share of the gap the pair may close in one period
 of a neighbour's gap (the other agent takes the other half); an obstacle does not move, so the agent
 takes all of it. The distance to a point is convex, so one period of motion can only leave a pair
 farther apart than its first-order change says: with fresh data (S2) keeps |P_i - P_j| >= D_s exactly
-in discrete time, and the margin v tau_j covers where j can have gone since its pose was taken
-(``docs/safety.md``; an agent on the free clock, whose neighbours tick on their own timers, adds one
-period T to the age it measures).
+in discrete time. The margin v tau_j covers where j can have gone since its pose was taken; E_ij (the
+two tangents +-t in 2-D, the four +-t1 +-t2 in 3-D) makes the row hold for every direction to j that
+the data allow (within theta_j of n_ij). The least n . u over that cone is on its rim,
+c_j n_ij . u - s_j |u_perp|, which the tilted rows bound (exactly in 2-D, from the safe side in 3-D,
+as |t1.u| + |t2.u| >= |u_perp|), unless -u is inside the cone: then it is -|u|, and the first row
+(|u| <= -n_ij . u / c_j there) bounds it: ``docs/safety.md``. With fresh data s_j = 0 and (S2) is one row. An agent on the free clock, whose
+neighbours tick on their own timers, adds one period T to the age it measures.
 
 - Every right side is >= 0, so u = 0 (stop) is always feasible: the set is never empty, and the
   projection of u^ onto a convex set holding 0 is never longer than u^, so the speed limit holds.
 - A neighbour pose older than ``max_age`` (the age at which D'_j reaches the sensing radius: j may be
-  anywhere the agent senses) whose row could bind: the agent brakes (u = 0).
+  anywhere the agent senses), or so old that j may be on any side (v tau_j >= |psi_ij|), whose row
+  could bind: the agent brakes (u = 0).
 - (S1) is solved exactly (:func:`project`): the optimum is the projection of u^ onto the affine set of
   at most D linearly independent active rows (KKT and Caratheodory), so every such set is tried and
   the closest command that satisfies every row is kept; u = 0 is always among the candidates. No
@@ -104,18 +111,47 @@ def rows(safety: Safety, n: int, agent: np.ndarray, psi: np.ndarray, age: np.nda
          obstacle_agent: np.ndarray, psi_o: np.ndarray, radius_o: np.ndarray) -> Rows:
     """(S2) for every pair (``agent``, ``psi`` = P_i - P_j as believed, ``age`` tau_j) and (S3) for every
     sensed obstacle (``obstacle_agent``, ``psi_o`` = P_i - C_o, ``radius_o``), of n agents."""
-    rate = safety.kappa / safety.period
+    rate, v = safety.kappa / safety.period, safety.v_max
+    age = np.asarray(age, dtype=float)
     d = np.linalg.norm(psi, axis=-1)
-    margin = safety.margin(age)
-    b = 0.5 * rate * np.maximum(d - margin, 0.0)
-    dist_o = np.linalg.norm(psi_o, axis=-1)
-    b_o = rate * np.maximum(dist_o - radius_o - safety.clearance, 0.0)
-    binding = b < safety.v_max  # a row with b >= v_max never binds a command no longer than v_max
-    old = (np.asarray(age) > safety.max_age) & binding
+    b = 0.5 * rate * np.maximum(d - safety.margin(age), 0.0)
+    spread = np.minimum(np.divide(v * age, d, out=np.ones_like(d), where=d > 0), 1.0)  # s_j
+    cos = np.sqrt(1.0 - spread**2)
+    unit = _unit(psi, d)
+    a, owner, bb = [-unit], [agent], [cos * b]
+    tilted = spread > 0
+    for e in _tangent_signs(unit[tilted]):  # one row per sign pattern, where the data have an age
+        a.append(-(cos[tilted, None] * unit[tilted] - spread[tilted, None] * e))
+        owner.append(agent[tilted])
+        bb.append(b[tilted])
+    norm_a = np.sqrt(1.0 + (psi.shape[-1] - 2) * spread**2)  # |c n - s e|: 1 in 2-D, with |e|^2 = 2 in 3-D
+    could_bind = cos * b < v * norm_a  # a row with b >= |a| v_max never binds a command no longer than v_max
+    old = ((age > safety.max_age) | (v * age >= d)) & could_bind
     stale = np.zeros(n, dtype=bool)
     stale[agent[old]] = True
-    a = -np.concatenate([_unit(psi, d), _unit(psi_o, dist_o)])
-    return Rows(np.concatenate([agent, obstacle_agent]).astype(np.intp), a, np.concatenate([b, b_o]), stale)
+    dist_o = np.linalg.norm(psi_o, axis=-1)
+    b_o = rate * np.maximum(dist_o - radius_o - safety.clearance, 0.0)
+    return Rows(np.concatenate([*owner, obstacle_agent]).astype(np.intp),
+                np.concatenate([*a, -_unit(psi_o, dist_o)]), np.concatenate([*bb, b_o]), stale)
+
+
+def _tangent_signs(unit: np.ndarray) -> list[np.ndarray]:
+    """The E_ij of (S2) for unit directions (R, D): +-t in 2-D; +-t1 +-t2 in 3-D (then
+    |t1.u| + |t2.u| >= |u_perp| keeps the rows on the safe side); the first is 0 (the plain row)."""
+    if unit.shape[-1] == 2:
+        t = np.stack([-unit[:, 1], unit[:, 0]], axis=-1)
+        return [t, -t]
+    t1, t2 = _basis3(unit)
+    return [t1 + t2, t1 - t2, -t1 + t2, -t1 - t2]
+
+
+def _basis3(unit: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors orthogonal to each row of ``unit`` and to each other."""
+    axis = np.zeros_like(unit)
+    axis[np.arange(len(unit)), np.argmin(np.abs(unit), axis=-1)] = 1.0
+    t1 = np.cross(unit, axis)
+    t1 = _unit(t1, np.linalg.norm(t1, axis=-1))
+    return t1, np.cross(unit, t1)
 
 
 def _unit(v: np.ndarray, norm: np.ndarray) -> np.ndarray:
@@ -151,8 +187,8 @@ def project(u_hat: np.ndarray, agent: np.ndarray, a: np.ndarray, b: np.ndarray) 
     if len(need) == 0:
         return u
     speed = np.linalg.norm(u, axis=-1)
-    # a row with b >= |u^| cannot bind: the projection onto a convex set holding 0 is no longer than u^
-    keep = np.isin(agent, need) & (b < speed[agent] + TOL)
+    # a row with b >= |a| |u^| cannot bind: the projection onto a convex set holding 0 is no longer than u^
+    keep = np.isin(agent, need) & (b < speed[agent] * np.linalg.norm(a, axis=-1) + TOL)
     for start in range(0, len(need), _CHUNK):
         chunk = need[start:start + _CHUNK]
         sel = keep & np.isin(agent, chunk)
@@ -249,11 +285,18 @@ def filter_one(safety: Safety, point: tuple[float, ...], u_hat: tuple[float, ...
         psi = [point[k] - q[k] for k in range(dims)]
         d = math.sqrt(sum(c * c for c in psi))
         b = 0.5 * rate * max(d - safety.distance - v * age, 0.0)
-        if b < v:
-            stale |= age > safety.max_age
-            a = tuple(-c / d for c in psi) if d > 0 else (0.0,) * dims
-            binding.append((a, b))
-            violated |= sum(a[k] * u_hat[k] for k in range(dims)) - b > TOL
+        spread = min(v * age / d, 1.0) if d > 0 else 1.0
+        cos = math.sqrt(1.0 - spread * spread)
+        if cos * b < v * math.sqrt(1.0 + (dims - 2) * spread * spread):
+            stale |= age > safety.max_age or v * age >= d
+            unit = [c / d for c in psi] if d > 0 else [0.0] * dims
+            rows_j = [(tuple(-c for c in unit), cos * b)]
+            if spread > 0:
+                rows_j += [(tuple(-(cos * unit[k] - spread * e[k]) for k in range(dims)), b)
+                           for e in _tangent_signs_floats(unit)]
+            for a, bound in rows_j:
+                binding.append((a, bound))
+                violated |= sum(a[k] * u_hat[k] for k in range(dims)) - bound > TOL
     for obstacle in obstacles:
         psi = [point[k] - obstacle[k] for k in range(dims)]
         d = math.sqrt(sum(c * c for c in psi))
@@ -267,10 +310,27 @@ def filter_one(safety: Safety, point: tuple[float, ...], u_hat: tuple[float, ...
         return (0.0,) * dims, Acted(speed > 0.0, speed > 0.0, True)
     if not violated:
         return u_hat, None
-    u = _project_floats(u_hat, [r for r in binding if r[1] < speed + TOL])
+    u = _project_floats(u_hat, [r for r in binding if r[1] < speed * math.sqrt(sum(c * c for c in r[0])) + TOL])
     change = math.sqrt(sum((u[k] - u_hat[k]) ** 2 for k in range(dims)))
     acted = change > 1e-9 * max(speed, 1.0)
     return u, Acted(acted, acted and math.sqrt(sum(c * c for c in u)) < STALL_SHARE * speed, False)
+
+
+def _tangent_signs_floats(unit: list[float]) -> list[tuple[float, ...]]:
+    """:func:`_tangent_signs` for one direction, in floats (the same vectors)."""
+    if len(unit) == 2:
+        return [(-unit[1], unit[0]), (unit[1], -unit[0])]
+    k = min(range(3), key=lambda i: abs(unit[i]))
+    axis = [1.0 if i == k else 0.0 for i in range(3)]
+    t1 = _cross(unit, axis)
+    n1 = math.sqrt(sum(c * c for c in t1))
+    t1 = [c / n1 for c in t1] if n1 > 0 else [0.0, 0.0, 0.0]
+    t2 = _cross(unit, t1)
+    return [tuple(s1 * t1[i] + s2 * t2[i] for i in range(3)) for s1, s2 in ((1, 1), (1, -1), (-1, 1), (-1, -1))]
+
+
+def _cross(x: list[float], y: list[float]) -> list[float]:
+    return [x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0]]
 
 
 def _project_floats(u_hat: tuple[float, ...], rows_: list[tuple[tuple[float, ...], float]]) -> tuple[float, ...]:
