@@ -34,10 +34,10 @@ from zswarm.net.runspec import RunSpec
 
 
 def field_spec(n_agents: int, run: str, duration: float, scenario: str = "bench-field",
-               faults: FaultModel | None = None, seed: int = 0) -> RunSpec:
+               faults: FaultModel | None = None, seed: int = 0, safety: str = "barrier") -> RunSpec:
     """The benchmark's run: ``scenario`` at N agents for ``duration`` seconds."""
     return RunSpec(run=run, scenario_name=scenario, overrides=(("n_agents", n_agents),), seed=seed, duration=duration,
-                   faults=faults or FaultModel())
+                   faults=faults or FaultModel(), safety=safety)
 
 
 def start_routers(kids: Children, k: int) -> list[str]:
@@ -61,14 +61,15 @@ def start_field(kids: Children, spec: RunSpec, summary_path: Path, world_stdout:
     return endpoints[0], world, agents
 
 
-def run(n_agents: int, duration: float, scenario: str = "bench-field", routers: int = 1) -> dict[str, Any]:
+def run(n_agents: int, duration: float, scenario: str = "bench-field", routers: int = 1,
+        safety: str = "barrier") -> dict[str, Any]:
     """One swarm run: the transport figures from the world's summary, and what each process cost
     over the middle of the run (from 30 % to 90 % of its duration)."""
     kids = Children()
     with tempfile.TemporaryDirectory() as tmp:
         summary_path = Path(tmp) / "bench.json"
         try:
-            spec = field_spec(n_agents, f"bench{n_agents}", duration, scenario)
+            spec = field_spec(n_agents, f"bench{n_agents}", duration, scenario, safety=safety)
             _, world, agents = start_field(kids, spec, summary_path, world_stdout=subprocess.PIPE, routers=routers)
             started = follow_world(world)
             names = {c.name: c.pid for c in kids.children}
@@ -146,11 +147,12 @@ def _one(values: list[float]) -> float | None:
     return values[0] if values else None
 
 
-def measure(n_agents: int, duration: float, floor: bool, routers: int = 1, repeat: int = 1) -> dict[str, Any]:
+def measure(n_agents: int, duration: float, floor: bool, routers: int = 1, repeat: int = 1,
+            safety: str = "barrier") -> dict[str, Any]:
     """:func:`measure_once` ``repeat`` times in turn (swarm, floors, swarm, floors, ...): each figure is
     the median over the repeats, and each ratio the median of the repeats' ratios, with every
     repeat's ratios beside it (``*_runs``)."""
-    runs = [measure_once(n_agents, duration, floor, routers) for _ in range(repeat)]
+    runs = [measure_once(n_agents, duration, floor, routers, safety) for _ in range(repeat)]
     if repeat == 1:
         return runs[0]
     out = _medians(runs)
@@ -176,9 +178,11 @@ def _medians(runs: list[dict[str, Any]]) -> dict[str, Any]:
     return out
 
 
-def measure_once(n_agents: int, duration: float, floor: bool, routers: int = 1) -> dict[str, Any]:
+def measure_once(n_agents: int, duration: float, floor: bool, routers: int = 1,
+                 safety: str = "barrier") -> dict[str, Any]:
     """The swarm at N and, with ``floor``, the bare middleware with the same traffic, right after."""
-    r = run(n_agents, duration, routers=routers)
+    r = run(n_agents, duration, routers=routers, safety=safety)
+    r["safety"] = safety
     if floor:
         r.update(run_floor(n_agents, duration))
         callback = run_floor(n_agents, duration, handler="callback")

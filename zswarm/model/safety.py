@@ -279,12 +279,16 @@ def filter_one(safety: Safety, point: tuple[float, ...], u_hat: tuple[float, ...
     command passes at the cost of a few float operations. Returns the command and what the filter did
     (None: nothing)."""
     rate, v, dims = safety.kappa / safety.period, safety.v_max, len(point)
+    far = 2.0 * v * math.sqrt(2.0) / rate  # a gap this wide gives b >= |a| v_max for every row: none binds
     binding: list[tuple[tuple[float, ...], float]] = []
     violated = stale = False
     for q, age in neighbours:
         psi = [point[k] - q[k] for k in range(dims)]
         d = math.sqrt(sum(c * c for c in psi))
-        b = 0.5 * rate * max(d - safety.distance - v * age, 0.0)
+        gap = d - safety.distance - v * age
+        if gap >= far and age <= safety.max_age:
+            continue
+        b = 0.5 * rate * max(gap, 0.0)
         spread = min(v * age / d, 1.0) if d > 0 else 1.0
         cos = math.sqrt(1.0 - spread * spread)
         if cos * b < v * math.sqrt(1.0 + (dims - 2) * spread * spread):
