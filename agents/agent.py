@@ -62,6 +62,7 @@ class Agent:
         self.counters = sensing.counters
         self.staleness, self.lockstep_wait = staleness, lockstep_wait
         self.seq = 0
+        self.safety_flag = 0  # what the filter did this tick (messages.SAFETY_FLAGS), sent with the pose
         self.pose_cell: tuple[int, ...] | None = None
         self.pose_key = ""  # the key of its pose in that cell
         self.queryable: Any = None
@@ -127,6 +128,7 @@ class Agent:
             c.interventions += done.acted
             c.stalled_ticks += stalled
             c.braked_ticks += done.braked
+        self.safety_flag = 0 if done is None else (3 if done.braked else 2 if stalled else int(done.acted))
         c.stalled_run = c.stalled_run + 1 if stalled else 0
         c.stalled_long |= c.stalled_run * self.dt >= 1.0
         return command
@@ -155,7 +157,8 @@ class Agent:
             self.pose_key = self.keys.pose(cell, self.id)
         key = self.pose_key
         self.seq += 1
-        payload = msg.encode_pose(self.id, self.seq, time.time(), step, b.x, b.y, b.vx, b.vy, b.heading, b.z, b.vz)
+        payload = msg.encode_pose(self.id, self.seq, time.time(), step, b.x, b.y, b.vx, b.vy, b.heading, b.z, b.vz,
+                                  self.safety_flag)
         self.latest_reply = (key, payload)
         if step >= 0:
             self.replies_by_step = {s: r for s, r in self.replies_by_step.items() if s > step - 3}

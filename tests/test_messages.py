@@ -13,8 +13,8 @@ from zswarm.net import messages as msg
 finite = st.floats(-1e5, 1e5, allow_nan=False)
 pose_fields = (st.integers(0, 10_000), st.integers(0, 2**40), st.floats(0, 2e9), st.integers(-1, 10**6),
                finite, finite, finite, finite, st.one_of(st.none(), st.floats(-3.15, 3.15)))  # heading last
-poses = st.one_of(st.builds(msg.Pose, *pose_fields, z=st.none(), vz=st.none()),
-                  st.builds(msg.Pose, *pose_fields, z=finite, vz=finite))  # 2-D, 3-D
+poses = st.one_of(st.builds(msg.Pose, *pose_fields, z=st.none(), vz=st.none(), safety=st.integers(0, 3)),
+                  st.builds(msg.Pose, *pose_fields, z=finite, vz=finite, safety=st.integers(0, 3)))  # 2-D, 3-D
 hist = st.dictionaries(st.integers(0, msg.MAX_HIST_BINS - 1), st.integers(0, 10**6), max_size=20)
 stats = st.builds(msg.Stats, st.integers(0, 1000), st.integers(0, 10**9), st.integers(0, 10**9),
                   st.dictionaries(st.sampled_from(msg.REASONS), st.integers(0, 100), max_size=3),

@@ -230,8 +230,10 @@ class World:
                    if headed else None)
         metrics = self.observer.observe(self.clock.t, ids, pos, vel, self.prey)
         self.reach.sample(pos, self.spec.subscription_radius, self.keys.cell_size)
+        safety = ((np.array([poses[i].safety for i in ids]), self.scenario.params.swarm.robot_radius)
+                  if self.spec.safety != "off" else None)
         self.recorder.log_step(self.clock.step, self.clock.t, ids, pos, vel, self.prey,
-                               {**metrics, "agents_alive": float(len(self.census.alive))}, heading)
+                               {**metrics, "agents_alive": float(len(self.census.alive))}, heading, safety)
         self._log_network()
         return metrics
 

@@ -62,6 +62,7 @@ class Pose(NamedTuple):
     heading: float | None = None
     z: float | None = None
     vz: float | None = None
+    safety: int = 0  # what the safety filter did to the command it moved with: SAFETY_FLAGS
 
     @property
     def dims(self) -> int:
@@ -173,13 +174,20 @@ def _pack(obj: dict[str, Any]) -> bytes:
     return msgpack.packb({"v": VERSION, **obj}, use_bin_type=True)
 
 
+#: A pose's ``f``: the safety filter (zswarm.model.safety) passed the command, changed it, stalled it, braked.
+SAFETY_FLAGS = ("passed", "acted", "stalled", "braked")
+
+
 def encode_pose(agent: int, seq: int, stamp: float, step: int, x: float, y: float, vx: float, vy: float,
-                heading: float | None = None, z: float | None = None, vz: float | None = None) -> bytes:
+                heading: float | None = None, z: float | None = None, vz: float | None = None,
+                safety: int = 0) -> bytes:
     """``encode(Pose(...))`` without building the Pose: an agent publishes one every tick."""
     p, u = ([x, y], [vx, vy]) if z is None else ([x, y, z], [vx, vy, vz])
     pose = {"v": VERSION, "k": "pose", "id": agent, "seq": seq, "t": stamp, "s": step, "p": p, "u": u}
     if heading is not None:
         pose["h"] = heading
+    if safety:
+        pose["f"] = safety
     return msgpack.packb(pose, use_bin_type=True)
 
 
@@ -318,11 +326,12 @@ def _pose(obj: dict) -> Pose:
                 and 0 <= i <= MAX_ID and 0 <= seq <= 2**62 and -1 <= s <= 2**62 and -1e12 <= t <= 1e12
                 and -MAX_COORD <= x <= MAX_COORD and -MAX_COORD <= y <= MAX_COORD
                 and -MAX_COORD <= vx <= MAX_COORD and -MAX_COORD <= vy <= MAX_COORD):  # NaN fails these
-            h = obj.get("h")
-            if h is None:
-                return Pose(i, seq, t, s, x, y, vx, vy)
-            if type(h) is float and -MAX_HEADING <= h <= MAX_HEADING:
-                return Pose(i, seq, t, s, x, y, vx, vy, h)
+            h, f = obj.get("h"), obj.get("f", 0)
+            if type(f) is int and 0 <= f < len(SAFETY_FLAGS):
+                if h is None:
+                    return Pose(i, seq, t, s, x, y, vx, vy, safety=f) if f else Pose(i, seq, t, s, x, y, vx, vy)
+                if type(h) is float and -MAX_HEADING <= h <= MAX_HEADING:
+                    return Pose(i, seq, t, s, x, y, vx, vy, h, safety=f)
     elif (type(i) is int and type(seq) is int and type(s) is int and type(t) is float and type(p) is list
             and type(u) is list and len(p) == 3 and len(u) == 3 and "h" not in obj):  # a 3-D one
         x, y, z = p
@@ -333,13 +342,16 @@ def _pose(obj: dict) -> Pose:
                 and -MAX_COORD <= x <= MAX_COORD and -MAX_COORD <= y <= MAX_COORD and -MAX_COORD <= z <= MAX_COORD
                 and -MAX_COORD <= vx <= MAX_COORD and -MAX_COORD <= vy <= MAX_COORD
                 and -MAX_COORD <= vz <= MAX_COORD):
-            return Pose(i, seq, t, s, x, y, vx, vy, None, z, vz)
+            f = obj.get("f", 0)
+            if type(f) is int and 0 <= f < len(SAFETY_FLAGS):
+                return Pose(i, seq, t, s, x, y, vx, vy, None, z, vz, f)
     p = _vec(obj, "p")
     u = _vec(obj, "u", (len(p),))
     h = obj.get("h")
+    f = _int(obj, "f", 0, len(SAFETY_FLAGS) - 1) if "f" in obj else 0
     return Pose(_int(obj, "id", 0, MAX_ID), _int(obj, "seq"), _float(obj.get("t"), "t", 1e12),
                 _int(obj, "s", -1), p[0], p[1], u[0], u[1], None if h is None else _float(h, "h", MAX_HEADING),
-                *p[2:], *u[2:])
+                *(p[2:] or (None,)), *(u[2:] or (None,)), f)
 
 
 def _other(obj: dict, kind: Any) -> Message:

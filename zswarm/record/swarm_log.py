@@ -23,6 +23,10 @@ AGENTS: Final = "map/agents"
 VELOCITIES: Final = "map/velocities"
 HEADINGS: Final = "map/headings"  # a body with a heading (zswarm.model.body): where each one faces
 SENSING: Final = "map/sensing"
+SAFETY: Final = "map/safety"  # where the safety filter acted this step (zswarm.model.safety)
+#: acted (orange), stalled (red), braked on old data (purple); messages.SAFETY_FLAGS 1..3
+SAFETY_COLOURS: Final = {1: (255, 160, 40), 2: (230, 40, 40), 3: (160, 60, 220)}
+SAFETY_LABELS: Final = {1: "filtered", 2: "stalled", 3: "braked"}
 SENSING_GRAPH: Final = "map/sensing_graph"  # an edge between every two agents within the sensing radius
 OBSTACLES: Final = "map/obstacles"
 PREY: Final = "map/prey"
@@ -74,6 +78,8 @@ def blueprint(extra_plots: Iterable[tuple[str, tuple[str, ...]]] = (), network: 
 
     plots = [rrb.TimeSeriesView(name=title, origin="/", contents=[path(name) for name in names])
              for title, names in (*PLOTS, *extra_plots)]
+    plots.append(rrb.TimeSeriesView(name="safety filter: agents filtered, stalled, braked", origin="/",
+                                    contents=[f"safety/{name}" for name in SAFETY_LABELS.values()]))
     side = [rrb.Vertical(*plots)]
     if network:
         side.append(rrb.Vertical(
@@ -152,6 +158,19 @@ def log_swarm(rec: rr.RecordingStream, t: float, ids: np.ndarray, positions: np.
                                 vy=velocities[:, 1].astype(np.float64), **state))
 
 
+def log_safety(rec: rr.RecordingStream, positions: np.ndarray, flags: np.ndarray, radius: float) -> None:
+    """A translucent halo of twice ``radius`` (the body's radius: two halos overlap well before two
+    agents touch) under each agent whose command the filter changed this step, coloured by what it
+    did (:data:`SAFETY_COLOURS`: filtered, stalled, braked); the count of each as a time series."""
+    flags = np.asarray(flags, dtype=int)
+    acted = flags > 0
+    colours = [(*SAFETY_COLOURS[int(f)], 150) for f in flags[acted]]
+    extra = {"draw_order": 5.0} if np.shape(positions)[-1] == 2 else {}  # under the agents (rerun's default 30)
+    rec.log(SAFETY, _points(positions[acted], radii=2.0 * radius, colors=colours, **extra))
+    for f, name in SAFETY_LABELS.items():
+        rec.log(f"safety/{name}", rr.Scalars(float(np.sum(flags == f))))
+
+
 def log_prey(rec: rr.RecordingStream, prey: np.ndarray, trail: np.ndarray) -> None:
     rec.log(PREY, _points([prey], radii=0.08, colors=(255, 60, 60), labels=["prey"]))
     if len(trail) > 1:
@@ -173,10 +192,13 @@ def log_metrics(rec: rr.RecordingStream, metrics: dict[str, float],
 
 
 def log_threshold_styles(rec: rr.RecordingStream, thresholds: dict[str, float]) -> None:
-    """Thin grey lines, named for what they are."""
+    """Thin grey lines, named for what they are; and the safety filter's counts in the colours of its
+    rings on the map."""
     for name in thresholds:
         rec.log(f"{THRESHOLDS}/{name}", rr.SeriesLines(names=THRESHOLD_NAMES.get(name, name), widths=1.0,
                                                        colors=(160, 160, 160)), static=True)
+    for flag, name in SAFETY_LABELS.items():
+        rec.log(f"safety/{name}", rr.SeriesLines(names=f"agents {name}", colors=SAFETY_COLOURS[flag]), static=True)
 
 
 def log_sensing_graph(rec: rr.RecordingStream, positions: np.ndarray, radius: float) -> None:

@@ -195,6 +195,10 @@ def _log_step(rec, sim: Simulator, v: np.ndarray, metrics: dict[str, float], tra
     swarm_log.set_time(rec, sim.step_index, sim.t)
     trail.append(sim.prey.copy())
     swarm_log.log_swarm(rec, sim.t, sim.ids, sim.positions, v, sensing_radius, sim.headings)
+    if sim.safety is not None and sim.filtered is not None:
+        f = sim.filtered
+        flags = np.where(f.braked, 3, np.where(f.stalled, 2, f.acted.astype(int)))
+        swarm_log.log_safety(rec, sim.positions, flags, sim.scenario.params.swarm.robot_radius)
     swarm_log.log_prey(rec, sim.prey, np.array(trail[-400:]))
     swarm_log.log_metrics(rec, metrics, thresholds)
     if graph_radius is not None:
