@@ -39,6 +39,7 @@ import numpy as np
 
 from zswarm.model.design_body import body_check
 from zswarm.model.design_swarm import contact, prop4, prop5, swarm_rest, time_step
+from zswarm.model.safety import guarantee
 from zswarm.model.formation import (
     closed_form_spacing,
     equilibria,
@@ -222,6 +223,7 @@ class DesignReport:
     swarm: dict[str, Any] | None  # None: not evaluated (the pair potential has no stable spacing)
     step: dict[str, Any] | None = None  # the time step check, when a dt was given
     body: dict[str, Any] | None = None  # the body check (zswarm.model.design_body)
+    safety: dict[str, Any] | None = None  # what the safety filter guarantees (zswarm.model.safety.guarantee)
 
     def failures(self) -> list[str]:
         """The checks that fail and bind (Prop 3 binds only where it applies: see its docstring)."""
@@ -248,6 +250,7 @@ class DesignReport:
         return {"params": self.params.flat(), **{f"prop{i}": clean(getattr(self, f"prop{i}"))
                 for i in range(1, 6)}, "formation": clean(self.formation), "contact": clean(self.contact),
                 "swarm": clean(self.swarm), "step": clean(self.step), "body": clean(self.body),
+                "safety": clean(self.safety),
                 "ok": self.ok, "failures": self.failures(), "paper_failures": self.paper_failures()}
 
 
@@ -272,7 +275,8 @@ def check(params: Params, swarm: bool = True, dt: float | None = None) -> Design
     swarm = swarm_rest(params, stable) if swarm and form["stable"] else None
     return DesignReport(params, prop1(params), prop2(params), prop3(params), prop4(params, stable),
                         prop5(params, spacing, gate_in), form, contact(params, stable), swarm,
-                        None if dt is None else time_step(params, dt), body_check(params, stable))
+                        None if dt is None else time_step(params, dt), body_check(params, stable),
+                        guarantee(params, dt))
 
 
 def verdict(params: Params, dt: float | None = None) -> dict[str, Any]:

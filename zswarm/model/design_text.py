@@ -51,6 +51,10 @@ def render(report: DesignReport) -> str:
         rows.append(("Time step", report.step, f"2 v_max dt = {_fmt(report.step['step'])}"))
     if report.body is not None:
         rows.append(("Body", report.body, f"lag {_fmt(report.body['lag'])} vs slack {_fmt(report.body['slack'])}"))
+    if report.safety is not None:
+        s = report.safety
+        bound = "-" if s["distance"] is None else f"D_s = {_fmt(s['distance'])}, data age <= {_fmt(max(s['max_age'], 0.0))} s"
+        rows.append(("Safety", s, bound))
     p = report.params.flat()
     lines = ["parameters: " + "  ".join(f"{k}={_fmt(v)}" for k, v in p.items()), "",
              f"the verdicts are for N = {report.params.swarm.n_agents} agents that sense within "

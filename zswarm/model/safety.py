@@ -383,3 +383,22 @@ def _affine_projection(u_hat: tuple[float, ...], chosen) -> tuple[float, ...] | 
 def _det3(m: list[list[float]]) -> float:
     return (m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
             + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]))
+
+def guarantee(params, dt: float | None = None) -> dict:
+    """What ``--safety barrier`` guarantees for a parameter set (the design report's Safety row): the
+    distance it keeps, the oldest data it trusts, the speed limit and the body."""
+    body = params.body.body
+    if body == "double-integrator":
+        return {"holds": False, "binding": False, "distance": None, "max_age": None,
+                "detail": "not available for a double-integrator (it cannot stop within a step): runs refuse "
+                          "--safety barrier and default to off"}
+    lookahead = params.body.lookahead if body == "unicycle" else 0.0
+    s = safety_for(params, dt or 0.05, lookahead)
+    where = "its look-ahead points" if lookahead else "centres"
+    detail = (f"with --safety barrier (the default for runs), {where} stay >= {s.distance:.4g} apart and >= "
+              f"{s.clearance:.4g} off obstacles at speeds <= {s.v_max:g}, on neighbour data up to "
+              f"{max(s.max_age, 0.0):.3g} s old (D'_j = D_s + v tau_j); older data, or a neighbour that may be on "
+              "any side: the agent brakes")
+    if lookahead:
+        detail += "; a unicycle's turn-rate limit can make it lag the filtered command (measured, not proven)"
+    return {"holds": s.max_age > 0, "distance": s.distance, "max_age": s.max_age, "detail": detail}
