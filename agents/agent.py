@@ -120,7 +120,7 @@ class Agent:
         point = b.position
         if lookahead and b.heading is not None:
             point = (b.x + lookahead * math.cos(b.heading), b.y + lookahead * math.sin(b.heading))
-        sensed = self.sensing.safety_neighbours(step, self.spec.time_scale, self.dt, lookahead)
+        sensed = self.sensing.safety_neighbours(step, self.spec.time_scale, self.dt, self.staleness, lookahead)
         command, done = filter_one(self.safety, point, v_d, sensed, self.sensing.obstacles)
         c = self.counters
         stalled = done is not None and done.stalled

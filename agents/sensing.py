@@ -228,26 +228,37 @@ class Sensing:
             out.append(pose.position)
         return out
 
-    def safety_neighbours(self, step: int | None, time_scale: float, period: float,
+    def safety_neighbours(self, step: int | None, time_scale: float, period: float, staleness: float,
                           lookahead: float = 0.0) -> list[tuple[tuple[float, ...], float]]:
-        """What the safety filter guards against: every neighbour holding a liveliness token whose newest
-        pose, however old, was within the sensing radius, as (where the filter acts on it, age in
-        simulated seconds). One last heard farther out is not: an agent that enters the sensing disc
-        publishes into the cells this agent listens to (lost poses age the ones it has instead). Lockstep: the
-        step-k poses, exact for step k (age 0). Free: the newest pose, its age from its stamp scaled by
-        ``time_scale``, plus one control period ``period`` (a neighbour on its own timer may have
-        stepped once more than the age says: ticks that catch up on a late one come closer together). ``lookahead``: a unicycle's tracked point ahead of its axle, from the heading."""
+        """What the safety filter guards against, as (where the filter acts on it, age in simulated
+        seconds): every neighbour holding a liveliness token whose newest pose was within the sensing
+        radius, unless it is ``staleness`` wall seconds older than the freshest one (then it has left
+        the cells this agent listens to: an agent within the sensing disc publishes into them, and the
+        agent hears it as often as it hears anyone; a late network ages every pose alike and drops
+        none). ``docs/safety.md`` states this assumption.
+
+        Lockstep: the step-k poses, exact for step k (age 0). Free: the newest pose, its age from its
+        stamp scaled by ``time_scale``, plus one control period ``period`` (a neighbour on its own timer
+        may have stepped once more than the age says: ticks that catch up on a late one come closer
+        together). ``lookahead``: a unicycle's tracked point ahead of its axle, from the heading."""
         now = time.time()
-        out = []
+        heard = []
         for who, nb in self.neighbours.entries.items():
             if who not in self.alive:
                 continue
             pose = nb.by_step.get(step) if step is not None else nb.latest
             if pose is None or self.body.distance(pose) > self.radius:
                 continue
-            age = 0.0 if step is not None else max(now - pose.stamp, 0.0) * time_scale + period
+            heard.append((pose, 0.0 if step is not None else max(now - pose.stamp, 0.0)))
+        if not heard:
+            return []
+        left = min(age for _, age in heard) + staleness
+        out = []
+        for pose, age in heard:
+            if age > left:
+                continue
             point = pose.position
             if lookahead and pose.heading is not None:
                 point = (point[0] + lookahead * math.cos(pose.heading), point[1] + lookahead * math.sin(pose.heading))
-            out.append((point, age))
+            out.append((point, 0.0 if step is not None else age * time_scale + period))
         return out

@@ -188,3 +188,15 @@ def test_the_batched_simulator_filters_each_run_as_the_reference_does_alone():
         assert res.outcomes[r].safety_interventions == alone.summary.get("safety_interventions", 0)
     assert res.outcomes[1].collisions > 0 and res.outcomes[0].collisions == res.outcomes[2].collisions == 0
     assert res.outcomes[0].safety_interventions > 0 and res.outcomes[2].safety_interventions > 0
+
+
+def test_the_design_report_says_what_the_filter_guarantees():
+    from zswarm.model.design import check
+    from zswarm.model.design_text import render
+
+    point = check(get_scenario("moving-prey").params, swarm=False, dt=0.05)
+    assert point.safety["holds"] and point.safety["max_age"] == pytest.approx((1.0 - 0.1 * (1 + sf.HAIR)) / 1.0)
+    assert "safety" not in point.failures()  # a guarantee of the filter, not a check the set must pass
+    assert "Safety     holds" in render(point)
+    drone = check(get_scenario("moving-prey", {"body": "double-integrator"}).params, swarm=False, dt=0.05)
+    assert drone.safety["binding"] is False and "Safety     n/a" in render(drone)

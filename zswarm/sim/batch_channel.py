@@ -94,10 +94,14 @@ class BatchChannel:
         return believed, near, goal
 
     def known(self, k: int, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """After :meth:`step` k, what the safety filter guards against: every neighbour an agent has heard
-        at all (fresh or stale) whose newest position is within the sensing radius of it, as (mask
-        (B, N, N), believed positions (B, N, N, D), ages in seconds (B, N, N))."""
+        """After :meth:`step` k, what the safety filter guards against, as an agent process does
+        (:meth:`agents.sensing.Sensing.safety_neighbours`): every neighbour an agent has heard whose newest
+        position is within the sensing radius of it, unless that is older than the staleness limit
+        beyond its freshest neighbour's; as (mask (B, N, N), believed positions (B, N, N, D), ages in
+        seconds (B, N, N))."""
         stamp = self.belief_stamp[:, :, : self.n]
         believed = self.belief_pos[:, :, : self.n]
         heard = (stamp >= 0) & (np.linalg.norm(positions[:, :, None, :] - believed, axis=-1) <= self.radius)
+        newest = np.where(heard, stamp, -1).max(axis=-1, keepdims=True)
+        heard &= stamp >= newest - self.stale_steps
         return heard, believed, (k - stamp) * self.dt
