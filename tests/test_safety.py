@@ -200,3 +200,43 @@ def test_the_design_report_says_what_the_filter_guarantees():
     assert "Safety     holds" in render(point)
     drone = check(get_scenario("moving-prey", {"body": "double-integrator"}).params, swarm=False, dt=0.05)
     assert drone.safety["binding"] is False and "Safety     n/a" in render(drone)
+
+
+def test_time_scale_auto_picks_the_pace_the_machine_can_hold(monkeypatch):
+    import argparse
+
+    from zswarm.launch import plan
+
+    monkeypatch.setattr(plan, "available_cores", lambda: 2)
+
+    def args(**kw):
+        base = dict(time_scale="auto", clock="free", role=["router", "world", "agents"], scenario="large-swarm",
+                    assignments=[], agents=100, ids=None)
+        return argparse.Namespace(**{**base, **kw})
+
+    a = args()
+    note = plan.auto_time_scale(a)
+    assert a.time_scale == 0.25 and "auto picked 0.25" in note  # 100 agents at 40 Hz need 4 x half of 2 cores
+    a = args(agents=10, scenario="moving-prey")
+    assert plan.auto_time_scale(a) is None and a.time_scale == 1.0  # the demo fits: real time, nothing said
+    a = args(time_scale=0.5)
+    assert plan.auto_time_scale(a) is None and a.time_scale == 0.5  # an explicit pace wins
+    a = args(clock="lockstep")
+    assert plan.auto_time_scale(a) is None and a.time_scale == 1.0
+    a = args(agents=500, scenario="moving-prey")  # too many to start in time: left to the refusal
+    assert plan.auto_time_scale(a) is None and a.time_scale == 1.0
+
+
+def test_bench_safety_puts_the_filter_beside_the_law_alone():
+    import json
+
+    from conftest import run_cli
+
+    res = run_cli("-m", "zswarm", "bench", "safety", "--scenarios", "goal-near-obstacle", "--seeds", "1",
+                  "--modes", "off,barrier", "--workers", "1", "--json", timeout=120)
+    assert res.returncode == 0, res.stderr
+    rows = {r["mode"]: r for r in json.loads(res.stdout)["rows"]}
+    assert rows["off"]["collisions"] > 0 and rows["barrier"]["collisions"] == 0
+    assert rows["barrier"]["stalled_ticks"] > 0  # held at the goal against a law that would crush it
+    bad = run_cli("-m", "zswarm", "bench", "safety", "--modes", "rvo3", timeout=60)
+    assert bad.returncode == 2 and "--modes are off, barrier, orca" in bad.stderr

@@ -25,8 +25,8 @@ def module_command(sub: argparse._SubParsersAction, name: str, text: str, module
 
 
 def build_parser() -> Parser:
-    from zswarm.cli import (bench_bodies, bench_guidelines, bench_interactions, bench_net, certs, design, export,
-                            monitor, replay, robot_sim, sim, soak, tune)
+    from zswarm.cli import (bench_bodies, bench_guidelines, bench_interactions, bench_net, bench_safety, certs, design,
+                            export, monitor, replay, robot_sim, sim, soak, tune)
 
     parser = Parser(prog="zswarm", description="Decentralized APF swarms (Kim, Wang & Shin 2006).")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
@@ -65,6 +65,7 @@ def build_parser() -> Parser:
     module_command(bench_sub, "interactions", "each interaction on the same scenario, sizes and seeds",
                    bench_interactions)
     module_command(bench_sub, "bodies", "what each body costs on the registered scenarios", bench_bodies)
+    module_command(bench_sub, "safety", "the safety filter beside the law alone and ORCA, same runs", bench_safety)
 
     replay.add_arguments(sub)
     module_command(sub, "export", "write a recorded run as ROS 2 messages (MCAP, for Foxglove and ros2 bag)", export)

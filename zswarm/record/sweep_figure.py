@@ -71,6 +71,8 @@ def save_figure(rows: list[dict[str, Any]], path: Path, scenario: str, d_m_ro: f
             ax.legend(fontsize=8)
     left.set_ylabel("capture time, mean over repeats (s)")
     left.set_title("capture time (labels: share of runs that caught the prey)")
+    top = max([r.get("collisions_mean") or 0.0 for r in rows] + [0.0])
+    middle.set_ylim(-0.05 * max(top, 1.0), 1.1 * max(top, 1.0))  # none at all still reads as 0, not +-0.04
     middle.set_ylabel("collisions, mean over repeats")
     middle.set_title("collisions (pairs closer than 2 d^r)")
     right.set_ylabel("closest approach to an obstacle (min over repeats)")

@@ -11,20 +11,28 @@ keys are those of :class:`zswarm.sim.batch.BatchOutcome`, so a study can take ru
 from __future__ import annotations
 
 import math
+from typing import Callable
 
 import numpy as np
 
 from zswarm.model.metrics import components
+from zswarm.model.safety import STALL_SHARE, Filtered
+from zswarm.model.safety_tally import SafetyTally
 from zswarm.model.neighbours import pairs_within
 from zswarm.model.scenarios import Scenario
 from zswarm.sim.batch import BatchOutcome
 from zswarm.sim.simulator import Simulator
 
 
-def run_outcome(scenario: Scenario, seed: int, stop_at_collision: bool = False) -> BatchOutcome:
+def run_outcome(scenario: Scenario, seed: int, stop_at_collision: bool = False, safety: str = "off",
+                shield: Callable[[Simulator, np.ndarray], np.ndarray] | None = None) -> BatchOutcome:
     """The run's outcome; with ``stop_at_collision`` the run ends at its first collision (a study that
-    only asks whether a set collides need not simulate a crushed swarm to its end)."""
-    sim = Simulator(scenario, seed)
+    only asks whether a set collides need not simulate a crushed swarm to its end). ``safety``: the
+    filter's mode (:mod:`zswarm.model.safety`); ``shield``: another filter of the commands, called with
+    the simulator and the law's commands (``zswarm bench safety`` puts ORCA there), whose changes
+    are counted as the filter's are."""
+    sim = Simulator(scenario, seed, safety=safety)
+    tally = SafetyTally(scenario.dt)
     p = scenario.params.swarm
     collide, touch = 2.0 * p.robot_radius, p.robot_radius
     was_close: set[tuple[int, int]] = set()
@@ -56,12 +64,27 @@ def run_outcome(scenario: Scenario, seed: int, stop_at_collision: bool = False) 
             break  # i, j, d are this step's pairs: the final figures below come from them
         if k < scenario.steps:
             _, v = sim.potential_and_velocity(x, sim.prey)
+            if shield is not None:
+                wanted, v = v, shield(sim, v)
+                tally.add(shielded(wanted, v))
             sim.advance(v)
     nearest = np.full(len(x), np.inf)
     np.minimum.at(nearest, i, d)
     has = np.isfinite(nearest)
+    counts = tally if shield is not None else sim.tally
     return BatchOutcome(capture_time=capture, min_pair_distance=min_pair, collisions=collisions,
                         min_obstacle_clearance=min_clear if math.isfinite(min_clear) else None,
                         obstacle_collisions=contacts, final_centroid_goal_distance=centroid_distance,
                         final_components=len(np.unique(components(len(x), i, j))),
-                        final_median_nearest=float(np.median(nearest[has])) if has.any() else None)
+                        final_median_nearest=float(np.median(nearest[has])) if has.any() else None,
+                        safety_interventions=counts.interventions, safety_stalled_ticks=counts.stalled_steps,
+                        safety_braked_ticks=counts.braked_steps)
+
+
+def shielded(wanted: np.ndarray, got: np.ndarray) -> Filtered:
+    """What another filter did to the law's commands, in the safety filter's terms."""
+    change = np.linalg.norm(got - wanted, axis=-1)
+    speed = np.linalg.norm(wanted, axis=-1)
+    acted = change > 1e-9 * np.maximum(speed, 1.0)
+    stalled = acted & (np.linalg.norm(got, axis=-1) < STALL_SHARE * speed)
+    return Filtered(got, acted, stalled, np.zeros_like(acted))
