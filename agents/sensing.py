@@ -209,6 +209,15 @@ class Sensing:
 
     # --- what the agent senses -------------------------------------------------------------------------
 
+    def _held(self, step: int | None):
+        """(entry, pose) of every neighbour holding a liveliness token: its step-k pose (lockstep) or its
+        newest (free, ``step`` None), where it has one."""
+        for who, nb in self.neighbours.entries.items():
+            if who in self.alive:
+                pose = nb.by_step.get(step) if step is not None else nb.latest
+                if pose is not None:
+                    yield nb, pose
+
     def neighbour_positions(self, step: int | None, staleness: float) -> list[tuple[float, ...]]:
         """Positions of the neighbours it may use now: step-k poses (lockstep) or fresh ones (free:
         received within ``staleness`` seconds), of agents that hold a liveliness token.
@@ -217,11 +226,8 @@ class Sensing:
         """
         now = time.time()
         out = []
-        for who, nb in self.neighbours.entries.items():
-            if who not in self.alive:
-                continue
-            pose = nb.by_step.get(step) if step is not None else nb.latest
-            if pose is None or (step is None and now - nb.received > staleness):
+        for nb, pose in self._held(step):
+            if step is None and now - nb.received > staleness:
                 continue
             if self.body.distance(pose) <= self.radius:
                 self.counters.add(self.counters.ages, (now - pose.stamp) * 1000.0)
@@ -242,14 +248,8 @@ class Sensing:
         may have stepped once more than the age says: ticks that catch up on a late one come closer
         together). ``lookahead``: a unicycle's tracked point ahead of its axle, from the heading."""
         now = time.time()
-        heard = []
-        for who, nb in self.neighbours.entries.items():
-            if who not in self.alive:
-                continue
-            pose = nb.by_step.get(step) if step is not None else nb.latest
-            if pose is None or self.body.distance(pose) > self.radius:
-                continue
-            heard.append((pose, 0.0 if step is not None else max(now - pose.stamp, 0.0)))
+        heard = [(pose, 0.0 if step is not None else max(now - pose.stamp, 0.0)) for _, pose in self._held(step)
+                 if self.body.distance(pose) <= self.radius]
         if not heard:
             return []
         left = min(age for _, age in heard) + staleness

@@ -10,12 +10,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import time
 from typing import Any
 
-from zswarm.args import positive_int
-from zswarm.cli.bench_interactions import summarize
+from zswarm.cli.bench_interactions import add_study_arguments, summarize
 
 DESCRIPTION = __doc__.split("\n\n")[1]
 SCENARIOS = ("static-goal", "moving-prey", "moving-prey-evasive", "moving-prey-blocked", "narrow-passage")
@@ -27,11 +25,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help=f"comma-separated registered scenarios (default {','.join(SCENARIOS)})")
     p.add_argument("--bodies", type=lambda t: t.split(","), default=list(BODIES),
                    help=f"comma-separated (default {','.join(BODIES)})")
-    p.add_argument("--seeds", type=positive_int, default=5, help="runs per scenario and body (default 5)")
-    p.add_argument("--set", dest="assignments", action="append", default=[], metavar="NAME=VALUE",
-                   help="override a parameter of every run (repeatable), e.g. --set accel=1")
-    p.add_argument("--workers", type=positive_int, default=os.cpu_count() or 1, help="processes (default: cores)")
-    p.add_argument("--json", action="store_true")
+    add_study_arguments(p, "runs per scenario and body", "accel=1")
 
 
 def _run(task: tuple[str, str, int, dict[str, Any]]) -> dict[str, Any]:

@@ -22,20 +22,25 @@ DESCRIPTION = __doc__.split("\n\n")[1]
 DEFAULT = ("paper", "mean", "cutoff", "gate", "nearest", "mean+cutoff", "mean+gate", "mean+gate+cutoff")
 
 
+def add_study_arguments(p: argparse.ArgumentParser, seeds_help: str, set_example: str) -> None:
+    """What every study of many simulated runs takes: seeds, overrides, worker processes, JSON."""
+    p.add_argument("--seeds", type=positive_int, default=5, help=f"{seeds_help} (default 5)")
+    p.add_argument("--set", dest="assignments", action="append", default=[], metavar="NAME=VALUE",
+                   help=f"override a parameter of every run (repeatable), e.g. --set {set_example}")
+    p.add_argument("--workers", type=positive_int, default=os.cpu_count() or 1, help="processes (default: cores)")
+    p.add_argument("--json", action="store_true")
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scenario", default="large-swarm", help="a registered scenario (default large-swarm)")
     p.add_argument("--agents", type=lambda t: [positive_int(x) for x in t.split(",")], default=[100],
                    help="N values (default 100)")
     p.add_argument("--interactions", type=lambda t: t.split(","), default=list(DEFAULT),
                    help=f"comma-separated (default {','.join(DEFAULT)})")
-    p.add_argument("--seeds", type=positive_int, default=5, help="runs per interaction and N (default 5)")
-    p.add_argument("--set", dest="assignments", action="append", default=[], metavar="NAME=VALUE",
-                   help="override a parameter of every run (repeatable), e.g. --set gate=0.7")
     p.add_argument("--duration-factor", type=positive_float, default=1.0, metavar="F",
                    help="run each for F times the scenario's own duration (default 1): how long a slow swarm "
                         "needs, without changing the scenario")
-    p.add_argument("--workers", type=positive_int, default=os.cpu_count() or 1, help="processes (default: cores)")
-    p.add_argument("--json", action="store_true")
+    add_study_arguments(p, "runs per interaction and N", "gate=0.7")
 
 
 def _run(task: tuple[str, int, str, int, dict[str, Any], float]) -> dict[str, Any]:

@@ -11,12 +11,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import time
 from typing import Any
 
-from zswarm.args import positive_int
-from zswarm.cli.bench_interactions import summarize
+from zswarm.cli.bench_interactions import add_study_arguments, summarize
 from zswarm.errors import UsageError
 
 DESCRIPTION = __doc__.split("\n\n")[1]
@@ -28,11 +26,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="comma-separated registered scenarios (default goal-near-obstacle,moving-prey)")
     p.add_argument("--modes", type=lambda t: t.split(","), default=list(MODES),
                    help=f"comma-separated, of {', '.join(MODES)} (default all; orca needs pip install pyrvo)")
-    p.add_argument("--seeds", type=positive_int, default=5, help="runs per scenario and mode (default 5)")
-    p.add_argument("--set", dest="assignments", action="append", default=[], metavar="NAME=VALUE",
-                   help="override a parameter of every run (repeatable), e.g. --set n_agents=100")
-    p.add_argument("--workers", type=positive_int, default=os.cpu_count() or 1, help="processes (default: cores)")
-    p.add_argument("--json", action="store_true")
+    add_study_arguments(p, "runs per scenario and mode", "n_agents=100")
 
 
 def _run(task: tuple[str, str, int, dict[str, Any]]) -> dict[str, Any]:
