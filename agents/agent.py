@@ -27,7 +27,7 @@ from agents.sensing import Body, Sensing
 from zswarm.model import body as bodies
 from zswarm.model.agent_law import agent_velocity, point_step
 from zswarm.model.law import Law, sense_one
-from zswarm.model.safety import Safety, filter_one
+from zswarm.model.safety import Acted, Safety, filter_one
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Bridge
 from zswarm.net.injector import FaultInjector
@@ -111,6 +111,13 @@ class Agent:
         if self.follow_robot():
             self.robot.drive(self.safe(self.command(goal, neighbours), step))
 
+    def late_world(self) -> bool:
+        """The newest prey position it heard is older than the filter's data-age bound: everything it
+        hears is that late (a machine or network far behind, a lost router), so a neighbour that came
+        close since may not have been heard at all. The filter cannot bound that; the agent brakes."""
+        stamp = self.sensing.prey_stamp
+        return stamp is not None and (time.time() - stamp) * self.spec.time_scale + self.dt > self.safety.max_age
+
     def safe(self, v_d: tuple[float, ...], step: int | None) -> tuple[float, ...]:
         """The command the safety filter lets through (:func:`zswarm.model.safety.filter_one`), from
         every neighbour it knows of and the age of that knowledge; counted in its stats."""
@@ -122,6 +129,8 @@ class Agent:
             point = (b.x + lookahead * math.cos(b.heading), b.y + lookahead * math.sin(b.heading))
         sensed = self.sensing.safety_neighbours(step, self.spec.time_scale, self.dt, self.staleness, lookahead)
         command, done = filter_one(self.safety, point, v_d, sensed, self.sensing.obstacles)
+        if step is None and self.late_world():
+            command, done = (0.0,) * len(v_d), Acted(any(v_d), any(v_d), True)
         c = self.counters
         stalled = done is not None and done.stalled
         if done is not None:

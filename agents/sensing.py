@@ -80,6 +80,7 @@ class Sensing:
         self.alive: set[int] = set()  # ids with a liveliness token
         self.last_seq: dict[int, int] = {}
         self.prey: tuple[float, ...] | None = None
+        self.prey_stamp: float | None = None  # when the world sent the newest prey position heard
         self.ticks: asyncio.Queue[msg.Tick] = asyncio.Queue()
         self.pose_arrived = asyncio.Event()
         self.final_tick = False
@@ -142,7 +143,7 @@ class Sensing:
         if tag == "pose" and isinstance(m, msg.Pose):
             self._on_pose(who, key, m, received)
         elif tag == "prey" and isinstance(m, msg.Prey):
-            self.prey = m.position
+            self.prey, self.prey_stamp = m.position, m.stamp
         elif tag == "tick" and isinstance(m, msg.Tick):
             self.final_tick = self.final_tick or m.final
             self.ticks.put_nowait(m)
@@ -238,24 +239,25 @@ class Sensing:
                           lookahead: float = 0.0) -> list[tuple[tuple[float, ...], float]]:
         """What the safety filter guards against, as (where the filter acts on it, age in simulated
         seconds): every neighbour holding a liveliness token whose newest pose was within the sensing
-        radius, unless it is ``staleness`` wall seconds older than the freshest one (then it has left
-        the cells this agent listens to: an agent within the sensing disc publishes into them, and the
-        agent hears it as often as it hears anyone; a late network ages every pose alike and drops
-        none). ``docs/safety.md`` states this assumption.
+        radius, unless nothing came from it for ``staleness`` wall seconds longer than from the one heard
+        last (then it has left the cells this agent listens to: an agent within the sensing disc
+        publishes into them, and the agent hears it as often as it hears anyone; a late network delays
+        every pose but keeps delivering them, and a late tick of this agent delays all alike).
+        ``docs/safety.md`` states this assumption.
 
         Lockstep: the step-k poses, exact for step k (age 0). Free: the newest pose, its age from its
         stamp scaled by ``time_scale``, plus one control period ``period`` (a neighbour on its own timer
         may have stepped once more than the age says: ticks that catch up on a late one come closer
         together). ``lookahead``: a unicycle's tracked point ahead of its axle, from the heading."""
         now = time.time()
-        heard = [(pose, 0.0 if step is not None else max(now - pose.stamp, 0.0)) for _, pose in self._held(step)
-                 if self.body.distance(pose) <= self.radius]
+        heard = [(pose, 0.0 if step is not None else max(now - pose.stamp, 0.0), now - nb.received)
+                 for nb, pose in self._held(step) if self.body.distance(pose) <= self.radius]
         if not heard:
             return []
-        left = min(age for _, age in heard) + staleness
+        left = min(quiet for _, _, quiet in heard) + staleness
         out = []
-        for pose, age in heard:
-            if age > left:
+        for pose, age, quiet in heard:
+            if step is None and quiet > left:
                 continue
             point = pose.position
             if lookahead and pose.heading is not None:
