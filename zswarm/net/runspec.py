@@ -166,8 +166,9 @@ def add_fault_args(parser: argparse.ArgumentParser) -> None:
 def add_safety_arg(parser) -> None:
     parser.add_argument("--safety", choices=MODES, default=None,
                         help="barrier: every command passes the safety filter, robust to the age of each "
-                             "neighbour's data (docs/safety.md); off: the law alone (default barrier, off for a "
-                             "double-integrator body, which the filter cannot keep safe)")
+                             "neighbour's data (docs/safety.md); off: the law alone (default barrier; off for a "
+                             "double-integrator body, which the filter cannot keep safe, and for a unicycle in "
+                             "the simulator under faults, whose channel carries no headings)")
 
 
 def safety_mode(scenario: Scenario, asked: str | None, simulated_faults: bool = False) -> str:
