@@ -240,3 +240,36 @@ def test_bench_safety_puts_the_filter_beside_the_law_alone():
     assert rows["barrier"]["stalled_ticks"] > 0  # held at the goal against a law that would crush it
     bad = run_cli("-m", "zswarm", "bench", "safety", "--modes", "rvo3", timeout=60)
     assert bad.returncode == 2 and "--modes are off, barrier, orca" in bad.stderr
+
+
+def test_an_agent_guards_against_late_neighbours_but_not_ones_that_left():
+    """agents.sensing: a neighbour heard late is kept with its age (plus one period); one from which
+    nothing came for the staleness limit longer than from the one heard last has left the agent's cells
+    and is not guarded against; a neighbour last heard beyond the sensing radius neither."""
+    import time
+
+    from agents.sensing import Body, Sensing
+    from zswarm.net import messages as msg
+    from zswarm.net.runspec import RunSpec
+
+    spec = RunSpec(scenario_name="moving-prey")
+    sensing = Sensing(spec, 0, Body(0.0, 0.0), probe_latency=False)
+    now = time.time()
+    heard = {1: ((0.3, 0.0), 0.20, now - 0.01),   # late (sent 0.2 s ago) but still arriving
+             2: ((0.0, 0.4), 0.02, now - 0.01),   # fresh
+             3: ((-0.4, 0.0), 2.00, now - 2.0),   # nothing from it for 2 s: it left
+             4: ((3.0, 0.0), 0.02, now - 0.01)}   # beyond the sensing radius (1.0)
+    for who, (p, age, received) in heard.items():
+        pose = msg.Pose(who, 1, now - age, -1, *p, 0.0, 0.0)
+        assert sensing.neighbours.accept(who, pose, received) is None
+        sensing.alive.add(who)
+    got = dict((p, a) for p, a in sensing.safety_neighbours(None, 1.0, 0.05, 0.5))
+    assert set(got) == {(0.3, 0.0), (0.0, 0.4)}
+    assert got[(0.3, 0.0)] == pytest.approx(0.25, abs=0.01)  # its age, plus one control period
+    assert got[(0.0, 0.4)] == pytest.approx(0.07, abs=0.01)
+    half = dict((p, a) for p, a in sensing.safety_neighbours(None, 0.5, 0.05, 0.5))
+    assert half[(0.3, 0.0)] == pytest.approx(0.15, abs=0.01)  # simulated seconds: at half pace, half the age
+    sensing.alive.discard(1)  # no liveliness token: not a neighbour
+    assert (0.3, 0.0) not in dict(sensing.safety_neighbours(None, 1.0, 0.05, 0.5))
+    # lockstep: the step's poses, exact for that step
+    assert sensing.safety_neighbours(7, 1.0, 0.05, 0.5) == []
