@@ -117,6 +117,11 @@ def test_free_running_swarm_agrees_with_the_reference_on_the_outcome(tmp_path):
     delivered = s["poses_received"] / s["n_agents"] / (s["duration"] / 2.0) / s["poses_in_reach_per_s"]
     assert 0.5 < delivered < 1.5, delivered
     rerun_verify(record)
+    # each frame records when every agent sent the pose the world held; the summary, their widest spread
+    frames = load_run(record).frames
+    spreads = [float(f.stamps.max() - f.stamps.min()) for f in frames if f.stamps is not None and len(f.ids)]
+    assert len(spreads) > 0.9 * len(frames)
+    assert s["snapshot_spread_max_s"] == pytest.approx(max(spreads), abs=1e-9) and 0 < max(spreads) < 5.0
 
 
 def test_groups_far_apart_receive_none_of_each_others_poses(tmp_path):

@@ -116,8 +116,9 @@ class WorldRecorder:
 
     def log_step(self, step: int, t: float, ids: np.ndarray, pos: np.ndarray, vel: np.ndarray, prey: np.ndarray,
                  metrics: dict[str, float], heading: np.ndarray | None = None,
-                 safety: tuple[np.ndarray, float] | None = None) -> None:
-        """``safety``: what the filter did to each agent's command (its pose's flag) and the ring radius."""
+                 safety: tuple[np.ndarray, float] | None = None, stamps: np.ndarray | None = None) -> None:
+        """``safety``: what the filter did to each agent's command (its pose's flag) and the ring radius;
+        ``stamps``: when each agent sent the pose it holds (a free clock's snapshot mixes times)."""
         self.keep_trajectory(ids, pos, prey)
         if self.rec is None:
             return
@@ -125,7 +126,7 @@ class WorldRecorder:
 
         swarm_log.set_time(self.rec, step, t)
         self.trail.append(prey.copy())
-        swarm_log.log_swarm(self.rec, t, ids, pos, vel, headings=heading)
+        swarm_log.log_swarm(self.rec, t, ids, pos, vel, headings=heading, stamps=stamps)
         if safety is not None:
             swarm_log.log_safety(self.rec, pos, *safety)
         swarm_log.log_prey(self.rec, prey, np.array(self.trail))

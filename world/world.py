@@ -117,6 +117,7 @@ class World:
         self.stop = asyncio.Event()
         self.started_wall = time.time()
         self.resumed: Resumed | None = None
+        self.snapshot_spread = 0.0  # free clock: the widest spread of send times in one observed snapshot
 
     # --- start ----------------------------------------------------------------------------------------
 
@@ -232,8 +233,11 @@ class World:
         self.reach.sample(pos, self.spec.subscription_radius, self.keys.cell_size)
         safety = ((np.array([poses[i].safety for i in ids]), self.scenario.params.swarm.robot_radius)
                   if self.spec.safety != "off" else None)
+        stamps = np.array([poses[i].stamp for i in ids]) if self.spec.clock == "free" else None
+        if stamps is not None:  # how far apart in time the poses it judges together were sent
+            self.snapshot_spread = max(self.snapshot_spread, float(stamps.max() - stamps.min()))
         self.recorder.log_step(self.clock.step, self.clock.t, ids, pos, vel, self.prey,
-                               {**metrics, "agents_alive": float(len(self.census.alive))}, heading, safety)
+                               {**metrics, "agents_alive": float(len(self.census.alive))}, heading, safety, stamps)
         self._log_network()
         return metrics
 
@@ -369,6 +373,7 @@ class World:
                        "world_late_ticks": c.late_ticks, "world_ticks": c.step + 1,
                        "poses_in_reach_per_s": self.reach.per_s(s.period),
                        "world_segments": self.recorder.segment + 1,
+                       "snapshot_spread_max_s": self.snapshot_spread if s.clock == "free" else None,
                        "resumed_from": None if self.resumed is None else self.resumed.to_dict(),
                        "design": verdict(self.scenario.params, self.scenario.dt)})
         self.recorder.close(result)

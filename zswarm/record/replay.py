@@ -33,6 +33,7 @@ class Frame:
     velocities: np.ndarray
     prey: np.ndarray | None
     headings: np.ndarray | None = None  # radians, NaN where none; None: no agent had a heading
+    stamps: np.ndarray | None = None  # a world's frame: when each agent sent the pose it held (wall s)
 
 
 @dataclass
@@ -157,13 +158,15 @@ def load_segment(path: Path) -> RunRecord:
                 vel = np.column_stack([rb.column(f"v{a}")[row].as_py() for a in axes])
                 heading = (np.asarray(rb.column("heading")[row].as_py(), dtype=float)
                            if "heading" in cols and rb.column("heading")[row].as_py() is not None else None)
-                states[step] = (t, ids, xy.reshape(-1, len(axes)), vel.reshape(-1, len(axes)), heading)
+                stamps = (np.asarray(rb.column("stamp")[row].as_py(), dtype=float)
+                          if "stamp" in cols and rb.column("stamp")[row].as_py() is not None else None)
+                states[step] = (t, ids, xy.reshape(-1, len(axes)), vel.reshape(-1, len(axes)), heading, stamps)
         elif entity == PREY_STATE:
             for row in range(rb.num_rows):
                 step = int(rb.column("step")[row].as_py())
                 prey[step] = np.array([rb.column(a)[row].as_py()[0] for a in _axes(rb, row)])
     if not states and not config:
         raise UsageError(f"{path} holds no agent states (is it a zswarm run recording?)")
-    frames = [Frame(step, t, ids, xy, vel, prey.get(step), heading)
-              for step, (t, ids, xy, vel, heading) in sorted(states.items())]
+    frames = [Frame(step, t, ids, xy, vel, prey.get(step), heading, stamps)
+              for step, (t, ids, xy, vel, heading, stamps) in sorted(states.items())]
     return RunRecord(config=config, summary=summary, frames=frames)

@@ -135,7 +135,7 @@ def set_time(rec: rr.RecordingStream, step: int, t: float) -> None:
 
 def log_swarm(rec: rr.RecordingStream, t: float, ids: np.ndarray, positions: np.ndarray,
               velocities: np.ndarray, sensing_radius: float | None = None,
-              headings: np.ndarray | None = None) -> None:
+              headings: np.ndarray | None = None, stamps: np.ndarray | None = None) -> None:
     """Agents (with id labels), their velocity arrows, optional sensing discs and exact float64 state;
     ``headings`` (radians, NaN where none): a short white arrow from each agent the way it faces."""
     labels = [str(int(i)) for i in ids]
@@ -149,6 +149,8 @@ def log_swarm(rec: rr.RecordingStream, t: float, ids: np.ndarray, positions: np.
         facing = HEADING_LENGTH * np.column_stack([np.cos(headings[has]), np.sin(headings[has])])
         rec.log(HEADINGS, rr.Arrows2D(origins=positions[has], vectors=facing, colors=(240, 240, 240), radii=0.012))
         state["heading"] = np.asarray(headings, dtype=np.float64)
+    if stamps is not None:  # a free-clock world: when each agent sent the pose it holds (wall seconds)
+        state["stamp"] = np.asarray(stamps, dtype=np.float64)
     if positions.shape[1] == 3:
         state["z"] = positions[:, 2].astype(np.float64)
         state["vz"] = velocities[:, 2].astype(np.float64)
