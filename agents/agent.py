@@ -127,17 +127,18 @@ class Agent:
         point = b.position
         if lookahead and b.heading is not None:
             point = (b.x + lookahead * math.cos(b.heading), b.y + lookahead * math.sin(b.heading))
-        sensed = self.sensing.safety_neighbours(step, self.spec.time_scale, self.dt, self.staleness, lookahead)
-        command, done = filter_one(self.safety, point, v_d, sensed, self.sensing.obstacles)
-        if step is None and self.late_world():
+        if step is None and self.late_world():  # nothing it heard can bound anything: no rows to build
             command, done = (0.0,) * len(v_d), Acted(any(v_d), any(v_d), True)
+        else:
+            sensed = self.sensing.safety_neighbours(step, self.spec.time_scale, self.dt, self.staleness, lookahead)
+            command, done = filter_one(self.safety, point, v_d, sensed, self.sensing.obstacles)
         c = self.counters
         stalled = done is not None and done.stalled
         if done is not None:
             c.interventions += done.acted
             c.stalled_ticks += stalled
             c.braked_ticks += done.braked
-        self.safety_flag = 0 if done is None else (3 if done.braked else 2 if stalled else int(done.acted))
+        self.safety_flag = 0 if done is None else done.flag
         c.stalled_run = c.stalled_run + 1 if stalled else 0
         c.stalled_long |= c.stalled_run * self.dt >= 1.0
         return command

@@ -166,15 +166,26 @@ class Filtered(NamedTuple):
     braked: np.ndarray  # (N,) stopped: data older than the guarantee's bound
 
 
+    def flags(self) -> np.ndarray:
+        """Each agent's flag of ``messages.SAFETY_FLAGS``: 0 passed, 1 filtered, 2 stalled, 3 braked."""
+        return np.where(self.braked, 3, np.where(self.stalled, 2, self.acted.astype(int)))
+
+
 def apply(u_hat: np.ndarray, r: Rows) -> Filtered:
     """(S1) for every agent: the exact projection of its command, braking where ``r.stale`` says."""
     u = project(u_hat, r.agent, r.a, r.b)
     u[r.stale] = 0.0
+    return judged(u_hat, u, r.stale.copy())
+
+
+def judged(u_hat: np.ndarray, u: np.ndarray, braked: np.ndarray) -> Filtered:
+    """What a filter did to the commands ``u_hat``, leaving ``u``: changed them, stalled them (under
+    :data:`STALL_SHARE` of the law's speed), braked them."""
     change = np.linalg.norm(u - u_hat, axis=-1)
     speed = np.linalg.norm(u_hat, axis=-1)
     acted = change > 1e-9 * np.maximum(speed, 1.0)
     stalled = acted & (np.linalg.norm(u, axis=-1) < STALL_SHARE * speed)
-    return Filtered(u, acted, stalled, r.stale.copy())
+    return Filtered(u, acted, stalled, braked)
 
 
 def project(u_hat: np.ndarray, agent: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -267,6 +278,11 @@ class Acted(NamedTuple):
     acted: bool
     stalled: bool
     braked: bool
+
+    @property
+    def flag(self) -> int:
+        """Its flag of ``messages.SAFETY_FLAGS``, as :meth:`Filtered.flags`."""
+        return 3 if self.braked else 2 if self.stalled else int(self.acted)
 
 
 def filter_one(safety: Safety, point: tuple[float, ...], u_hat: tuple[float, ...],

@@ -16,9 +16,9 @@ from typing import Callable
 import numpy as np
 
 from zswarm.model.metrics import components
-from zswarm.model.safety import STALL_SHARE, Filtered
-from zswarm.model.safety_tally import SafetyTally
 from zswarm.model.neighbours import pairs_within
+from zswarm.model.safety import judged
+from zswarm.model.safety_tally import SafetyTally
 from zswarm.model.scenarios import Scenario
 from zswarm.sim.batch import BatchOutcome
 from zswarm.sim.simulator import Simulator
@@ -66,7 +66,7 @@ def run_outcome(scenario: Scenario, seed: int, stop_at_collision: bool = False, 
             _, v = sim.potential_and_velocity(x, sim.prey)
             if shield is not None:
                 wanted, v = v, shield(sim, v)
-                tally.add(shielded(wanted, v))
+                tally.add(judged(wanted, v, np.zeros(len(v), dtype=bool)))
             sim.advance(v)
     nearest = np.full(len(x), np.inf)
     np.minimum.at(nearest, i, d)
@@ -79,12 +79,3 @@ def run_outcome(scenario: Scenario, seed: int, stop_at_collision: bool = False, 
                         final_median_nearest=float(np.median(nearest[has])) if has.any() else None,
                         safety_interventions=counts.interventions, safety_stalled_ticks=counts.stalled_steps,
                         safety_braked_ticks=counts.braked_steps)
-
-
-def shielded(wanted: np.ndarray, got: np.ndarray) -> Filtered:
-    """What another filter did to the law's commands, in the safety filter's terms."""
-    change = np.linalg.norm(got - wanted, axis=-1)
-    speed = np.linalg.norm(wanted, axis=-1)
-    acted = change > 1e-9 * np.maximum(speed, 1.0)
-    stalled = acted & (np.linalg.norm(got, axis=-1) < STALL_SHARE * speed)
-    return Filtered(got, acted, stalled, np.zeros_like(acted))

@@ -27,7 +27,7 @@ from zswarm.model import prey as prey_motion
 from zswarm.model.faults import FaultModel
 from zswarm.model.metrics import Summary
 from zswarm.model.law import compile_law, swarm_field
-from zswarm.model.neighbours import ObstacleIndex
+from zswarm.model.neighbours import ObstacleIndex, pairs_within
 from zswarm.model.observer import SwarmObserver
 from zswarm.model.potentials import Combination, saturate
 from zswarm.model import safety as sf
@@ -77,24 +77,29 @@ class Simulator:
 
     def potential_and_velocity(self, positions: np.ndarray, goal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Every agent's U_i and commanded velocity from what it senses at ``positions``."""
-        pairs, blind = None, None
+        pairs, blind, exact = None, None, None
         if self.channel is not None:  # what each agent believes, through the faulty channel
             i, _, believed, goal = self.channel.step(self.step_index, positions, goal)
             blind = np.isnan(goal[:, 0])  # no prey heard yet: it does not move
             goal = np.where(blind[:, None], positions, goal)
             pairs = (i, positions[i] - believed)
+        elif self.safety is not None and not self.body.headed:  # one search for the law and the filter
+            i, j = pairs_within(positions, self.scenario.params.swarm.sensing_radius)
+            pairs = (i, positions[i] - positions[j])
+            exact = (*pairs, np.zeros(len(i)))
         u, f = swarm_field(self.law, self.obstacles, positions, goal, pairs)
         v = saturate(f, self.scenario.params.swarm.v_max)
         if blind is not None:
             v[blind] = 0.0
         if self.safety is not None:
-            v = self.filter(positions, v)
+            v = self.filter(positions, v, exact)
         return u, v
 
-    def filter(self, positions: np.ndarray, v: np.ndarray) -> np.ndarray:
+    def filter(self, positions: np.ndarray, v: np.ndarray,
+               pairs: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> np.ndarray:
         """The safety filter (:mod:`zswarm.model.safety`) on every agent's command, from what it senses:
-        exact neighbour positions, or, through the faulty channel, the newest it heard and its age."""
-        pairs = None
+        exact neighbour positions (``pairs`` as (i, psi, age), when already found), or, through the
+        faulty channel, the newest it heard and its age."""
         if self.channel is not None:
             pairs = self.channel.known(self.step_index, positions)
         points = sf.lookahead_points(positions, self.headings, self.body.lookahead if self.body.headed else 0.0)
@@ -196,9 +201,7 @@ def _log_step(rec, sim: Simulator, v: np.ndarray, metrics: dict[str, float], tra
     trail.append(sim.prey.copy())
     swarm_log.log_swarm(rec, sim.t, sim.ids, sim.positions, v, sensing_radius, sim.headings)
     if sim.safety is not None and sim.filtered is not None:
-        f = sim.filtered
-        flags = np.where(f.braked, 3, np.where(f.stalled, 2, f.acted.astype(int)))
-        swarm_log.log_safety(rec, sim.positions, flags, sim.scenario.params.swarm.robot_radius)
+        swarm_log.log_safety(rec, sim.positions, sim.filtered.flags(), sim.scenario.params.swarm.robot_radius)
     swarm_log.log_prey(rec, sim.prey, np.array(trail[-400:]))
     swarm_log.log_metrics(rec, metrics, thresholds)
     if graph_radius is not None:
