@@ -26,7 +26,10 @@ def integrate_1d(p: PotentialParams, starts, goal_x, obstacle_x, t_end=80.0, dt=
         psi_o = x - np.array([obstacle_x, 0.0])
         closest = np.minimum(closest, np.linalg.norm(psi_o, axis=1))
         _, f = field(x - np.array([goal_x, 0.0]), idx, psi_o, none, empty, p, "multiplicative")
-        x = x + dt * saturate(f, v_max)
+        v = saturate(f, v_max)
+        if np.max(np.abs(v)) < 1e-9:  # every robot at rest: the rest of t_end moves none by 1e-5
+            break
+        x = x + dt * v
     return x[:, 0], closest
 
 
