@@ -25,7 +25,7 @@ class Counters:
     ages: dict[int, int] = field(default_factory=dict)  # histogram: age of neighbour data when used
     latency: dict[int, int] = field(default_factory=dict)  # histogram: publish-to-receipt of poses
     obstacle_queries_failed: int = 0
-    heard: set[int] = field(default_factory=set)
+    heard: dict[int, int] = field(default_factory=dict)  # id -> poses of it taken in
     seq_received: int = 0
     seq_lost: int = 0
     departed: dict[int, float] = field(default_factory=dict)
@@ -47,9 +47,15 @@ class Counters:
                             poses=self.poses, interventions=self.interventions,
                             stalled_ticks=self.stalled_ticks, braked_ticks=self.braked_ticks,
                             stalled_long=int(self.stalled_long))
+        heard, heard_poses = self.heard_lists()
         return msg.Stats(agent, self.sent, self.received, dict(self.rejections.counts), self.late_ticks, self.ticks,
-                         dict(self.ages), dict(self.latency), final, health, tuple(sorted(self.heard))[:msg.MAX_HEARD],
-                         dict(self.departed), dict(self.returned))
+                         dict(self.ages), dict(self.latency), final, health, heard,
+                         dict(self.departed), dict(self.returned), heard_poses)
+
+    def heard_lists(self) -> tuple[tuple[int, ...], tuple[int, ...]]:
+        """The ids heard (sorted, at most MAX_HEARD) and the poses taken in from each."""
+        ids = tuple(sorted(self.heard))[:msg.MAX_HEARD]
+        return ids, tuple(self.heard[i] for i in ids)
 
     def new_window(self) -> None:
         self.window_queue_max, self.window_lag_ms = 0, 0.0

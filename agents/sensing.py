@@ -195,7 +195,7 @@ class Sensing:
             self.counters.rejections.add("schema", f"pose of {pose.id} under key {key}")
             return
         self._count_sequence(pose)
-        self.counters.heard.add(pose.id)
+        self.counters.heard[pose.id] = self.counters.heard.get(pose.id, 0) + 1
         self.counters.poses += 1
         if not self.latency_from_probe:
             self.counters.add(self.counters.latency, (now - pose.stamp) * 1000.0)

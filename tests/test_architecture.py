@@ -3,7 +3,8 @@ allowed), never up, the two engines never import each other, and no module impor
 through others (a circle).
 
     cli            every command: arguments in, a report out      may import anything; no module over 150 lines
-    bench          the benchmarks' measurements (net, soak, ...)   launch, net, sim, record, model, base
+    bench          the benchmarks' measurements (net, soak, ...)   cluster, launch, net, sim, record, model, base
+    cluster        a run over a Ray cluster (nodes, placement)    launch, net, sim, record, model, base
     launch         starting and supervising runs (plan, chaos)     net, sim, record, model, base
     tune           searching parameter sets (zswarm tune)         sim, record, model, base
     agents, world  the two process programs                       net, record (world only), model, base
@@ -35,8 +36,9 @@ ALLOWED: dict[str, set[str]] = {
     "world": {"base", "model", "net", "record", "world"},
     "tune": {"base", "model", "record", "sim", "tune"},
     "launch": {"base", "model", "record", "sim", "net", "ros", "launch"},
-    "bench": {"base", "model", "record", "sim", "net", "launch", "bench"},
-    "cli": {"base", "model", "record", "sim", "net", "tune", "launch", "bench", "ros", "cli"},
+    "cluster": {"base", "model", "record", "sim", "net", "ros", "launch", "cluster"},
+    "bench": {"base", "model", "record", "sim", "net", "launch", "cluster", "bench"},
+    "cli": {"base", "model", "record", "sim", "net", "tune", "launch", "cluster", "bench", "ros", "cli"},
     "api": {"base", "model", "record", "sim"},  # zswarm/__init__: the notebook API
 }
 
@@ -148,19 +150,19 @@ def test_the_check_catches_an_import_against_the_layers(tmp_path, where, line):
 
 
 def test_a_package_without_a_layer_fails_the_check(tmp_path):
-    """A new folder (say a cluster layer) that nobody gave a layer is caught, both as a module and as
-    something another module imports; the same module is accepted once its package has a layer."""
+    """A new folder (say a swarm-of-swarms layer) that nobody gave a layer is caught, both as a module
+    and as something another module imports; the same module is accepted once its package has a layer."""
     module = tmp_path / "host.py"
     module.write_text("from zswarm.net.procs import Children\n")
-    assert any("zswarm.cluster.host is in no layer" in v for v in violations([("zswarm.cluster.host", module)]))
+    assert any("zswarm.fleets.host is in no layer" in v for v in violations([("zswarm.fleets.host", module)]))
     user = tmp_path / "supervisor.py"
-    user.write_text("def _start():\n    from zswarm.cluster.host import Host\n")
+    user.write_text("def _start():\n    from zswarm.fleets.host import Host\n")
     assert any("which is in no layer" in v for v in violations([("zswarm.launch.supervisor", user)]))
-    ALLOWED["cluster"] = {"base", "model", "net", "cluster"}
+    ALLOWED["fleets"] = {"base", "model", "net", "fleets"}
     try:
-        assert violations([("zswarm.cluster.host", module)]) == []
+        assert violations([("zswarm.fleets.host", module)]) == []
     finally:
-        del ALLOWED["cluster"]
+        del ALLOWED["fleets"]
 
 
 #: The most lines a command module may hold: a command reads its arguments and reports; the work is in

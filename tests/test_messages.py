@@ -16,11 +16,19 @@ pose_fields = (st.integers(0, 10_000), st.integers(0, 2**40), st.floats(0, 2e9),
 poses = st.one_of(st.builds(msg.Pose, *pose_fields, z=st.none(), vz=st.none(), safety=st.integers(0, 3)),
                   st.builds(msg.Pose, *pose_fields, z=finite, vz=finite, safety=st.integers(0, 3)))  # 2-D, 3-D
 hist = st.dictionaries(st.integers(0, msg.MAX_HIST_BINS - 1), st.integers(0, 10**6), max_size=20)
-stats = st.builds(msg.Stats, st.integers(0, 1000), st.integers(0, 10**9), st.integers(0, 10**9),
+
+
+def _stats(heard: list[tuple[int, int]], *fields) -> msg.Stats:
+    """A Stats message whose heard ids and their pose counts line up."""
+    return msg.Stats(*fields[:10], tuple(i for i, _ in heard), *fields[10:], heard_poses=tuple(n for _, n in heard))
+
+
+stats = st.builds(_stats,
+                  st.lists(st.tuples(st.integers(0, 1000), st.integers(0, 10**6)), max_size=10),
+                  st.integers(0, 1000), st.integers(0, 10**9), st.integers(0, 10**9),
                   st.dictionaries(st.sampled_from(msg.REASONS), st.integers(0, 100), max_size=3),
                   st.integers(0, 10**6), st.integers(0, 10**6), hist, hist, st.booleans(),
                   st.builds(msg.Health, *[st.integers(0, 10**9)] * 6, st.floats(0, 1e5)),
-                  st.lists(st.integers(0, 1000), max_size=10).map(tuple),
                   st.dictionaries(st.integers(0, 1000), st.floats(0, 2e9), max_size=3),
                   st.dictionaries(st.integers(0, 1000), st.floats(0, 2e9), max_size=3))
 messages = st.one_of(

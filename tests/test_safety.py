@@ -207,24 +207,24 @@ def test_time_scale_auto_picks_the_pace_the_machine_can_hold(monkeypatch):
 
     from zswarm.launch import plan
 
-    monkeypatch.setattr(plan, "available_cores", lambda: 2)
-
     def args(**kw):
         base = dict(time_scale="auto", clock="free", role=["router", "world", "agents"], scenario="large-swarm",
                     assignments=[], agents=100, ids=None)
         return argparse.Namespace(**{**base, **kw})
 
     a = args()
-    note = plan.auto_time_scale(a)
+    note = plan.auto_time_scale(a, 2)
     assert a.time_scale == 0.25 and "auto picked 0.25" in note  # 100 agents at 40 Hz need 4 x half of 2 cores
     a = args(agents=10, scenario="moving-prey")
-    assert plan.auto_time_scale(a) is None and a.time_scale == 1.0  # the demo fits: real time, nothing said
+    assert plan.auto_time_scale(a, 2) is None and a.time_scale == 1.0  # the demo fits: real time, nothing said
     a = args(time_scale=0.5)
-    assert plan.auto_time_scale(a) is None and a.time_scale == 0.5  # an explicit pace wins
+    assert plan.auto_time_scale(a, 2) is None and a.time_scale == 0.5  # an explicit pace wins
     a = args(clock="lockstep")
-    assert plan.auto_time_scale(a) is None and a.time_scale == 1.0
+    assert plan.auto_time_scale(a, 2) is None and a.time_scale == 1.0
     a = args(agents=500, scenario="moving-prey")  # too many to start in time: left to the refusal
-    assert plan.auto_time_scale(a) is None and a.time_scale == 1.0
+    assert plan.auto_time_scale(a, 2) is None and a.time_scale == 1.0
+    a = args()  # a cluster's cores: 100 agents on 16 of them run at real time
+    assert plan.auto_time_scale(a, 16) is None and a.time_scale == 1.0
 
 
 def test_bench_safety_puts_the_filter_beside_the_law_alone():

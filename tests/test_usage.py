@@ -142,6 +142,16 @@ CASES = [
     ([LAUNCH, "--robots", "{missing}.toml"], "does not exist"),
     (["-m", "zswarm", "robot-sim", "--robots", "{missing}.toml"], "does not exist"),
     (["-m", "zswarm", "robot-sim", "--robots", "{missing}.toml", "--rate", "0"], "--rate must be in"),
+    # over a cluster, and machines started by hand (no Ray process starts in any of these)
+    ([LAUNCH, "--cluster", "127.0.0.1:1"], "cannot reach the Ray cluster at 127.0.0.1:1"),
+    ([LAUNCH, "--cluster", "nope"], "--cluster takes HOST:PORT"),
+    ([LAUNCH, "--cluster", "local:99"], "1 to 16"),
+    ([LAUNCH, "--cluster", "local", "--role", "agents"], "--cluster runs every role itself"),
+    ([LAUNCH, "--cluster", "local", "--ids", "0-3"], "--cluster places every agent itself"),
+    ([LAUNCH, "--cluster", "local", "--secure", "{dir}"], "--secure over a cluster is not supported yet"),
+    ([LAUNCH, "--role", "agents", "--connect", "tcp/127.0.0.1:1", "--agents", "10", "--ids", "0-50"],
+     "--ids 0-50 goes beyond the run's agents 0-9"),
+    ([LAUNCH, "--connect-timeout", "0"], "--connect-timeout must be between"),
     # 3-D
     (["-m", "agents", "--id", "0", "--scenario", "moving-prey-3d", "--start", "1,2"], "--start expects X,Y,Z"),
     (["-m", "agents", "--id", "0", "--start", "1,2,3"], "--start expects X,Y in moving-prey (2-D"),
@@ -198,6 +208,18 @@ def test_user_mistakes_get_one_line_and_exit_2(k, mistakes):
     assert "Traceback" not in res.stderr and len(res.stderr.strip().splitlines()) == 1, res.stderr
     assert not any(p.name not in ("junk", "junk.toml", "d", "old.rrd") for p in folder.iterdir()), "left files behind"
     assert (folder / "old.rrd").read_bytes() == b"an earlier run's recording"
+
+
+def test_a_machine_whose_agents_all_fail_exits_non_zero_and_says_so(tmp_path):
+    """Machines started by hand: agents that cannot reach their router (given 1 s to) end the
+    machine's run with exit 1 and a last line that says so, not 0 and "the others carry on"."""
+    res = run_cli(LAUNCH, "--role", "agents", "--connect", "tcp/127.0.0.1:1", "--agents", "10", "--ids", "0-1",
+                  "--run", "x", "--duration", "5", "--connect-timeout", "1", timeout=60, cwd=tmp_path)
+    assert res.returncode == 1, res.stderr
+    last = res.stderr.strip().splitlines()[-1]
+    assert "every one of this machine's agents exited with an error (agents 0-1" in last, res.stderr
+    assert "cannot open a zenoh session after 1 s" in res.stderr  # each agent's own line says why
+    assert our_processes("--run x") == []
 
 
 def test_a_run_never_overwrites_an_earlier_one_unless_forced(tmp_path, monkeypatch):

@@ -42,6 +42,7 @@ def transport_summary(stats: list[msg.Stats], world_rejected: dict[str, int]) ->
         "observed_dropout": _ratio(float(lost), float(counted)),
         "observed_latency_ms": histogram.percentile(lat, 0.5),
         "heard": {str(s.id): list(s.heard) for s in stats},
+        "heard_poses": {str(s.id): {str(j): n for j, n in zip(s.heard, s.heard_poses)} for s in stats},
         "neighbour_departures": {str(s.id): {str(k): v for k, v in (s.departed or {}).items()} for s in stats},
         "neighbour_returns": {str(s.id): {str(k): v for k, v in (s.returned or {}).items()} for s in stats},
     }

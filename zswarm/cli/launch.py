@@ -68,6 +68,9 @@ def build_parser(prog: str = "zswarm run") -> Parser:
     add_viewer_args(p, zenoh_connect="connect")
     p.add_argument("--listen", default=None, metavar="ENDPOINT",
                    help="router endpoint (default tcp/127.0.0.1:FREE_PORT)")
+    p.add_argument("--connect-timeout", type=float, default=None, metavar="S",
+                   help="how long the world and the agents retry a router that does not answer before they give "
+                        "up (default 15 s; machines started by hand must start within it)")
     p.add_argument("--routers", type=int, default=1, metavar="K",
                    help="run K routers meshed together (the 2nd..Kth join the first) and spread the agents "
                         "over them, agent i on router i mod K (default 1). With --role router and --connect, "
@@ -90,6 +93,13 @@ def build_parser(prog: str = "zswarm run") -> Parser:
     p.add_argument("--no-fork", dest="fork", action="store_false",
                    help="start every agent as a fresh Python process instead of forking it from one that "
                         "imported the agent program once (slower to start, more memory; same behaviour)")
+    p.add_argument("--cluster", default=None, metavar="ADDRESS|auto|local[:K]",
+                   help="run the whole swarm over a Ray cluster (pip install -e \".[cluster]\"): HOST:PORT of its "
+                        "head, auto, local (this machine as one node) or local:K (K nodes here); a router and a "
+                        "share of the agents on every node, the world and the recording here (docs/cluster.md)")
+    p.add_argument("--placement", default="space", choices=("space", "round-robin"),
+                   help="with --cluster: agents that start near each other share a node (space, default) or "
+                        "ids are dealt in turn (round-robin)")
     p.add_argument("--kill", type=parse_kill, default=None, metavar="K@T",
                    help="SIGKILL K agents, chosen with the seed, T seconds after the start")
     p.add_argument("--restart-after", type=float, default=None, metavar="S",
@@ -107,8 +117,12 @@ def _launch(argv: Sequence[str] | None, prog: str) -> int:
     from zswarm.launch.plan import plan_from_args
     from zswarm.launch.supervisor import Launch
 
-    plan = plan_from_args(build_parser(prog).parse_args(argv))
-    return Launch(plan).run()
+    args = build_parser(prog).parse_args(argv)
+    if args.cluster is not None:
+        from zswarm.cluster.run import cluster_run
+
+        return cluster_run(args)
+    return Launch(plan_from_args(args)).run()
 
 
 def main(argv: Sequence[str] | None = None, prog: str = "zswarm run") -> int:

@@ -10,7 +10,16 @@ from zswarm.launch.plan import Plan
 
 
 def role_configs(plan: Plan, n_agents: int, say: Callable[..., None]) -> dict[str, list[str]]:
-    """``--config`` arguments for the router, the world and (without --secure) the agents."""
+    """``--config`` arguments for the router, the world and (without --secure) the agents, and the
+    world's and agents' ``--connect-timeout``."""
+    out = _role_configs(plan, n_agents, say)
+    if plan.connect_timeout is not None:
+        for role in ("world", "agent"):
+            out[role] = [*out.get(role, []), "--connect-timeout", f"{plan.connect_timeout:g}"]
+    return out
+
+
+def _role_configs(plan: Plan, n_agents: int, say: Callable[..., None]) -> dict[str, list[str]]:
     if plan.secure is None:
         out = {}
         if plan.config is not None:
@@ -35,4 +44,5 @@ def agent_config_args(plan: Plan, configs: dict[str, list[str]], agent: int) -> 
         return configs.get("agent", []) + robots
     from zswarm.net.security import agent_config
 
-    return ["--config", str(agent_config(plan.secure, agent))] + robots
+    timeout = [] if plan.connect_timeout is None else ["--connect-timeout", f"{plan.connect_timeout:g}"]
+    return ["--config", str(agent_config(plan.secure, agent))] + timeout + robots

@@ -55,19 +55,25 @@ class Plan:
     design: dict | None = None
     robots: Path | None = None  # a robots file: the agents it names drive ROS 2 robots
     notes: tuple[str, ...] = ()  # said at start: where the recording goes, which agents drive robots
+    connect_timeout: float | None = None  # how long the world and agents retry their router (their default 15 s)
 
 
-def plan_from_args(args: argparse.Namespace) -> Plan:
-    """Check everything a child would reject, before any child starts."""
+def plan_from_args(args: argparse.Namespace, cores: int | None = None, memory_mib: float | None = None) -> Plan:
+    """Check everything a child would reject, before any child starts. ``cores`` and ``memory_mib``: what
+    the agents have (default: this machine's; a cluster run passes its nodes' sum)."""
     if args.agents is not None and args.agents < 1:
         raise UsageError(f"--agents must be >= 1 (got {args.agents})")
-    pace_note = auto_time_scale(args)
+    cores = cores or available_cores()
+    pace_note = auto_time_scale(args, cores)
     spec = spec_from_args(args, run=f"run-{args.seed}-{int(time.time())}",
                           extra={"n_agents": args.agents} if args.agents is not None else None)
     n = spec.scenario.n_agents
     ids = tuple(args.ids if args.ids is not None else range(n))
+    if ids and max(ids) >= n:
+        raise UsageError(f"--ids {id_ranges(sorted(ids))} goes beyond the run's agents 0-{n - 1} (--agents {n}): "
+                         f"give ids below {n}, or --agents {max(ids) + 1}")
     if "agents" in args.role:
-        check_capacity(len(ids), args.fork)
+        check_capacity(len(ids), args.fork, memory_mib)
     spec.scenario.check_placement()  # every agent would fail to place itself, one by one
     design = None
     if "world" in args.role or args.require_design:
@@ -99,6 +105,8 @@ def plan_from_args(args: argparse.Namespace) -> Plan:
     if args.routers > 1 and args.secure is not None:
         raise UsageError("--routers K with --secure is not supported yet: run one secure router, or several "
                          "without --secure")
+    if args.connect_timeout is not None and not 0 < args.connect_timeout <= 3600:
+        raise UsageError(f"--connect-timeout must be between 0 and 3600 seconds (got {args.connect_timeout})")
     if args.restart_after is not None and not args.restart_after >= 0:
         raise UsageError(f"--restart-after must be >= 0 (got {args.restart_after})")
     viewer = viewer_from_args(args) if "world" in args.role else Viewer()
@@ -113,7 +121,6 @@ def plan_from_args(args: argparse.Namespace) -> Plan:
     if args.robots is not None:
         notes.append(robots_note(check_robots(args.robots, spec), args.robots, ids))
     if "agents" in args.role and spec.clock == "free":  # last: a usage error above comes alone
-        cores = available_cores()
         if pace_load(len(ids), spec.scenario.dt, spec.time_scale, cores) > HOPELESS:
             raise UsageError(pace_warning(len(ids), spec.scenario.dt, spec.time_scale, cores, refused=True))
         line = pace_warning(len(ids), spec.scenario.dt, spec.time_scale, cores)
@@ -124,7 +131,7 @@ def plan_from_args(args: argparse.Namespace) -> Plan:
                 connect=args.connect, listen=args.listen, secure=args.secure, config=args.config,
                 router_config=args.router_config, quiet=args.quiet, fork=args.fork, kill=args.kill, restart_after=args.restart_after,
                 world_outage=args.world_outage, world_crash=args.world_crash, viewer=viewer, design=design,
-                robots=args.robots, notes=tuple(notes))
+                robots=args.robots, notes=tuple(notes), connect_timeout=args.connect_timeout)
 
 
 def run_files(record: Path | None, summary: Path | None, force: bool) -> tuple[Path, Path, str]:
@@ -152,14 +159,14 @@ def robots_note(robots: RobotsFile, path: Path, ids: Sequence[int]) -> str:
     named = {r.id for r in robots.robots}
     driving = [i for i in ids if i in named]
     simulated = [i for i in ids if i not in named]
-    line = (f"robots ({path}): agents {_ids(driving)} drive ROS 2 robots" if driving else
+    line = (f"robots ({path}): agents {id_ranges(driving)} drive ROS 2 robots" if driving else
             f"robots ({path}): none of this machine's agents is named there: every agent keeps a simulated body")
     if driving and simulated:
-        line += f"; agents {_ids(simulated)} keep a simulated body"
+        line += f"; agents {id_ranges(simulated)} keep a simulated body"
     return line
 
 
-def _ids(ids: Sequence[int]) -> str:
+def id_ranges(ids: Sequence[int]) -> str:
     """0-5, 8, 10-12."""
     parts, start = [], None
     for k, i in enumerate(ids):
@@ -193,9 +200,9 @@ def available_mib() -> float | None:
     return None
 
 
-def check_capacity(n_local: int, fork: bool) -> None:
-    """Refuse, before anything starts, a number of agent processes this machine cannot hold."""
-    need, have = n_local * AGENT_MIB[fork], available_mib()
+def check_capacity(n_local: int, fork: bool, have: float | None = None) -> None:
+    """Refuse, before anything starts, a number of agent processes this machine (or ``have`` MiB) cannot hold."""
+    need, have = n_local * AGENT_MIB[fork], have or available_mib()
     if have is not None and need > have:
         raise UsageError(f"{n_local} agent processes need about {need / 1024:,.0f} GiB of memory "
                          f"({AGENT_MIB[fork]} MiB each{', forked' if fork else ''}) and this machine has "
@@ -246,7 +253,7 @@ def pace_warning(n_local: int, dt: float, time_scale: float, cores: int, refused
             f"({AGENT_TICK_MS:g} ms a step) and this machine has {cores}: {what}")
 
 
-def auto_time_scale(args: argparse.Namespace) -> str | None:
+def auto_time_scale(args: argparse.Namespace, cores: int) -> str | None:
     """``--time-scale auto`` (the default of ``zswarm run``): the pace this machine can hold for its
     agents (:func:`pace_load` at most 1), at most real time, in steps of 0.05; lockstep, runs without
     agents here, and runs too large for this machine even to start in time (refused later) take 1. Sets ``args.time_scale``; returns what it picked, to say at start."""
@@ -258,7 +265,6 @@ def auto_time_scale(args: argparse.Namespace) -> str | None:
     scenario = get_scenario(args.scenario, {**parse_assignments(args.assignments),
                                             **({"n_agents": args.agents} if args.agents is not None else {})})
     n = len(args.ids) if args.ids is not None else scenario.n_agents
-    cores = available_cores()
     load = pace_load(n, scenario.dt, 1.0, cores)
     if load <= 1.0 or load > HOPELESS:  # beyond HOPELESS the run is refused below, naming a pace that fits
         return None

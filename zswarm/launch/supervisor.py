@@ -178,7 +178,7 @@ class Launch:
                 break
             if self.world is None and "agents" in self.plan.roles and not any(
                     c.alive() for c in self.kids.named("agent")):
-                return 0
+                return self._agents_verdict()
             dead = [c.name for c in self.kids.named("router") if not c.alive()]
             if dead:
                 _say(f"the router died ({', '.join(dead)}); stopping the run")
@@ -192,6 +192,20 @@ class Launch:
         if self.world_crash_for_good:
             return 0  # the run ended where it was asked to (--world-crash T)
         return 0 if code == 0 else (2 if code == 2 else 1)
+
+    def _agents_verdict(self) -> int:
+        """The exit status of a machine that runs agents and no world: 1, said in the last line, when any
+        of its agents exited with an error (none could reach the router, an id had no spawn position...)."""
+        failed = sorted(int(c.name.split("-")[1]) for c in self.kids.named("agent")
+                        if c.proc.returncode not in (0, None) and c.name not in self.expected_exits)
+        if not failed:
+            return 0
+        from zswarm.launch.plan import id_ranges
+
+        total = len(self.kids.named("agent"))
+        _say(f"{'every one' if len(failed) == total else f'{len(failed)} of {total}'} of this machine's agents "
+             f"exited with an error (agents {id_ranges(failed)}; their lines above say why)")
+        return 1
 
     def _note_crashes(self) -> None:
         for c in self.kids.children:

@@ -165,6 +165,7 @@ class Stats:
     heard: tuple[int, ...] = ()  # ids whose poses it has received (at most MAX_HEARD)
     departed: dict[int, float] | None = None  # id -> wall time it first dropped that neighbour
     returned: dict[int, float] | None = None  # id -> wall time a dropped neighbour was first heard again
+    heard_poses: tuple[int, ...] = ()  # how many poses of each id in ``heard`` it took in (same order)
 
 
 Message = Union[Pose, Prey, Tick, Obstacles, Stats]
@@ -207,6 +208,7 @@ def encode(msg: Message) -> bytes:
                       "ages": {int(k): int(v) for k, v in msg.age_hist.items()},
                       "lat": {int(k): int(v) for k, v in msg.latency_hist.items()}, "f": msg.final,
                       "x": dataclasses.asdict(msg.health), "h": list(msg.heard[:MAX_HEARD]),
+                      "hn": list(msg.heard_poses[:MAX_HEARD]),
                       "dep": dict(msg.departed or {}), "ret": dict(msg.returned or {})})
     raise TypeError(f"cannot encode {type(msg).__name__}")
 
@@ -382,10 +384,14 @@ def _other(obj: dict, kind: Any) -> Message:
         if (not isinstance(heard, list) or len(heard) > MAX_HEARD
                 or not all(isinstance(h, int) and not isinstance(h, bool) and 0 <= h <= MAX_ID for h in heard)):
             raise DecodeError("schema", "h must be a list of agent ids")
+        heard_n = obj.get("hn", [])
+        if (not isinstance(heard_n, list) or len(heard_n) not in (0, len(heard))
+                or not all(isinstance(c, int) and not isinstance(c, bool) and c >= 0 for c in heard_n)):
+            raise DecodeError("schema", "hn must be a list of pose counts, one per id of h")
         return Stats(_int(obj, "id", 0, MAX_ID), _int(obj, "sent"), _int(obj, "recv"),
                      {str(k): v for k, v in _counts(obj.get("rej"), "rej", 64).items()},
                      _int(obj, "late"), _int(obj, "ticks"),
                      _bins(ages), _bins(lat), bool(obj.get("f", False)),
                      health, tuple(heard),
-                     _times(obj.get("dep", {}), "dep"), _times(obj.get("ret", {}), "ret"))
+                     _times(obj.get("dep", {}), "dep"), _times(obj.get("ret", {}), "ret"), tuple(heard_n))
     raise DecodeError("kind", f"unknown kind {kind!r}")

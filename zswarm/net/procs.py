@@ -70,15 +70,18 @@ class Child:
 
 @dataclass
 class Children:
-    """A set of named child processes, stopped and reaped together."""
+    """A set of named child processes, stopped and reaped together. ``new_session``: each child in a
+    session of its own (a terminal's Ctrl-C reaches only the launcher); a cluster node keeps its
+    children in its own process group instead, so that Ray, killing the node's worker, kills them too."""
 
     children: list[Child] = field(default_factory=list)
+    new_session: bool = True
 
     def spawn(self, name: str, args: Sequence[str], stdout: int | IO | None = None,
               stderr: int | IO | None = None, stdin: int | IO | None = subprocess.DEVNULL) -> Child:
         proc = subprocess.Popen([sys.executable, *args], env=python_env(),
                                 stdout=stdout, stderr=stderr, stdin=stdin,
-                                preexec_fn=die_with_parent, start_new_session=True)
+                                preexec_fn=die_with_parent, start_new_session=self.new_session)
         child = Child(name, proc)
         self.children.append(child)
         return child
@@ -155,9 +158,10 @@ class Fleet:
     """One ``python -m agents.fleet`` child that imports the agent program once and forks each agent
     from itself (shared pages, a start in milliseconds); each agent is still its own process."""
 
-    def __init__(self, kids: Children) -> None:
+    def __init__(self, kids: Children, stderr: int | None = None) -> None:
         self.kids = kids
-        self.child = kids.spawn("fleet", ["-m", "agents.fleet"], stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+        self.child = kids.spawn("fleet", ["-m", "agents.fleet"], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                stderr=stderr)
         self.procs: dict[str, ForkedProc] = {}
         self.started: dict[str, threading.Event] = {}
         self.lock = threading.Lock()
@@ -211,12 +215,12 @@ def wait_for_port(host: str, port: int, timeout: float, child: Child | None = No
 
 
 def start_router(kids: Children, host: str = "127.0.0.1", proto: str = "tcp", extra: Sequence[str] = (),
-                 name: str = "router") -> str:
+                 name: str = "router", stderr: int | None = None) -> str:
     """A router child listening on a free port of ``host`` (``extra``: more router arguments, e.g.
     ``--config``, or ``--connect`` to join another router); returns its endpoint once the port accepts
     connections."""
     endpoint = f"{proto}/{host}:{free_port(host)}"
-    _spawn_router(kids, name, endpoint, None, extra)
+    _spawn_router(kids, name, endpoint, None, extra, stderr)
     return endpoint
 
 
@@ -236,10 +240,11 @@ def start_mesh(kids: Children, endpoints: Sequence[str], join: str | None = None
         _spawn_router(kids, "router" if k == 0 else f"router-{k}", endpoint, endpoints[0] if k > 0 else join, extra)
 
 
-def _spawn_router(kids: Children, name: str, endpoint: str, join: str | None, extra: Sequence[str]) -> Child:
+def _spawn_router(kids: Children, name: str, endpoint: str, join: str | None, extra: Sequence[str],
+                  stderr: int | None = None) -> Child:
     """One router on ``endpoint`` (joining ``join``), once it accepts connections."""
     router = kids.spawn(name, ["-m", ROUTER_MODULE, "--listen", endpoint, *(["--connect", join] if join else []),
-                               *extra], stdout=subprocess.DEVNULL)
+                               *extra], stdout=subprocess.DEVNULL, stderr=stderr)
     host, port = endpoint.split("/", 1)[1].rsplit(":", 1)
     if not wait_for_port(local_host(host.strip("[]")), int(port), 10.0, router):
         raise RuntimeError(f"the router did not start on {endpoint} (port taken? address not local?)")

@@ -1,0 +1,143 @@
+"""The driver's side of each node: a pinned :class:`~zswarm.cluster.node.NodeHost` actor, and each agent
+it runs as a handle with ``subprocess.Popen``'s interface, so that the supervisor, the chaos and the
+ending code treat an agent on another machine as they treat one forked here.
+
+A thread polls each node every 0.2 s for the agents that ended and the lines they wrote; a node that
+Ray reports lost (``RayActorError``) has its agents recorded as crashed (exit -9) in one line.
+"""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import threading
+import time
+from typing import Any, Callable, Sequence
+
+from zswarm.cluster.node import NodeHost
+from zswarm.cluster.ray_cluster import import_ray
+
+POLL_S = 0.2
+CALL_TIMEOUT_S = 30.0
+
+
+class RemoteProc:
+    """An agent on a node, behind the part of ``subprocess.Popen`` the supervisor uses."""
+
+    stdout = None
+
+    def __init__(self, name: str, pid: int, node: NodeLink) -> None:
+        self.name, self.pid, self.node = name, pid, node
+        self.returncode: int | None = None
+        self._done = threading.Event()
+
+    def poll(self) -> int | None:
+        return self.returncode
+
+    def wait(self, timeout: float | None = None) -> int:
+        if not self._done.wait(timeout):
+            raise subprocess.TimeoutExpired(f"{self.name} on {self.node.label}", timeout or 0.0)
+        return self.returncode  # type: ignore[return-value]
+
+    def send_signal(self, sig: int) -> None:
+        if self.returncode is None:
+            self.node.signal(self.name, sig)
+
+    def kill(self) -> None:
+        self.send_signal(signal.SIGKILL)
+
+    def terminate(self) -> None:
+        self.send_signal(signal.SIGTERM)
+
+    def exited(self, code: int) -> None:
+        if self.returncode is None:
+            self.returncode = code
+            self._done.set()
+
+
+class NodeLink:
+    """One node: its actor, its agents, and the thread that polls it."""
+
+    def __init__(self, node: dict, label: str, say: Callable[[str], None]) -> None:
+        ray = import_ray()
+        from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
+
+        self.node_id, self.label, self.say = node["NodeID"], label, say
+        self.cpus = int(node.get("Resources", {}).get("CPU", 1))
+        strategy = NodeAffinitySchedulingStrategy(node_id=self.node_id, soft=False)
+        self.actor = ray.remote(NodeHost).options(num_cpus=0, scheduling_strategy=strategy).remote(label)
+        self.procs: dict[str, RemoteProc] = {}
+        self.lost = False
+        self.info: dict[str, Any] = {}
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def call(self, method: str, *args: Any, timeout: float = CALL_TIMEOUT_S) -> Any:
+        ray = import_ray()
+        return ray.get(getattr(self.actor, method).remote(*args), timeout=timeout)
+
+    def hello(self) -> dict:
+        self.info = self.call("info", timeout=120.0)  # the first call waits for the actor's worker to start
+        return self.info
+
+    def spawn(self, name: str, args: Sequence[str]) -> RemoteProc:
+        pid = self.call("spawn_agent", name, list(args))
+        proc = self.procs[name] = RemoteProc(name, pid, self)
+        return proc
+
+    def signal(self, name: str, sig: int) -> None:
+        if not self.lost:
+            self.actor.signal.remote(name, sig)  # no wait: the poll reports the exit
+
+    def watch(self) -> None:
+        self._thread = threading.Thread(target=self._poll, daemon=True, name=f"poll-{self.label}")
+        self._thread.start()
+
+    def _poll(self) -> None:
+        ray = import_ray()
+        while not self._stop.is_set():
+            try:
+                report = self.call("poll", timeout=10.0)
+            except (ray.exceptions.RayActorError, ray.exceptions.GetTimeoutError) as exc:
+                self._lose(type(exc).__name__)
+                return
+            except Exception:  # the driver is shutting Ray down
+                return
+            for line in report["lines"]:
+                print(line, file=sys.stderr, flush=True)
+            for name, code in report["ended"].items():
+                if name in self.procs:
+                    self.procs[name].exited(code)
+            self._stop.wait(POLL_S)
+
+    def _lose(self, why: str) -> None:
+        self.lost = True
+        crashed = sorted(int(n.split("-")[1]) for n, p in self.procs.items() if p.returncode is None)
+        for p in self.procs.values():
+            p.exited(-signal.SIGKILL)
+        if crashed:
+            from zswarm.launch.plan import id_ranges
+
+            self.say(f"node {self.label} lost ({why}): agents {id_ranges(crashed)} crashed; the others carry on")
+        else:
+            self.say(f"node {self.label} lost ({why})")
+
+    def close(self, grace: float = 5.0) -> None:
+        """Stop the node's processes and its actor."""
+        self._stop.set()
+        ray = import_ray()
+        if not self.lost:
+            try:
+                self.call("stop", grace, timeout=grace + 15.0)
+            except Exception:
+                pass
+        try:
+            ray.kill(self.actor)
+        except Exception:
+            pass
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+        deadline = time.monotonic() + 1.0
+        while time.monotonic() < deadline and any(p.returncode is None for p in self.procs.values()):
+            time.sleep(0.05)

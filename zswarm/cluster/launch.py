@@ -1,0 +1,114 @@
+"""``zswarm run --cluster``: one run over the nodes of a Ray cluster, carried out by the one-machine
+:class:`~zswarm.launch.supervisor.Launch` with its processes placed on nodes.
+
+Each node runs a Zenoh router (the first node's, on the driver's machine, is joined by every other, as
+``--routers K`` does on one machine) and its share of agents, through its
+:class:`~zswarm.cluster.hosts.NodeLink`; the world runs here, on the driver's machine, and writes the
+recording and the summary here. Supervision, chaos and the ending are :class:`Launch`'s own: an agent
+on another machine is a handle with ``Popen``'s interface.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from zswarm.cluster.hosts import NodeLink
+from zswarm.cluster.placement import cross_router_share, place
+from zswarm.cluster.ray_cluster import RayCluster
+from zswarm.errors import UsageError
+from zswarm.launch.plan import Plan
+from zswarm.launch.supervisor import Launch, _say
+from zswarm.net.procs import Child, agent_argv
+
+
+class ClusterLaunch(Launch):
+    def __init__(self, plan: Plan, cluster: RayCluster, links: list[NodeLink], placement: str) -> None:
+        super().__init__(plan)
+        self.cluster, self.links, self.placement = cluster, links, placement
+        spawns = plan.spec.scenario.initial_positions(np.random.default_rng(plan.spec.seed))[list(plan.ids)]
+        where = place(spawns, [link.cpus for link in links], placement)
+        self.node_of: dict[int, int] = {i: k for i, k in zip(plan.ids, where)}
+
+    def run(self) -> int:
+        try:
+            return super().run()
+        finally:
+            for link in self.links:
+                link.close()
+
+    def _start(self) -> None:
+        plan = self.plan
+        extra = self.configs.get("router", [])
+        self.endpoints = []
+        for k, link in enumerate(self.links):  # the first node is the driver's: the world joins its router
+            join = self.endpoints[0] if self.endpoints else None
+            try:
+                self.endpoints.append(link.call("start_router", link.info["address"], join, extra))
+            except Exception as exc:  # noqa: BLE001 (Ray wraps what the node raised)
+                raise UsageError(f"node {link.label}: its router did not start ({str(exc).splitlines()[-1][:160]})") \
+                    from None
+            link.watch()
+        self.endpoint = self.endpoints[0]
+        if not plan.quiet:
+            counts = np.bincount(list(self.node_of.values()), minlength=len(self.links))
+            _say(", ".join(f"{link.label}: {c} agents, router {e}" for link, c, e in
+                           zip(self.links, counts, self.endpoints)), err=False)
+        self._spawn_world(resume=False)
+        for k, i in enumerate(plan.ids):
+            if self.world is not None and not self.world.alive():
+                _say(f"the world ended before every agent started ({k} of {len(plan.ids)} started)")
+                break
+            self._spawn_agent(i)
+        if not plan.quiet:
+            _say(f"run {self.spec.run!r}, {len(self.plan.ids)} agents on {len(self.links)} nodes "
+                 f"(placement {self.placement})", err=False)
+            for note in plan.notes:
+                _say(note, err=False)
+
+    def router_of(self, agent: int) -> int:
+        return self.node_of[agent]
+
+    def _spawn_agent(self, agent: int) -> None:
+        link = self.links[self.node_of[agent]]
+        if link.lost:  # rejoin on the surviving node with the fewest agents
+            alive = [k for k, other in enumerate(self.links) if not other.lost]
+            if not alive:
+                _say(f"agent {agent}: no node left to run it on")
+                return
+            load = {k: sum(1 for n in self.node_of.values() if n == k) for k in alive}
+            self.node_of[agent] = min(alive, key=lambda k: load[k])
+            link = self.links[self.node_of[agent]]
+        name = f"agent-{agent}"
+        self.kids.children = [c for c in self.kids.children if c.name != name or c.alive()]
+        link.call("restart", name)
+        argv = agent_argv(self.spec, agent, self.endpoints[self.node_of[agent]], *self._agent_config(agent))
+        self.kids.children.append(Child(name, link.spawn(name, argv[2:])))
+
+    def _finish_recording(self) -> None:
+        if self.world is None or self.world.alive():
+            return
+        from zswarm.launch.ending import finish_recording
+
+        agent_router = {str(i): self.router_of(i) for i in self.plan.ids}
+        routing = {"routers": self.endpoints, "agent_router": agent_router,
+                   "cluster": {"address": self.cluster.address, "placement": self.placement,
+                               "nodes": [{"label": link.label, **link.info, "router": e, "lost": link.lost}
+                                         for link, e in zip(self.links, self.endpoints)],
+                               "agent_node": {str(i): self.links[k].label for i, k in self.node_of.items()}}}
+        finish_recording(self.plan, self.world.proc.returncode, self.started_at, routing, _say)
+        add_cross_router_share(self.plan.summary, self.node_of)
+
+
+def add_cross_router_share(summary_path, node_of: dict[int, int]) -> None:
+    """Write ``cross_router_share`` (and ``cross_router_heard``, the count of agents that heard one on
+    another node) into the summary, from what each agent reported it heard from whom."""
+    import json
+
+    if not summary_path.exists():
+        return
+    s = json.loads(summary_path.read_text())
+    heard = {int(r): {int(k): v for k, v in senders.items()} for r, senders in s.get("heard_poses", {}).items()}
+    s["cross_router_share"] = cross_router_share(heard, node_of)
+    s["cross_router_heard"] = sum(1 for r, senders in heard.items()
+                                  if any(node_of.get(j) != node_of.get(r) for j in senders if j in node_of))
+    summary_path.write_text(json.dumps(s, indent=1))

@@ -1,0 +1,107 @@
+"""One machine of a cluster run: its Zenoh router and its share of agents, as ordinary OS processes.
+
+:class:`NodeHost` is a plain class; :mod:`zswarm.cluster.hosts` makes it a Ray actor pinned to its node
+(``num_cpus=0``), one per node. It starts the node's router and a fleet that forks the node's agents
+(as ``zswarm run`` does on one machine), and answers the driver's polls with the agents that ended and
+the lines they wrote to stderr, prefixed with the node and the agent.
+
+The children stay in the actor's process group (no new session) and get ``PR_SET_PDEATHSIG``: when
+the actor's worker dies, Ray's raylet kills that group, and the fleet's agents die with the fleet, so
+a driver that is killed, or a node Ray drops, leaves no zswarm process behind.
+"""
+
+from __future__ import annotations
+
+import os
+import socket
+import subprocess
+import threading
+from collections import deque
+from typing import Sequence
+
+from zswarm.net.procs import Children, Fleet, free_port, start_router
+
+
+def node_address() -> str:
+    """The address this node's router listens on: the one Ray knows this node by."""
+    import ray
+
+    return ray.util.get_node_ip_address()
+
+
+class NodeHost:
+    """The driver's hands on one node (methods are called through Ray)."""
+
+    def __init__(self, label: str) -> None:
+        self.label = label  # how this node's lines are prefixed
+        self.kids = Children(new_session=False)
+        self.fleet: Fleet | None = None
+        self.lines: deque[str] = deque(maxlen=10_000)
+        self.reported: set[str] = set()
+        self.lock = threading.Lock()
+
+    def info(self) -> dict:
+        """What the driver checks before it places anything here."""
+        import zswarm
+
+        return {"address": node_address(), "cores": len(os.sched_getaffinity(0)), "hostname": socket.gethostname(),
+                "version": zswarm.__version__, "pid": os.getpid()}
+
+    def free_port(self, host: str) -> int:
+        return free_port(host)
+
+    def start_router(self, host: str, join: str | None, extra: Sequence[str] = ()) -> str:
+        """This node's router on a free port of ``host``, joined to ``join`` (the first node's router)."""
+        args = [*extra, *(["--connect", join] if join else [])]
+        endpoint = start_router(self.kids, host, extra=args, name="router", stderr=subprocess.PIPE)
+        self._follow(self.kids.named("router")[-1].proc.stderr, "router")
+        return endpoint
+
+    def spawn_agent(self, name: str, args: Sequence[str]) -> int:
+        """Fork agent ``name`` with the agent program's arguments (``-m agents`` not included); its pid."""
+        if self.fleet is None:
+            self.fleet = Fleet(self.kids, stderr=subprocess.PIPE)
+            self._follow(self.fleet.child.proc.stderr, None)
+        return self.fleet.spawn(name, args).pid
+
+    def _follow(self, stream, name: str | None) -> None:
+        def read() -> None:
+            for raw in stream:
+                text = raw.decode(errors="replace").rstrip("\n")
+                with self.lock:
+                    self.lines.append(f"[{self.label}] {name + ': ' if name else ''}{text}")
+        threading.Thread(target=read, daemon=True).start()
+
+    def poll(self) -> dict:
+        """The agents that ended since the last poll (name -> exit code, negative for a signal), the
+        ones alive, and the stderr lines written meanwhile."""
+        ended = {}
+        for c in self.kids.named("agent"):
+            code = c.proc.poll()
+            if code is not None and c.name not in self.reported:
+                self.reported.add(c.name)
+                ended[c.name] = code
+        with self.lock:
+            lines = list(self.lines)
+            self.lines.clear()
+        routers = [c.name for c in self.kids.named("router") if not c.alive()]
+        return {"ended": ended, "lines": lines, "dead_routers": routers}
+
+    def signal(self, name: str, sig: int) -> None:
+        for c in self.kids.children:
+            if c.name == name and c.alive():
+                c.proc.send_signal(sig)
+
+    def restart(self, name: str) -> None:
+        """Forget that ``name`` ended (it is about to be spawned again)."""
+        self.reported.discard(name)
+        self.kids.children = [c for c in self.kids.children if c.name != name or c.alive()]
+
+    def stop(self, grace: float = 5.0) -> None:
+        """Agents, then the router; every child reaped."""
+        self.kids.stop_all(grace)
+        if self.fleet is not None and self.fleet.child.proc.stdin:
+            try:
+                self.fleet.child.proc.stdin.close()
+            except OSError:
+                pass

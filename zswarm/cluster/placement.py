@@ -1,0 +1,73 @@
+"""Which node runs which agent: by space (agents that start near each other share a node, so most of
+their neighbour traffic stays on one router), or round-robin.
+
+:func:`place` splits the spawn positions k-d style: the widest axis is cut where the nodes on each side
+get their share of agents, recursively, so each node receives a compact block of the start. Shares are
+in proportion to the nodes' CPUs. :func:`cross_router_share` is the figure the choice is judged by.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+PLACEMENTS = ("space", "round-robin")
+
+
+def shares(n: int, capacities: Sequence[float]) -> list[int]:
+    """``n`` agents over nodes in proportion to ``capacities`` (largest remainders; sums to ``n``)."""
+    caps = np.asarray(capacities, float)
+    if len(caps) == 0 or np.any(caps <= 0):
+        raise ValueError("every node needs a positive capacity")
+    exact = n * caps / caps.sum()
+    out = np.floor(exact).astype(int)
+    for k in np.argsort(-(exact - out), kind="stable")[: n - out.sum()]:
+        out[k] += 1
+    return out.tolist()
+
+
+def place(spawns: np.ndarray, capacities: Sequence[float], how: str = "space") -> list[int]:
+    """The node of each agent (index into ``capacities``), for spawn positions ``spawns`` (N x D)."""
+    n = len(spawns)
+    counts = shares(n, capacities)
+    if how == "round-robin":
+        out, k = [], 0
+        left = list(counts)
+        for _ in range(n):  # deal ids in turn, skipping nodes that are full
+            while left[k % len(left)] == 0:
+                k += 1
+            out.append(k % len(left))
+            left[k % len(left)] -= 1
+            k += 1
+        return out
+    if how != "space":
+        raise ValueError(f"placement is one of {', '.join(PLACEMENTS)} (got {how!r})")
+    node = np.zeros(n, dtype=int)
+    _split(np.asarray(spawns, float), np.arange(n), list(range(len(counts))), counts, node)
+    return node.tolist()
+
+
+def _split(points: np.ndarray, ids: np.ndarray, nodes: list[int], counts: list[int], out: np.ndarray) -> None:
+    if len(nodes) == 1:
+        out[ids] = nodes[0]
+        return
+    half = len(nodes) // 2
+    left_n = sum(counts[nodes[k]] for k in range(half))
+    sub = points[ids]
+    axis = int(np.argmax(np.ptp(sub, axis=0))) if len(ids) else 0
+    order = ids[np.lexsort((ids, sub[:, axis]))] if len(ids) else ids  # ties broken by id: deterministic
+    _split(points, order[:left_n], nodes[:half], counts, out)
+    _split(points, order[left_n:], nodes[half:], counts, out)
+
+
+def cross_router_share(heard: dict[int, dict[int, int]], node_of: dict[int, int]) -> float | None:
+    """The share of the poses agents took in that came from an agent on another node (another router):
+    ``heard[receiver][sender]`` counts poses. None when nothing was heard."""
+    total = crossed = 0
+    for receiver, senders in heard.items():
+        for sender, count in senders.items():
+            if receiver in node_of and sender in node_of:
+                total += count
+                crossed += count if node_of[receiver] != node_of[sender] else 0
+    return crossed / total if total else None

@@ -1,0 +1,136 @@
+"""Reaching a Ray cluster from the driver: an existing one (``ADDRESS`` or ``auto``), or one started
+here (``local``: this machine as one node; ``local:K``: K nodes on this machine, Ray's own
+``cluster_utils``, for trying a multi-node run and for the tests).
+
+Every Ray process started here gets the offline environment of :mod:`zswarm.cluster.ray_env`. Ray is
+imported only here and in :mod:`zswarm.cluster.hosts`, lazily: ``zswarm`` runs without it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from zswarm.cluster.ray_env import NODE_ARGS, SYSTEM_CONFIG, offline_env
+from zswarm.errors import UsageError
+
+INSTALL = 'Ray is not installed: pip install -e ".[cluster]" (or pip install "ray==2.60.*") on every node'
+ADDRESS = re.compile(r"^(auto|local(:\d+)?|[\w.\-\[\]:]+:\d+)$")
+
+
+def parse_cluster(text: str) -> str:
+    """``--cluster`` values: ``auto``, ``local``, ``local:K`` (1 <= K <= 16), or ``HOST:PORT``."""
+    if not ADDRESS.match(text):
+        raise UsageError(f"--cluster takes HOST:PORT of a Ray head (ray start --head prints it), auto, local or "
+                         f"local:K (got {text!r})")
+    if text.startswith("local:") and not 1 <= int(text.split(":")[1]) <= 16:
+        raise UsageError(f"--cluster local:K starts K nodes on this machine: 1 to 16 (got {text!r})")
+    return text
+
+
+def import_ray() -> Any:
+    try:
+        import ray
+    except ImportError:
+        raise UsageError(INSTALL) from None
+    return ray
+
+
+@dataclass
+class RayCluster:
+    """The driver's connection; ``local`` holds the nodes started here (stopped by :meth:`close`)."""
+
+    address: str
+    run_dir: Path
+    local: Any = None
+    started_here: bool = False
+    nodes: list[dict] = field(default_factory=list)
+
+    def alive_nodes(self) -> list[dict]:
+        """Ray's record of each live node: NodeID, NodeManagerAddress, Resources (CPU)."""
+        ray = import_ray()
+        return sorted((n for n in ray.nodes() if n.get("Alive")), key=lambda n: n["NodeID"])
+
+    def driver_node(self) -> str:
+        ray = import_ray()
+        return ray.get_runtime_context().get_node_id()
+
+    def close(self) -> None:
+        ray = import_ray()
+        with contextlib.suppress(Exception):
+            ray.shutdown()
+        if self.local is not None:
+            with contextlib.suppress(Exception):
+                self.local.shutdown()
+        shutil.rmtree(self.run_dir, ignore_errors=True)
+
+
+def reachable(address: str, timeout: float = 5.0) -> str:
+    """The head's ``HOST:PORT`` for ``address`` (``auto``: ``RAY_ADDRESS``, or the cluster ``ray start``
+    left on this machine), once its port answers; UsageError (one line) otherwise. Ray itself would
+    retry an address that does not answer for minutes."""
+    import socket
+
+    if address == "auto":
+        from ray._private.services import get_ray_address_from_environment
+
+        try:
+            address = get_ray_address_from_environment("auto", None)
+        except ConnectionError:
+            raise UsageError("--cluster auto found no Ray cluster on this machine (RAY_ADDRESS is unset and "
+                             "ray start --head was not run here): give HOST:PORT, or --cluster local") from None
+    host, _, port = address.rpartition(":")
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout):
+            pass
+    except (OSError, ValueError) as exc:
+        raise UsageError(f"cannot reach the Ray cluster at {address} ({exc.strerror or exc}): is its head "
+                         "running (ray start --head) and the port open? or use --cluster local") from None
+    return address
+
+
+def connect(address: str, cores: int) -> RayCluster:
+    """Start or join the cluster at ``address`` (:func:`parse_cluster`); ``cores``: this machine's, shared
+    by the nodes of ``local:K``. UsageError (one line) when it cannot be reached."""
+    ray = import_ray()
+    if not address.startswith("local"):
+        address = reachable(address)
+    run_dir = Path(tempfile.mkdtemp(prefix="zs-ray-", dir="/tmp"))  # short: Ray's socket paths are limited
+    offline_env(run_dir if address.startswith("local") else None)
+    quiet = {"configure_logging": True, "logging_level": "ERROR", "log_to_driver": False}
+    cluster = RayCluster(address, run_dir)
+    if address.startswith("local"):  # a guard that kills the nodes started here if this driver dies
+        subprocess.Popen([sys.executable, "-m", "zswarm.cluster.reaper", str(os.getpid()), str(run_dir)],
+                         stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, start_new_session=True,
+                         env={k: v for k, v in os.environ.items() if k != "ZSWARM_RAY_RUN"})
+    try:
+        if address == "local":
+            ray.init(num_cpus=cores, _node_ip_address="127.0.0.1", _system_config=SYSTEM_CONFIG, **NODE_ARGS, **quiet)
+        elif address.startswith("local:"):
+            from ray.cluster_utils import Cluster
+
+            k = int(address.split(":")[1])
+            args = {"num_cpus": max(cores // k, 1), "node_ip_address": "127.0.0.1", **NODE_ARGS}
+            with contextlib.redirect_stdout(io.StringIO()):
+                cluster.local = Cluster(initialize_head=True, head_node_args={**args, "_system_config": SYSTEM_CONFIG})
+                for _ in range(k - 1):
+                    cluster.local.add_node(**args)
+            ray.init(address=cluster.local.address, **quiet)
+        else:
+            ray.init(address=address, **quiet)
+    except (ConnectionError, RuntimeError, TimeoutError, ValueError) as exc:
+        cluster.close()
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise UsageError(f"cannot reach the Ray cluster at {address}: {first[:160]} (start it with "
+                         "ray start --head, or use --cluster local)") from None
+    cluster.started_here = address.startswith("local")
+    return cluster
