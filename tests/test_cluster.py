@@ -143,3 +143,137 @@ def test_a_driver_killed_mid_run_leaves_no_process_within_ten_seconds(tmp_path):
                 os.kill(pid, signal.SIGKILL)
             except ProcessLookupError:
                 pass
+
+
+# --- two hosts: Ray's head and the world on one, a worker node on the other ---------------------------------
+
+HEAD, WORKER = "10.77.0.1", "10.77.0.2"
+FAST_HEALTH = '{"health_check_initial_delay_ms": 0, "health_check_period_ms": 200, ' \
+              '"health_check_timeout_ms": 300, "health_check_failure_threshold": 3}'
+
+
+def ray_node_env(folder: Path, mark: str) -> dict[str, str]:
+    """What docs/cluster.md tells users to give ``ray start``: zswarm's offline settings, a HOME with the
+    bootstrap file (no cloud-metadata probe) and a RAY_TMPDIR of the node's own."""
+    from zswarm.cluster.ray_env import offline_env
+
+    env = {k: v for k, v in os.environ.items() if not k.startswith("RAY_")}
+    return dict(offline_env(folder, {**env, "PYTHONPATH": str(ROOT), "ZSWARM_TEST_MARK": mark}))
+
+
+def in_ns(ns: str, *argv: str) -> list[str]:
+    return ["ip", "netns", "exec", ns, *argv]
+
+
+def start_ray(ns: str, env: dict[str, str], *args: str) -> None:
+    ray = str(Path(sys.executable).parent / "ray")
+    res = subprocess.run(in_ns(ns, ray, "start", *args, "--num-cpus", "1", "--object-store-memory", str(80 * 2**20),
+                               "--disable-usage-stats"), env=env, capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr[-2000:]
+
+
+def node_processes(folder: Path) -> list[int]:
+    """The Ray processes of the node whose RAY_TMPDIR is under ``folder`` (its raylet names it; the
+    processes it started inherit it)."""
+    tag = str(folder).encode()
+    out = []
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                if tag in (d / "cmdline").read_bytes() or tag in (d / "environ").read_bytes():
+                    out.append(int(d.name))
+            except OSError:
+                pass
+    return out
+
+
+def kill_all(pids: list[int]) -> None:
+    for pid in pids:
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+
+
+def read_until(proc: subprocess.Popen, needle: str, seconds: float) -> list[str]:
+    """Lines of ``proc``'s output up to the first holding ``needle`` (AssertionError at the deadline)."""
+    import selectors
+
+    lines, deadline = [], time.monotonic() + seconds
+    sel = selectors.DefaultSelector()
+    sel.register(proc.stdout, selectors.EVENT_READ)
+    while time.monotonic() < deadline:
+        if sel.select(timeout=0.5):
+            line = proc.stdout.readline()
+            if not line:
+                break
+            lines.append(line)
+            if needle in line:
+                return lines
+    raise AssertionError(f"no {needle!r} in time; got {''.join(lines)[-2000:]}")
+
+
+def test_two_hosts_a_lost_worker_node_and_a_killed_driver(tmp_path):
+    from test_netns import make_hosts, remove_hosts
+
+    import tempfile
+
+    a, b = make_hosts()
+    mark = uuid.uuid4().hex
+    nodes_dir = Path(tempfile.mkdtemp(prefix="zst-", dir="/tmp"))  # short: Ray's socket paths are limited
+    env_a, env_b = ray_node_env(nodes_dir / "a", mark), ray_node_env(nodes_dir / "b", mark)
+    run = in_ns(a, sys.executable, "-m", "zswarm", "run", "--cluster", f"{HEAD}:6379", "--agents", "10",
+                "--time-scale", "2")
+    try:
+        start_ray(a, env_a, "--head", "--node-ip-address", HEAD, "--port", "6379", "--include-dashboard", "false",
+                  "--system-config", FAST_HEALTH)
+        start_ray(b, env_b, "--address", f"{HEAD}:6379", "--node-ip-address", WORKER)
+        # 1. the swarm, half on each host, catches the prey; then the worker host's Ray dies
+        driver = subprocess.Popen([*run, "--duration", "30", "--record", str(tmp_path / "two.rrd")], env=env_a,
+                                  cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        try:
+            read_until(driver, "captured at", 120)
+            kill_all(node_processes(nodes_dir / "b"))  # the node dies: raylet, workers, the actor, with it
+            out, err = driver.communicate(timeout=120)
+        finally:
+            if driver.poll() is None:
+                driver.kill()
+        assert driver.returncode == 0, err[-3000:]
+        s = json.loads((tmp_path / "two.json").read_text())
+        nodes = {n["address"]: n for n in s["cluster"]["nodes"]}
+        assert set(nodes) == {HEAD, WORKER} and nodes[WORKER]["lost"] and not nodes[HEAD]["lost"]
+        on_worker = sorted(int(i) for i, label in s["cluster"]["agent_node"].items() if WORKER in label)
+        assert 0 < len(on_worker) < 10
+        assert s["capture_time"] is not None and s["collisions"] == 0, s
+        assert s["cross_router_heard"] > 0  # agents on one host heard agents on the other, router to router
+        lost = [ln for ln in err.splitlines() if f"node1@{WORKER} lost" in ln]
+        assert lost and "crashed" in lost[0], err[-3000:]
+        departed = {d["id"] for d in s.get("departures", [])}
+        assert set(on_worker) <= departed, (on_worker, s.get("departures"))  # the world saw them go
+        # 2. the worker host back, a new run, its driver SIGKILLed: nothing of zswarm left on either host
+        kill_all(node_processes(nodes_dir / "b"))
+        start_ray(b, ray_node_env(nodes_dir / "b2", mark), "--address", f"{HEAD}:6379", "--node-ip-address", WORKER)
+        driver = subprocess.Popen([*run, "--duration", "60", "--record", str(tmp_path / "k.rrd")], env=env_a,
+                                  cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+        try:
+            read_until(driver, "world: started", 120)
+            zswarm_procs = [p for p in left_behind(mark) if "ray::" not in p and "/ray/" not in p]
+            assert any("agents.fleet" in p for p in zswarm_procs) and any("zswarm.net.router" in p for p in zswarm_procs)
+            driver.send_signal(signal.SIGKILL)
+            driver.wait(timeout=10)
+            deadline = time.monotonic() + 10.0
+            while time.monotonic() < deadline and [p for p in left_behind(mark) if _zswarm(p)]:
+                time.sleep(0.2)
+            assert [p for p in left_behind(mark) if _zswarm(p)] == []
+        finally:
+            if driver.poll() is None:
+                driver.kill()
+    finally:
+        kill_all(node_processes(nodes_dir))  # both hosts' Ray
+        remove_hosts(a, b)
+        shutil.rmtree(nodes_dir, ignore_errors=True)
+
+
+def _zswarm(line: str) -> bool:
+    """A process line of zswarm's own (the world, routers, fleets, agents, a driver), not of Ray."""
+    return any(k in line for k in ("-m world", "zswarm.net.router", "agents.fleet", "-m agents", "-m zswarm"))

@@ -20,8 +20,9 @@ def sh(*args: str) -> None:
     subprocess.run(args, check=True, capture_output=True, timeout=30)
 
 
-@pytest.fixture
-def two_hosts():
+def make_hosts() -> tuple[str, str]:
+    """Two network namespaces joined by a veth pair (10.77.0.1 and 10.77.0.2), loopback up, no other
+    link and no route out (skips the test where they cannot be made)."""
     tag = f"{os.getpid() % 100000}"
     a, b = f"zswA{tag}", f"zswB{tag}"
     veth_a, veth_b = f"zva{tag}", f"zvb{tag}"
@@ -37,14 +38,23 @@ def two_hosts():
             sh("ip", "-n", ns, "link", "set", dev, "up")
             sh("ip", "-n", ns, "link", "set", "lo", "up")
     except (subprocess.CalledProcessError, OSError) as exc:
-        for ns in (a, b):
-            subprocess.run(["ip", "netns", "del", ns], capture_output=True)
+        remove_hosts(a, b)
         pytest.skip(f"cannot create network namespaces here: {exc}")
+    return a, b
+
+
+def remove_hosts(*names: str) -> None:
+    for ns in names:
+        subprocess.run(["ip", "netns", "del", ns], capture_output=True, timeout=30)
+
+
+@pytest.fixture
+def two_hosts():
+    a, b = make_hosts()
     try:
         yield a, b
     finally:
-        for ns in (a, b):
-            subprocess.run(["ip", "netns", "del", ns], capture_output=True, timeout=30)
+        remove_hosts(a, b)
 
 
 def test_router_and_world_on_one_host_agents_on_another(two_hosts, tmp_path):

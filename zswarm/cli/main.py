@@ -25,8 +25,8 @@ def module_command(sub: argparse._SubParsersAction, name: str, text: str, module
 
 
 def build_parser() -> Parser:
-    from zswarm.cli import (bench_bodies, bench_guidelines, bench_interactions, bench_net, bench_safety, certs, design,
-                            export, monitor, replay, robot_sim, sim, soak, tune)
+    from zswarm.cli import (bench_bodies, bench_guidelines, bench_interactions, bench_net, bench_placement,
+                            bench_safety, certs, design, export, monitor, replay, robot_sim, sim, soak, tune)
 
     parser = Parser(prog="zswarm", description="Decentralized APF swarms (Kim, Wang & Shin 2006).")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
@@ -66,6 +66,8 @@ def build_parser() -> Parser:
                    bench_interactions)
     module_command(bench_sub, "bodies", "what each body costs on the registered scenarios", bench_bodies)
     module_command(bench_sub, "safety", "the safety filter beside the law alone and ORCA, same runs", bench_safety)
+    module_command(bench_sub, "placement", "neighbour traffic crossing between routers: space vs round-robin",
+                   bench_placement)
 
     replay.add_arguments(sub)
     module_command(sub, "export", "write a recorded run as ROS 2 messages (MCAP, for Foxglove and ros2 bag)", export)

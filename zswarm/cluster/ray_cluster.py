@@ -50,9 +50,8 @@ class RayCluster:
     """The driver's connection; ``local`` holds the nodes started here (stopped by :meth:`close`)."""
 
     address: str
-    run_dir: Path
+    run_dir: Path | None  # a cluster started here: its folder (RAY_TMPDIR, HOME)
     local: Any = None
-    started_here: bool = False
     nodes: list[dict] = field(default_factory=list)
 
     def alive_nodes(self) -> list[dict]:
@@ -71,13 +70,15 @@ class RayCluster:
         if self.local is not None:
             with contextlib.suppress(Exception):
                 self.local.shutdown()
-        shutil.rmtree(self.run_dir, ignore_errors=True)
+        if self.run_dir is not None:
+            shutil.rmtree(self.run_dir, ignore_errors=True)
 
 
-def reachable(address: str, timeout: float = 5.0) -> str:
+def reachable(address: str, timeout: float = 5.0) -> tuple[str, str]:
     """The head's ``HOST:PORT`` for ``address`` (``auto``: ``RAY_ADDRESS``, or the cluster ``ray start``
-    left on this machine), once its port answers; UsageError (one line) otherwise. Ray itself would
-    retry an address that does not answer for minutes."""
+    left on this machine), once its port answers, and this machine's address on the way there (the
+    driver's node address: Ray would otherwise find it by a probe towards 8.8.8.8); UsageError (one
+    line) otherwise. Ray itself would retry an address that does not answer for minutes."""
     import socket
 
     if address == "auto":
@@ -90,25 +91,28 @@ def reachable(address: str, timeout: float = 5.0) -> str:
                              "ray start --head was not run here): give HOST:PORT, or --cluster local") from None
     host, _, port = address.rpartition(":")
     try:
-        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout):
-            pass
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout) as s:
+            own = s.getsockname()[0]
     except (OSError, ValueError) as exc:
         raise UsageError(f"cannot reach the Ray cluster at {address} ({exc.strerror or exc}): is its head "
                          "running (ray start --head) and the port open? or use --cluster local") from None
-    return address
+    return address, own
 
 
 def connect(address: str, cores: int) -> RayCluster:
     """Start or join the cluster at ``address`` (:func:`parse_cluster`); ``cores``: this machine's, shared
     by the nodes of ``local:K``. UsageError (one line) when it cannot be reached."""
     ray = import_ray()
+    own = "127.0.0.1"
     if not address.startswith("local"):
-        address = reachable(address)
-    run_dir = Path(tempfile.mkdtemp(prefix="zs-ray-", dir="/tmp"))  # short: Ray's socket paths are limited
-    offline_env(run_dir if address.startswith("local") else None)
+        address, own = reachable(address)
+    local = address.startswith("local")
+    # a cluster started here gets a folder of its own; short: Ray's socket paths are limited
+    run_dir = Path(tempfile.mkdtemp(prefix="zs-ray-", dir="/tmp")) if local else None
+    offline_env(run_dir)
     quiet = {"configure_logging": True, "logging_level": "ERROR", "log_to_driver": False}
     cluster = RayCluster(address, run_dir)
-    if address.startswith("local"):  # a guard that kills the nodes started here if this driver dies
+    if local:  # a guard that kills the nodes started here if this driver dies
         subprocess.Popen([sys.executable, "-m", "zswarm.cluster.reaper", str(os.getpid()), str(run_dir)],
                          stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, start_new_session=True,
                          env={k: v for k, v in os.environ.items() if k != "ZSWARM_RAY_RUN"})
@@ -126,11 +130,10 @@ def connect(address: str, cores: int) -> RayCluster:
                     cluster.local.add_node(**args)
             ray.init(address=cluster.local.address, **quiet)
         else:
-            ray.init(address=address, **quiet)
+            ray.init(address=address, _node_ip_address=own, **quiet)
     except (ConnectionError, RuntimeError, TimeoutError, ValueError) as exc:
         cluster.close()
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise UsageError(f"cannot reach the Ray cluster at {address}: {first[:160]} (start it with "
                          "ray start --head, or use --cluster local)") from None
-    cluster.started_here = address.startswith("local")
     return cluster

@@ -66,6 +66,8 @@ def cluster_run(args: argparse.Namespace) -> int:
                 raise UsageError(f"{link.label} has zswarm {info['version']} and this machine {zswarm.__version__}: "
                                  "install the same version on every node")
         cores = sum(link.cpus for link in links)
+        if address.startswith("local"):  # its nodes share this machine's cores
+            cores = min(cores, available_cores())
         memory = sum(n.get("Resources", {}).get("memory", 0.0) for n in nodes) / 2**20
         plan = plan_from_args(args, cores=cores, memory_mib=memory or None)
         return ClusterLaunch(plan, cluster, links, args.placement).run()

@@ -1,0 +1,57 @@
+"""What placement by space saves: the share of delivered poses that cross between routers.
+
+An agent is handed every pose published into the cells its subscription disc meets
+(:func:`zswarm.net.keys.in_reach_counts`, the agents' own cell rule: disc R + 2 v_max dt, cells of side
+R). A pose crosses between routers when its sender runs on another node than its receiver. This
+computes that share over a whole run from the reference simulator's trajectory, for each placement,
+with the nodes' capacities equal; a cluster run reports the same figure measured
+(``cross_router_share`` in its summary). ``space_replaced`` is what splitting the agents anew at each
+instant would give: the floor for a placement that moved agents between nodes (zswarm places once).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from zswarm.cluster.placement import PLACEMENTS, place
+from zswarm.model.scenarios import get_scenario
+
+
+def delivered(positions: np.ndarray, r: float, cell_size: float) -> np.ndarray:
+    """``[i, j]``: agent i is handed j's poses (j publishes into a cell i's disc meets)."""
+    lo = np.floor(positions / cell_size) * cell_size
+    nearest = np.clip(positions[:, None, :], lo[None, :, :], lo[None, :, :] + cell_size)
+    meets = ((nearest - positions[:, None, :]) ** 2).sum(axis=2) <= r * r
+    np.fill_diagonal(meets, False)
+    return meets
+
+
+def placement_shares(scenario_name: str, n_agents: int, nodes: int, seed: int = 0, samples: int = 50,
+                     duration: float | None = None) -> dict[str, Any]:
+    """The cross-router share of each placement over ``samples`` instants of the reference run."""
+    from zswarm.net.runspec import RunSpec
+    from zswarm.sim.simulator import simulate
+
+    scenario = get_scenario(scenario_name, {"n_agents": n_agents})
+    result = simulate(scenario, seed, keep_trajectory=True, metrics_every=10**9,
+                      duration=duration if duration is not None else scenario.duration)
+    traj = result.trajectory
+    spec = RunSpec(run="placement", scenario_name=scenario_name, seed=seed, overrides=(("n_agents", n_agents),))
+    r, cell = spec.subscription_radius, spec.keys.cell_size
+    where = {how: np.asarray(place(traj[0], [1.0] * nodes, how)) for how in PLACEMENTS}
+    crossed = {how: 0 for how in (*PLACEMENTS, "space-replaced")}
+    total = 0
+    for k in np.linspace(0, len(traj) - 1, min(samples, len(traj))).round().astype(int):
+        meets = delivered(traj[k], r, cell)
+        total += int(meets.sum())
+        # what a placement that moved agents between nodes as the swarm moved could reach: the same
+        # split of where the agents are now (zswarm places once, at the start)
+        now = {**where, "space-replaced": np.asarray(place(traj[k], [1.0] * nodes, "space"))}
+        for how, node in now.items():
+            crossed[how] += int((meets & (node[:, None] != node[None, :])).sum())
+    shares = {how.replace("-", "_"): (crossed[how] / total if total else None) for how in crossed}
+    return {"scenario": scenario_name, "agents": n_agents, "nodes": nodes, "seed": seed, "samples": samples,
+            "duration": float(result.summary.get("duration") or len(traj) * scenario.dt), **shares,
+            "ratio": (shares["space"] / shares["round_robin"]) if shares["round_robin"] else None}
