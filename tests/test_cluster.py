@@ -118,6 +118,30 @@ def test_the_cluster_ran_with_nothing_but_loopback_and_left_nothing_behind(three
     assert not [p for p in Path("/tmp").glob("zs-ray-*") if p.stat().st_ctime >= started]  # its Ray folder too
 
 
+def test_a_lockstep_run_over_two_nodes_equals_the_reference(tmp_path):
+    """The same equations wherever the agents run: goal-near-obstacle (the safety filter acts) in
+    lockstep over two Ray nodes, held to the reference simulator at every step."""
+    import numpy as np
+
+    from zswarm.model.scenarios import get_scenario
+    from zswarm.sim.simulator import simulate
+
+    mark = uuid.uuid4().hex
+    argv, env = offline(tmp_path, "-m", "zswarm", "run", "--cluster", "local:2", "--scenario", "goal-near-obstacle",
+                        "--clock", "lockstep", "--duration", "8", "--record", str(tmp_path / "l.rrd"),
+                        "--trajectory", str(tmp_path / "l.npz"), "--quiet", mark=mark)
+    res = subprocess.run(argv, env=env, cwd=tmp_path, capture_output=True, text=True, timeout=240)
+    assert res.returncode == 0, res.stderr[-3000:]
+    s = json.loads((tmp_path / "l.json").read_text())
+    assert len(set(s["cluster"]["agent_node"].values())) == 2 and s["missed_lockstep_poses"] == 0
+    ref = simulate(get_scenario("goal-near-obstacle"), 0, duration=8.0, keep_trajectory=True, safety="barrier")
+    observed = np.load(tmp_path / "l.npz")["positions"]
+    assert observed.shape == ref.trajectory.shape
+    assert np.max(np.abs(observed - ref.trajectory)) < 1e-6
+    assert s["safety_interventions"] == ref.summary["safety_interventions"] > 0
+    assert wait_gone(mark, 10.0) == []
+
+
 def test_a_driver_killed_mid_run_leaves_no_process_within_ten_seconds(tmp_path):
     mark = uuid.uuid4().hex
     argv, env = offline(tmp_path, "-m", "zswarm", "run", "--cluster", "local:3", "--agents", "6", "--duration", "60",
@@ -277,3 +301,16 @@ def test_two_hosts_a_lost_worker_node_and_a_killed_driver(tmp_path):
 def _zswarm(line: str) -> bool:
     """A process line of zswarm's own (the world, routers, fleets, agents, a driver), not of Ray."""
     return any(k in line for k in ("-m world", "zswarm.net.router", "agents.fleet", "-m agents", "-m zswarm"))
+
+
+def test_a_pace_the_clusters_cores_cannot_hold_is_refused_before_any_agent_starts(tmp_path):
+    mark = uuid.uuid4().hex
+    argv, env = offline(tmp_path, "-m", "zswarm", "run", "--cluster", "local:2", "--agents", "500",
+                        "--time-scale", "1", mark=mark)
+    res = subprocess.run(argv, env=env, cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    lines = [ln for ln in res.stderr.splitlines() if "network_util" not in ln and "logging.cc" not in ln]
+    assert res.returncode == 2 and len(lines) == 1, res.stderr[-2000:]
+    assert "500 agents stepping 40 times a second" in lines[0] and "the cluster has 2" in lines[0], lines
+    assert "--time-scale" in lines[0]  # it names a pace that fits
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["links.txt", "routes.txt"]  # nothing recorded
+    assert wait_gone(mark, 10.0) == []

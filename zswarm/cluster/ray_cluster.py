@@ -128,7 +128,7 @@ def connect(address: str, cores: int) -> RayCluster:
                 cluster.local = Cluster(initialize_head=True, head_node_args={**args, "_system_config": SYSTEM_CONFIG})
                 for _ in range(k - 1):
                     cluster.local.add_node(**args)
-            ray.init(address=cluster.local.address, **quiet)
+            ray.init(address=cluster.local.address, _node_ip_address="127.0.0.1", **quiet)
         else:
             ray.init(address=address, _node_ip_address=own, **quiet)
     except (ConnectionError, RuntimeError, TimeoutError, ValueError) as exc:

@@ -63,6 +63,7 @@ def plan_from_args(args: argparse.Namespace, cores: int | None = None, memory_mi
     the agents have (default: this machine's; a cluster run passes its nodes' sum)."""
     if args.agents is not None and args.agents < 1:
         raise UsageError(f"--agents must be >= 1 (got {args.agents})")
+    where = "this machine" if cores is None else "the cluster"
     cores = cores or available_cores()
     pace_note = auto_time_scale(args, cores)
     spec = spec_from_args(args, run=f"run-{args.seed}-{int(time.time())}",
@@ -122,8 +123,9 @@ def plan_from_args(args: argparse.Namespace, cores: int | None = None, memory_mi
         notes.append(robots_note(check_robots(args.robots, spec), args.robots, ids))
     if "agents" in args.role and spec.clock == "free":  # last: a usage error above comes alone
         if pace_load(len(ids), spec.scenario.dt, spec.time_scale, cores) > HOPELESS:
-            raise UsageError(pace_warning(len(ids), spec.scenario.dt, spec.time_scale, cores, refused=True))
-        line = pace_warning(len(ids), spec.scenario.dt, spec.time_scale, cores)
+            raise UsageError(pace_warning(len(ids), spec.scenario.dt, spec.time_scale, cores, refused=True,
+                                          where=where))
+        line = pace_warning(len(ids), spec.scenario.dt, spec.time_scale, cores, where=where)
         if line:
             print(f"warning: {line}", file=sys.stderr, flush=True)
     return Plan(spec=spec, roles=tuple(args.role), routers=args.routers, ids=ids, record=args.record,
@@ -235,7 +237,8 @@ def pace_load(n_local: int, dt: float, time_scale: float, cores: int) -> float:
     return need / (AGENT_SHARE * cores)
 
 
-def pace_warning(n_local: int, dt: float, time_scale: float, cores: int, refused: bool = False) -> str | None:
+def pace_warning(n_local: int, dt: float, time_scale: float, cores: int, refused: bool = False,
+                 where: str = "this machine") -> str | None:
     """A free-clock run whose agents need more CPU than the machine has falls behind: poses arrive late,
     agents act on stale neighbours and collide, whatever the design says. The warning names a time scale
     that fits (measured: large-swarm, 100 agents at dt = 0.025 on 2 cores: 0.25 on time, 0.5 not);
@@ -250,7 +253,7 @@ def pace_warning(n_local: int, dt: float, time_scale: float, cores: int, refused
     what = (f"more than {HOPELESS:g} times what it can step: the agents could not all start in time; give {advice}"
             if refused else f"the run may fall behind and act on stale poses; use {advice}")
     return (f"{n_local} agents stepping {time_scale / dt:g} times a second need about {need:.2g} cores "
-            f"({AGENT_TICK_MS:g} ms a step) and this machine has {cores}: {what}")
+            f"({AGENT_TICK_MS:g} ms a step) and {where} has {cores}: {what}")
 
 
 def auto_time_scale(args: argparse.Namespace, cores: int) -> str | None:
