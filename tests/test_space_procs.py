@@ -45,7 +45,7 @@ def test_the_3d_demo_runs_as_processes_and_catches_the_prey(demo_3d):
     # already said goodbye at the end (CI saw one), so "all ten" is asked of nearly every frame, not each
     assert all(f.positions.shape[1:] == (3,) and len(f.positions) <= 10 and f.prey.shape == (3,) for f in run.frames)
     assert sum(len(f.positions) == 10 for f in run.frames) >= 0.9 * len(run.frames)
-    heights = np.stack([f.positions[:, 2] for f in run.frames])
+    heights = np.concatenate([f.positions[:, 2] for f in run.frames])
     assert np.ptp(heights) > 0.5  # the swarm flies: it does not stay in a plane
     replayed = recompute(run)  # what zswarm replay prints
     stored = {k: v for k, v in run.summary.items() if k in replayed}

@@ -69,6 +69,7 @@ class NodeLink:
         self.actor = ray.remote(NodeHost).options(num_cpus=0, scheduling_strategy=strategy).remote(label)
         self.procs: dict[str, RemoteProc] = {}
         self.lost = False
+        self.closed = False
         self.info: dict[str, Any] = {}
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -124,7 +125,10 @@ class NodeLink:
             self.say(f"node {self.label} lost ({why})")
 
     def close(self, grace: float = 5.0) -> None:
-        """Stop the node's processes and its actor."""
+        """Stop the node's processes and its actor (once)."""
+        if self.closed:
+            return
+        self.closed = True
         self._stop.set()
         ray = import_ray()
         if not self.lost:

@@ -16,13 +16,14 @@ PLACEMENTS = ("space", "round-robin")
 
 
 def shares(n: int, capacities: Sequence[float]) -> list[int]:
-    """``n`` agents over nodes in proportion to ``capacities`` (largest remainders; sums to ``n``)."""
+    """``n`` agents over nodes in proportion to ``capacities`` (largest remainders; sums to ``n``). A
+    node of capacity 0 (a head started with ``--num-cpus 0``) gets no agent, only its router."""
     caps = np.asarray(capacities, float)
-    if len(caps) == 0 or np.any(caps <= 0):
-        raise ValueError("every node needs a positive capacity")
+    if len(caps) == 0 or np.any(caps < 0) or caps.sum() <= 0:
+        raise ValueError("the nodes need CPUs: every capacity >= 0 and one at least > 0")
     exact = n * caps / caps.sum()
     out = np.floor(exact).astype(int)
-    for k in np.argsort(-(exact - out), kind="stable")[: n - out.sum()]:
+    for k in np.argsort(-(exact - out), kind="stable")[: n - out.sum()]:  # never a node of capacity 0
         out[k] += 1
     return out.tolist()
 
