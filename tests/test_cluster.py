@@ -76,10 +76,10 @@ def wait_gone(mark: str, seconds: float) -> list[str]:
 @pytest.fixture(scope="module")
 def three_nodes(tmp_path_factory):
     """``zswarm run --cluster local:3 --agents 12``: three Ray nodes (Ray's ``cluster_utils``) on this
-    machine, at twice the wall clock (the reference catches the prey at 13.9 s of 25)."""
+    machine, at twice the wall clock (the reference catches the prey at 14.75 s of 20)."""
     tmp = tmp_path_factory.mktemp("cluster3")
     mark, started = uuid.uuid4().hex, time.time()
-    argv, env = offline(tmp, "-m", "zswarm", "run", "--cluster", "local:3", "--agents", "12", "--duration", "25",
+    argv, env = offline(tmp, "-m", "zswarm", "run", "--cluster", "local:3", "--agents", "12", "--duration", "20",
                         "--time-scale", "2", "--record", str(tmp / "c.rrd"), mark=mark)
     res = subprocess.run(argv, env=env, cwd=tmp, capture_output=True, text=True, timeout=240)
     left = wait_gone(mark, 10.0)
@@ -197,18 +197,26 @@ def start_ray(ns: str, env: dict[str, str], *args: str) -> None:
 
 
 def node_processes(folder: Path) -> list[int]:
-    """The Ray processes of the node whose RAY_TMPDIR is under ``folder`` (its raylet names it; the
-    processes it started inherit it)."""
+    """The Ray processes of the node(s) whose RAY_TMPDIR is under ``folder``: those that name it (the
+    raylet, in its command line; the processes it started, in their environment), and those that
+    name such a raylet as theirs (``RAY_RAYLET_PID``: Ray's agents set their titles over the start of
+    their environment, the folder with it) or have it as their parent."""
     tag = str(folder).encode()
-    out = []
+    named, rest = [], {}
     for d in Path("/proc").iterdir():
         if d.name.isdigit():
             try:
-                if tag in (d / "cmdline").read_bytes() or tag in (d / "environ").read_bytes():
-                    out.append(int(d.name))
-            except OSError:
-                pass
-    return out
+                cmd, env = (d / "cmdline").read_bytes(), (d / "environ").read_bytes()
+                ppid = int((d / "stat").read_text().rsplit(")", 1)[1].split()[1])
+            except (OSError, ValueError, IndexError):
+                continue
+            if tag in cmd or tag in env:
+                named.append(int(d.name))
+            else:
+                rest[int(d.name)] = (env, ppid)
+    marks = {f"RAY_RAYLET_PID={pid}".encode() for pid in named}
+    return named + [pid for pid, (env, ppid) in rest.items()
+                    if ppid in named or marks & set(env.split(b"\0"))]
 
 
 def kill_all(pids: list[int]) -> None:
@@ -246,14 +254,14 @@ def test_two_hosts_a_lost_worker_node_and_a_killed_driver(tmp_path):
     mark = uuid.uuid4().hex
     nodes_dir = Path(tempfile.mkdtemp(prefix="zst-", dir="/tmp"))  # short: Ray's socket paths are limited
     env_a, env_b = ray_node_env(nodes_dir / "a", mark), ray_node_env(nodes_dir / "b", mark)
-    run = in_ns(a, sys.executable, "-m", "zswarm", "run", "--cluster", f"{HEAD}:6379", "--agents", "10",
-                "--time-scale", "2")
+    run = in_ns(a, sys.executable, "-m", "zswarm", "run", "--cluster", f"{HEAD}:6379", "--agents", "12",
+                "--time-scale", "2")  # the reference catches the prey at 14.75 s
     try:
         start_ray(a, env_a, "--head", "--node-ip-address", HEAD, "--port", "6379", "--include-dashboard", "false",
                   "--system-config", FAST_HEALTH)
         start_ray(b, env_b, "--address", f"{HEAD}:6379", "--node-ip-address", WORKER)
         # 1. the swarm, half on each host, catches the prey; then the worker host's Ray dies
-        driver = subprocess.Popen([*run, "--duration", "30", "--record", str(tmp_path / "two.rrd")], env=env_a,
+        driver = subprocess.Popen([*run, "--duration", "24", "--record", str(tmp_path / "two.rrd")], env=env_a,
                                   cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         try:
             read_until(driver, "captured at", 120)
@@ -267,7 +275,7 @@ def test_two_hosts_a_lost_worker_node_and_a_killed_driver(tmp_path):
         nodes = {n["address"]: n for n in s["cluster"]["nodes"]}
         assert set(nodes) == {HEAD, WORKER} and nodes[WORKER]["lost"] and not nodes[HEAD]["lost"]
         on_worker = sorted(int(i) for i, label in s["cluster"]["agent_node"].items() if WORKER in label)
-        assert 0 < len(on_worker) < 10
+        assert 0 < len(on_worker) < 12
         assert s["capture_time"] is not None and s["collisions"] == 0, s
         assert s["cross_router_heard"] > 0  # agents on one host heard agents on the other, router to router
         lost = [ln for ln in err.splitlines() if f"node1@{WORKER} lost" in ln]
