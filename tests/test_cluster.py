@@ -300,10 +300,36 @@ def test_two_hosts_a_lost_worker_node_and_a_killed_driver(tmp_path):
         finally:
             if driver.poll() is None:
                 driver.kill()
+        # 3. a worker host with another zswarm, then one without: refused in one line, before any agent
+        for fake, needle in ((fake_zswarm(nodes_dir / "other", "9.9.9"), f"node1@{WORKER} has zswarm 9.9.9"),
+                             (fake_zswarm(nodes_dir / "none", None), f"node1@{WORKER}: zswarm is not installed there")):
+            kill_all(node_processes(nodes_dir / "b2") + node_processes(nodes_dir / "b3"))
+            shutil.rmtree(nodes_dir / "b3", ignore_errors=True)
+            start_ray(b, {**ray_node_env(nodes_dir / "b3", mark), "PYTHONPATH": str(fake)}, "--address", f"{HEAD}:6379",
+                      "--node-ip-address", WORKER)
+            res = subprocess.run([*run, "--duration", "5"], env=env_a, cwd=tmp_path, capture_output=True, text=True,
+                                 timeout=120)
+            lines = [ln for ln in res.stderr.splitlines() if "network_util" not in ln and "logging.cc" not in ln]
+            assert res.returncode == 2 and len(lines) == 1 and needle in lines[0], res.stderr[-2000:]
+            assert not [p for p in left_behind(mark) if _zswarm(p)]
     finally:
         kill_all(node_processes(nodes_dir))  # both hosts' Ray
         remove_hosts(a, b)
         shutil.rmtree(nodes_dir, ignore_errors=True)
+
+
+def fake_zswarm(folder: Path, version: str | None) -> Path:
+    """A folder to put first on a node's PYTHONPATH: this zswarm with another version number, or
+    (``version`` None) a zswarm package with nothing in it (a node where zswarm is not installed)."""
+    package = folder / "zswarm"
+    if version is None:
+        package.mkdir(parents=True)
+        (package / "__init__.py").write_text('__version__ = "0"\n')
+    else:
+        shutil.copytree(ROOT / "zswarm", package, ignore=shutil.ignore_patterns("__pycache__"))
+        init = package / "__init__.py"
+        init.write_text(init.read_text().replace(f'__version__ = "{zswarm.__version__}"', f'__version__ = "{version}"'))
+    return folder
 
 
 def _zswarm(line: str) -> bool:
