@@ -260,8 +260,10 @@ def test_two_hosts_a_lost_worker_node_and_a_killed_driver(tmp_path):
         start_ray(a, env_a, "--head", "--node-ip-address", HEAD, "--port", "6379", "--include-dashboard", "false",
                   "--system-config", FAST_HEALTH)
         start_ray(b, env_b, "--address", f"{HEAD}:6379", "--node-ip-address", WORKER)
-        # 1. the swarm, half on each host, catches the prey; then the worker host's Ray dies
-        driver = subprocess.Popen([*run, "--duration", "24", "--record", str(tmp_path / "two.rrd")], env=env_a,
+        # 1. the swarm, half on each host, catches the prey; then the worker host's Ray dies, and its
+        # agents rejoin on the head's host a second later (--restart-after)
+        driver = subprocess.Popen([*run, "--duration", "24", "--restart-after", "1", "--record",
+                                   str(tmp_path / "two.rrd")], env=env_a,
                                   cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         try:
             read_until(driver, "captured at", 120)
@@ -274,14 +276,16 @@ def test_two_hosts_a_lost_worker_node_and_a_killed_driver(tmp_path):
         s = json.loads((tmp_path / "two.json").read_text())
         nodes = {n["address"]: n for n in s["cluster"]["nodes"]}
         assert set(nodes) == {HEAD, WORKER} and nodes[WORKER]["lost"] and not nodes[HEAD]["lost"]
-        on_worker = sorted(int(i) for i, label in s["cluster"]["agent_node"].items() if WORKER in label)
-        assert 0 < len(on_worker) < 12
         assert s["capture_time"] is not None and s["collisions"] == 0, s
         assert s["cross_router_heard"] > 0  # agents on one host heard agents on the other, router to router
         lost = [ln for ln in err.splitlines() if f"node1@{WORKER} lost" in ln]
         assert lost and "crashed" in lost[0], err[-3000:]
-        departed = {d["id"] for d in s.get("departures", [])}
-        assert set(on_worker) <= departed, (on_worker, s.get("departures"))  # the world saw them go
+        on_worker = {d["id"] for d in s["departures"]}  # the world saw the worker host's agents go ...
+        assert 0 < len(on_worker) < 12 and all(d["how"] == "crashed" for d in s["departures"]), s["departures"]
+        assert on_worker <= set(s["stopped_at_end"])  # ... and come back, alive at the end
+        assert f"of a lost node on node0@{HEAD}" in err
+        assert all(HEAD in label for label in s["cluster"]["agent_node_at_end"].values())  # where they ran at the end
+        assert {int(i) for i, label in s["cluster"]["agent_node"].items() if WORKER in label} == on_worker  # placed
         # 2. the worker host back, a new run, its driver SIGKILLed: nothing of zswarm left on either host
         kill_all(node_processes(nodes_dir / "b"))
         start_ray(b, ray_node_env(nodes_dir / "b2", mark), "--address", f"{HEAD}:6379", "--node-ip-address", WORKER)

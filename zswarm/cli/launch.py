@@ -103,7 +103,8 @@ def build_parser(prog: str = "zswarm run") -> Parser:
     p.add_argument("--kill", type=parse_kill, default=None, metavar="K@T",
                    help="SIGKILL K agents, chosen with the seed, T seconds after the start")
     p.add_argument("--restart-after", type=float, default=None, metavar="S",
-                   help="restart the killed agents S seconds later (they rejoin at their spawn position)")
+                   help="restart the killed agents S seconds later (they rejoin at their spawn position); with "
+                        "--cluster, also the agents of a node that was lost, on the surviving nodes")
     p.add_argument("--world-outage", type=parse_outage, default=None, metavar="T:S",
                    help="freeze the world (SIGSTOP) at T for S seconds: no prey, no obstacle answers")
     p.add_argument("--world-crash", type=parse_crash, default=None, metavar="T[:S]",

@@ -70,6 +70,7 @@ class NodeLink:
         self.procs: dict[str, RemoteProc] = {}
         self.lost = False
         self.closed = False
+        self.crashed: list[int] = []  # the agents that were running when the node was lost
         self.info: dict[str, Any] = {}
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -115,6 +116,7 @@ class NodeLink:
     def _lose(self, why: str) -> None:
         self.lost = True
         crashed = sorted(int(n.split("-")[1]) for n, p in self.procs.items() if p.returncode is None)
+        self.crashed = crashed
         for p in self.procs.values():
             p.exited(-signal.SIGKILL)
         if crashed:

@@ -18,6 +18,7 @@ from zswarm.cluster.ray_cluster import RayCluster
 from zswarm.errors import UsageError
 from zswarm.launch.plan import Plan
 from zswarm.launch.supervisor import Launch, _say
+from zswarm.launch.plan import id_ranges
 from zswarm.net.procs import Child, agent_argv
 
 
@@ -28,6 +29,9 @@ class ClusterLaunch(Launch):
         spawns = plan.spec.scenario.initial_positions(np.random.default_rng(plan.spec.seed))[list(plan.ids)]
         where = place(spawns, [link.cpus for link in links], placement)
         self.node_of: dict[int, int] = {i: k for i, k in zip(plan.ids, where)}
+        self.placed = dict(self.node_of)  # where each agent started (a restarted one may run elsewhere)
+        self.lost_seen: set[int] = set()  # nodes whose loss was taken in
+        self.rejoin: list[tuple[float, list[int]]] = []  # (when, agents) of lost nodes, with --restart-after
 
     def run(self) -> int:
         try:
@@ -65,6 +69,25 @@ class ClusterLaunch(Launch):
             for note in plan.notes:
                 _say(note, err=False)
 
+    def _note_crashes(self) -> None:
+        """A lost node's agents are crashed (said once, by its link); with ``--restart-after S`` they
+        rejoin on the surviving nodes S seconds later, at their spawn positions."""
+        import time
+
+        for k, link in enumerate(self.links):
+            if link.lost and k not in self.lost_seen:
+                self.lost_seen.add(k)
+                self.crashed |= {f"agent-{i}" for i in link.crashed}
+                if link.crashed and self.plan.restart_after is not None:
+                    self.rejoin.append((time.monotonic() + self.plan.restart_after, link.crashed))
+        while self.rejoin and self.rejoin[0][0] <= time.monotonic() and self.world is not None and self.world.alive():
+            _, agents = self.rejoin.pop(0)
+            for i in agents:
+                self._spawn_agent(i)
+            _say(f"restarted agents {id_ranges(agents)} of a lost node on "
+                 f"{', '.join(sorted({self.links[self.node_of[i]].label for i in agents}))}")
+        super()._note_crashes()
+
     def router_of(self, agent: int) -> int:
         return self.node_of[agent]
 
@@ -94,9 +117,11 @@ class ClusterLaunch(Launch):
                    "cluster": {"address": self.cluster.address, "placement": self.placement,
                                "nodes": [{"label": link.label, **link.info, "router": e, "lost": link.lost}
                                          for link, e in zip(self.links, self.endpoints)],
-                               "agent_node": {str(i): self.links[k].label for i, k in self.node_of.items()}}}
+                               "agent_node": {str(i): self.links[k].label for i, k in self.placed.items()},
+                               "agent_node_at_end": {str(i): self.links[k].label for i, k in self.node_of.items()}}}
         finish_recording(self.plan, self.world.proc.returncode, self.started_at, routing, _say)
-        add_cross_router_share(self.plan.summary, self.node_of)
+        # by where each agent was placed: one restarted on another node is counted where it started
+        add_cross_router_share(self.plan.summary, self.placed)
 
 
 def add_cross_router_share(summary_path, node_of: dict[int, int]) -> None:
