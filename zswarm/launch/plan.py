@@ -76,9 +76,6 @@ def plan_from_args(args: argparse.Namespace, cores: int | None = None, memory_mi
     if "agents" in args.role:
         check_capacity(len(ids), args.fork, memory_mib)
     spec.scenario.check_placement()  # every agent would fail to place itself, one by one
-    design = None
-    if "world" in args.role or args.require_design:
-        design = judge_design(spec, args.require_design)
     files_note = ""
     if "world" in args.role:
         args.record, args.summary, files_note = run_files(args.record, args.summary, args.force)
@@ -116,6 +113,9 @@ def plan_from_args(args: argparse.Namespace, cores: int | None = None, memory_mi
                          "(--spawn and --serve live in the world process)")
     if args.secure is not None:
         check_secure_dir(args.secure, ids if "agents" in args.role else ())
+    design = None  # after every flag is checked: the swarm check simulates for half a second
+    if "world" in args.role or args.require_design:
+        design = judge_design(spec, args.require_design)
     notes = [files_note] if files_note else []
     if pace_note:
         notes.append(pace_note)
