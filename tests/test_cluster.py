@@ -262,7 +262,8 @@ def test_two_hosts_a_lost_worker_node_and_a_killed_driver(tmp_path):
         start_ray(b, env_b, "--address", f"{HEAD}:6379", "--node-ip-address", WORKER)
         # 1. the swarm, half on each host, catches the prey; then the worker host's Ray dies, and its
         # agents rejoin on the head's host a second later (--restart-after)
-        driver = subprocess.Popen([*run, "--duration", "24", "--restart-after", "1", "--record",
+        # (32 simulated seconds: a loaded machine gets its restarted agents up well before the end)
+        driver = subprocess.Popen([*run, "--duration", "32", "--restart-after", "1", "--record",
                                    str(tmp_path / "two.rrd")], env=env_a,
                                   cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         try:

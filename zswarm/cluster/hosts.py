@@ -9,7 +9,6 @@ Ray reports lost (``RayActorError``) has its agents recorded as crashed (exit -9
 from __future__ import annotations
 
 import signal
-import subprocess
 import sys
 import threading
 import time
@@ -17,43 +16,27 @@ from typing import Any, Callable, Sequence
 
 from zswarm.cluster.node import NodeHost
 from zswarm.cluster.ray_cluster import import_ray
+from zswarm.net.procs import ForkedProc
 
 POLL_S = 0.2
 CALL_TIMEOUT_S = 30.0
 
 
-class RemoteProc:
-    """An agent on a node, behind the part of ``subprocess.Popen`` the supervisor uses."""
-
-    stdout = None
+class RemoteProc(ForkedProc):
+    """An agent on a node, behind the part of ``subprocess.Popen`` the supervisor uses (a forked agent's
+    handle whose signals go through the node's actor, and whose exit the node's poll reports)."""
 
     def __init__(self, name: str, pid: int, node: NodeLink) -> None:
-        self.name, self.pid, self.node = name, pid, node
-        self.returncode: int | None = None
-        self._done = threading.Event()
-
-    def poll(self) -> int | None:
-        return self.returncode
-
-    def wait(self, timeout: float | None = None) -> int:
-        if not self._done.wait(timeout):
-            raise subprocess.TimeoutExpired(f"{self.name} on {self.node.label}", timeout or 0.0)
-        return self.returncode  # type: ignore[return-value]
+        super().__init__(pid)
+        self.name, self.node = name, node
 
     def send_signal(self, sig: int) -> None:
         if self.returncode is None:
             self.node.signal(self.name, sig)
 
-    def kill(self) -> None:
-        self.send_signal(signal.SIGKILL)
-
-    def terminate(self) -> None:
-        self.send_signal(signal.SIGTERM)
-
     def exited(self, code: int) -> None:
-        if self.returncode is None:
-            self.returncode = code
-            self._done.set()
+        if self.returncode is None:  # the first word wins: a lost node's -9, or the exit the poll saw
+            super().exited(code)
 
 
 class NodeLink:
