@@ -81,12 +81,20 @@ class NodeLink:
 
     def _poll(self) -> None:
         ray = import_ray()
+        unanswered = 0
         while not self._stop.is_set():
             try:
                 report = self.call("poll", timeout=10.0)
-            except (ray.exceptions.RayActorError, ray.exceptions.GetTimeoutError) as exc:
+                unanswered = 0
+            except ray.exceptions.RayActorError as exc:  # Ray says the actor, or its node, is gone
                 self._lose(type(exc).__name__)
                 return
+            except ray.exceptions.GetTimeoutError:  # a node too busy to answer is not lost: 30 s of it is
+                unanswered += 1
+                if unanswered >= 3:
+                    self._lose("no answer for 30 s")
+                    return
+                continue
             except Exception:  # the driver is shutting Ray down
                 return
             for line in report["lines"]:

@@ -12,7 +12,7 @@ from zswarm.cluster.hosts import NodeLink
 from zswarm.cluster.launch import ClusterLaunch
 from zswarm.cluster.ray_cluster import connect, parse_cluster
 from zswarm.errors import UsageError
-from zswarm.launch.plan import available_cores, plan_from_args
+from zswarm.launch.plan import available_cores, available_mib, plan_from_args
 from zswarm.launch.supervisor import _say
 
 #: What a cluster run does not take (yet), and why.
@@ -66,9 +66,10 @@ def cluster_run(args: argparse.Namespace) -> int:
                 raise UsageError(f"{link.label} has zswarm {info['version']} and this machine {zswarm.__version__}: "
                                  "install the same version on every node")
         cores = sum(link.cpus for link in links)
-        if address.startswith("local"):  # its nodes share this machine's cores
-            cores = min(cores, available_cores())
         memory = sum(n.get("Resources", {}).get("memory", 0.0) for n in nodes) / 2**20
+        if address.startswith("local"):  # its nodes share this machine's cores and memory
+            cores = min(cores, available_cores())
+            memory = min(memory, available_mib() or memory)
         plan = plan_from_args(args, cores=cores, memory_mib=memory or None)
         return ClusterLaunch(plan, cluster, links, args.placement).run()
     finally:

@@ -203,13 +203,16 @@ def available_mib() -> float | None:
 
 
 def check_capacity(n_local: int, fork: bool, have: float | None = None) -> None:
-    """Refuse, before anything starts, a number of agent processes this machine (or ``have`` MiB) cannot hold."""
+    """Refuse, before anything starts, a number of agent processes this machine (or a cluster's ``have``
+    MiB) cannot hold."""
+    where = "this machine has" if have is None else "the cluster has"
     need, have = n_local * AGENT_MIB[fork], have or available_mib()
     if have is not None and need > have:
         raise UsageError(f"{n_local} agent processes need about {need / 1024:,.0f} GiB of memory "
-                         f"({AGENT_MIB[fork]} MiB each{', forked' if fork else ''}) and this machine has "
-                         f"{have / 1024:.1f} GiB available; run fewer agents, or spread them over machines "
-                         "(--role agents --ids A-B on each)")
+                         f"({AGENT_MIB[fork]} MiB each{', forked' if fork else ''}) and {where} "
+                         f"{have / 1024:.1f} GiB available; run fewer agents, or "
+                         + ("spread them over machines (zswarm run --cluster, docs/cluster.md)" if where.startswith("this")
+                            else "add nodes"))
 
 
 #: CPU an agent's control step takes (ms): 0.5-0.8 on bench-field (docs/benchmarks.md), more in a dense swarm.
