@@ -74,6 +74,21 @@ class RayCluster:
             shutil.rmtree(self.run_dir, ignore_errors=True)
 
 
+@contextlib.contextmanager
+def loopback_only():
+    """While a local cluster's nodes start: Ray's version check of each node asks for "this node's
+    address" before the driver has one, and finds it by a probe towards 8.8.8.8 (1.1 s each, and a
+    warning line each, where there is no route). Every node of a local cluster is 127.0.0.1."""
+    from ray._private import services
+
+    original = services.get_node_ip_address
+    services.get_node_ip_address = lambda address=None: "127.0.0.1"
+    try:
+        yield
+    finally:
+        services.get_node_ip_address = original
+
+
 def reachable(address: str, timeout: float = 5.0) -> tuple[str, str]:
     """The head's ``HOST:PORT`` for ``address`` (``auto``: ``RAY_ADDRESS``, or the cluster ``ray start``
     left on this machine), once its port answers, and this machine's address on the way there (the
@@ -124,7 +139,7 @@ def connect(address: str, cores: int) -> RayCluster:
 
             k = int(address.split(":")[1])
             args = {"num_cpus": max(cores // k, 1), "node_ip_address": "127.0.0.1", **NODE_ARGS}
-            with contextlib.redirect_stdout(io.StringIO()):
+            with contextlib.redirect_stdout(io.StringIO()), loopback_only():
                 cluster.local = Cluster(initialize_head=True, head_node_args={**args, "_system_config": SYSTEM_CONFIG})
                 for _ in range(k - 1):
                     cluster.local.add_node(**args)
