@@ -10,15 +10,19 @@ on another machine is a handle with ``Popen``'s interface.
 
 from __future__ import annotations
 
+import json
+import time
+from pathlib import Path
+
 import numpy as np
 
 from zswarm.cluster.hosts import NodeLink
 from zswarm.cluster.placement import cross_router_share, place
 from zswarm.cluster.ray_cluster import RayCluster
 from zswarm.errors import UsageError
-from zswarm.launch.plan import Plan
+from zswarm.files import write_json
+from zswarm.launch.plan import Plan, id_ranges
 from zswarm.launch.supervisor import Launch, _say
-from zswarm.launch.plan import id_ranges
 from zswarm.net.procs import Child, agent_argv
 
 
@@ -44,7 +48,7 @@ class ClusterLaunch(Launch):
         plan = self.plan
         extra = self.configs.get("router", [])
         self.endpoints = []
-        for k, link in enumerate(self.links):  # the first node is the driver's: the world joins its router
+        for link in self.links:  # the first node is the driver's: the world joins its router
             join = self.endpoints[0] if self.endpoints else None
             try:
                 self.endpoints.append(link.call("start_router", link.info["address"], join, extra))
@@ -72,8 +76,6 @@ class ClusterLaunch(Launch):
     def _note_crashes(self) -> None:
         """A lost node's agents are crashed (said once, by its link); with ``--restart-after S`` they
         rejoin on the surviving nodes S seconds later, at their spawn positions."""
-        import time
-
         for k, link in enumerate(self.links):
             if link.lost and k not in self.lost_seen:
                 self.lost_seen.add(k)
@@ -124,11 +126,9 @@ class ClusterLaunch(Launch):
         add_cross_router_share(self.plan.summary, self.placed)
 
 
-def add_cross_router_share(summary_path, node_of: dict[int, int]) -> None:
+def add_cross_router_share(summary_path: Path, node_of: dict[int, int]) -> None:
     """Write ``cross_router_share`` (and ``cross_router_heard``, the count of agents that heard one on
     another node) into the summary, from what each agent reported it heard from whom."""
-    import json
-
     if not summary_path.exists():
         return
     s = json.loads(summary_path.read_text())
@@ -136,4 +136,4 @@ def add_cross_router_share(summary_path, node_of: dict[int, int]) -> None:
     s["cross_router_share"] = cross_router_share(heard, node_of)
     s["cross_router_heard"] = sum(1 for r, senders in heard.items()
                                   if any(node_of.get(j) != node_of.get(r) for j in senders if j in node_of))
-    summary_path.write_text(json.dumps(s, indent=1))
+    write_json(summary_path, s)
