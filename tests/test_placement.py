@@ -8,8 +8,8 @@ import json
 import numpy as np
 import pytest
 
-from zswarm.bench.placement import delivered
 from zswarm.cluster.placement import cross_router_share, place, shares
+from zswarm.net.keys import in_reach
 
 
 def test_shares_follow_the_capacities_and_a_node_without_cpus_gets_no_agent():
@@ -35,7 +35,7 @@ def test_space_placement_keeps_neighbours_together_and_round_robin_does_not():
     """On a 20 x 20 grid over 4 nodes, the poses a cell rule delivers cross nodes far less often when
     the grid is split by space; and the share is what it says on a small hand-made case."""
     g = np.stack(np.meshgrid(np.arange(20.0), np.arange(20.0)), axis=-1).reshape(-1, 2)
-    meets = delivered(g, 1.55, 1.5)
+    meets = in_reach(g, 1.55, 1.5)
     share = {}
     for how in ("space", "round-robin"):
         node = np.asarray(place(g, [1, 1, 1, 1], how))

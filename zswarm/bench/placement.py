@@ -1,7 +1,7 @@
 """What placement by space saves: the share of delivered poses that cross between routers.
 
 An agent is handed every pose published into the cells its subscription disc meets
-(:func:`zswarm.net.keys.in_reach_counts`, the agents' own cell rule: disc R + 2 v_max dt, cells of side
+(:func:`zswarm.net.keys.in_reach`, the agents' own cell rule: disc R + 2 v_max dt, cells of side
 R). A pose crosses between routers when its sender runs on another node than its receiver. This
 computes that share over a whole run from the reference simulator's trajectory, for each placement,
 with the nodes' capacities equal; a cluster run reports the same figure measured
@@ -17,15 +17,7 @@ import numpy as np
 
 from zswarm.cluster.placement import PLACEMENTS, place
 from zswarm.model.scenarios import get_scenario
-
-
-def delivered(positions: np.ndarray, r: float, cell_size: float) -> np.ndarray:
-    """``[i, j]``: agent i is handed j's poses (j publishes into a cell i's disc meets)."""
-    lo = np.floor(positions / cell_size) * cell_size
-    nearest = np.clip(positions[:, None, :], lo[None, :, :], lo[None, :, :] + cell_size)
-    meets = ((nearest - positions[:, None, :]) ** 2).sum(axis=2) <= r * r
-    np.fill_diagonal(meets, False)
-    return meets
+from zswarm.net.keys import in_reach
 
 
 def placement_shares(scenario_name: str, n_agents: int, nodes: int, seed: int = 0, samples: int = 50,
@@ -44,7 +36,7 @@ def placement_shares(scenario_name: str, n_agents: int, nodes: int, seed: int = 
     crossed = {how: 0 for how in (*PLACEMENTS, "space-replaced")}
     total = 0
     for k in np.linspace(0, len(traj) - 1, min(samples, len(traj))).round().astype(int):
-        meets = delivered(traj[k], r, cell)
+        meets = in_reach(traj[k], r, cell)
         total += int(meets.sum())
         # what a placement that moved agents between nodes as the swarm moved could reach: the same
         # split of where the agents are now (zswarm places once, at the start)

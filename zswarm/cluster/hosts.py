@@ -16,6 +16,7 @@ from typing import Any, Callable, Sequence
 
 from zswarm.cluster.node import NodeHost
 from zswarm.cluster.ray_cluster import import_ray
+from zswarm.launch.plan import id_ranges
 from zswarm.net.procs import ForkedProc
 
 POLL_S = 0.2
@@ -111,8 +112,6 @@ class NodeLink:
         for p in self.procs.values():
             p.exited(-signal.SIGKILL)
         if crashed:
-            from zswarm.launch.plan import id_ranges
-
             self.say(f"node {self.label} lost ({why}): agents {id_ranges(crashed)} crashed; the others carry on")
         else:
             self.say(f"node {self.label} lost ({why})")

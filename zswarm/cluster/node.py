@@ -19,7 +19,7 @@ import threading
 from collections import deque
 from typing import Sequence
 
-from zswarm.net.procs import Children, Fleet, free_port, start_router
+from zswarm.net.procs import Children, Fleet, start_router
 
 
 def node_address() -> str:
@@ -47,9 +47,6 @@ class NodeHost:
         return {"address": node_address(), "cores": len(os.sched_getaffinity(0)), "hostname": socket.gethostname(),
                 "version": zswarm.__version__, "pid": os.getpid()}
 
-    def free_port(self, host: str) -> int:
-        return free_port(host)
-
     def start_router(self, host: str, join: str | None, extra: Sequence[str] = ()) -> str:
         """This node's router on a free port of ``host``, joined to ``join`` (the first node's router)."""
         args = [*extra, *(["--connect", join] if join else [])]
@@ -73,8 +70,8 @@ class NodeHost:
         threading.Thread(target=read, daemon=True).start()
 
     def poll(self) -> dict:
-        """The agents that ended since the last poll (name -> exit code, negative for a signal), the
-        ones alive, and the stderr lines written meanwhile."""
+        """The agents that ended since the last poll (name -> exit code, negative for a signal) and the
+        stderr lines written meanwhile."""
         ended = {}
         for c in self.kids.named("agent"):
             code = c.proc.poll()
@@ -84,8 +81,7 @@ class NodeHost:
         with self.lock:
             lines = list(self.lines)
             self.lines.clear()
-        routers = [c.name for c in self.kids.named("router") if not c.alive()]
-        return {"ended": ended, "lines": lines, "dead_routers": routers}
+        return {"ended": ended, "lines": lines}
 
     def signal(self, name: str, sig: int) -> None:
         for c in self.kids.children:

@@ -26,14 +26,16 @@ def alive(pid: int) -> bool:
         return False
     except PermissionError:
         return True
-    return Path(f"/proc/{pid}").exists() and "Z" not in _state(pid)
+    fields = _fields(pid)
+    return fields is not None and fields[0] != "Z"  # a zombie is gone too
 
 
-def _state(pid: int) -> str:
+def _fields(pid: int) -> list[str] | None:
+    """The fields of ``/proc/PID/stat`` after the command name (state first), None if it is gone."""
     try:
-        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
     except (OSError, IndexError):
-        return "Z"
+        return None
 
 
 def tagged(tags: set[bytes]) -> list[int]:
@@ -74,10 +76,10 @@ def reap(directory: Path) -> int:
 
 def _stat(pid: int) -> tuple[int, int] | None:
     """(parent pid, start time) of ``pid``, None if it is gone."""
+    fields = _fields(pid)
     try:
-        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-        return int(fields[1]), int(fields[19])
-    except (OSError, IndexError, ValueError):
+        return None if fields is None else (int(fields[1]), int(fields[19]))
+    except (IndexError, ValueError):
         return None
 
 

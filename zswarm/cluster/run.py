@@ -34,8 +34,6 @@ def check_flags(args: argparse.Namespace) -> None:
     for flag, set_ in given.items():
         if set_:
             raise UsageError(REFUSED[flag])
-    if args.placement not in ("space", "round-robin"):
-        raise UsageError(f"--placement is space or round-robin (got {args.placement!r})")
 
 
 def node_label(k: int, node: dict) -> str:

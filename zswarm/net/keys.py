@@ -143,16 +143,22 @@ def cells_in_disc_margin(keys: Keys, point: Sequence[float], r: float) -> tuple[
     return cells, max(margin - ROUNDING, 0.0)
 
 
-def in_reach_counts(positions: np.ndarray, r: float, cell_size: float) -> np.ndarray:
-    """For each agent at ``positions`` (N, D), how many others publish into a cell that its disc (ball)
-    of radius r meets (:func:`cells_in_disc`): the poses a lossless transport hands it per publishing round."""
+def in_reach(positions: np.ndarray, r: float, cell_size: float) -> np.ndarray:
+    """``[i, j]``: agent j at ``positions`` (N, D) publishes into a cell that agent i's disc (ball) of
+    radius r meets (:func:`cells_in_disc`), so a lossless transport hands i every pose of j."""
     p = np.asarray(positions, dtype=float)
     p = p.reshape(-1, p.shape[-1] if p.ndim > 1 else 2)
     lo = np.floor(p / cell_size) * cell_size  # each agent's cell
     nearest = np.clip(p[:, None, :], lo[None, :, :], lo[None, :, :] + cell_size)  # [i, j]: of j's cell to i
     meets = ((nearest - p[:, None, :]) ** 2).sum(axis=2) <= r * r
     np.fill_diagonal(meets, False)
-    return meets.sum(axis=1)
+    return meets
+
+
+def in_reach_counts(positions: np.ndarray, r: float, cell_size: float) -> np.ndarray:
+    """For each agent, how many others are :func:`in_reach`: the poses a lossless transport hands it per
+    publishing round."""
+    return in_reach(positions, r, cell_size).sum(axis=1)
 
 
 def parse_parameters(text: str) -> dict[str, str]:
