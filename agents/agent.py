@@ -18,6 +18,7 @@ from __future__ import annotations
 import asyncio
 import math
 import time
+from array import array
 from typing import Any
 
 import numpy as np
@@ -53,9 +54,10 @@ class Agent:
 
     def __init__(self, spec: RunSpec, agent_id: int, body: Body, sensing: Sensing, reach: Reach, bridge: Bridge,
                  law: Law, injector: FaultInjector | None = None, robot: Any = None, staleness: float = 0.5,
-                 lockstep_wait: float = 0.25, safety: Safety | None = None) -> None:
+                 lockstep_wait: float = 0.25, safety: Safety | None = None, track: array | None = None) -> None:
+        """``track``: where every pose it sends is kept as (stamp, position...) for ``--tracks``."""
         self.spec, self.id, self.body, self.sensing, self.reach, self.bridge = spec, agent_id, body, sensing, reach, bridge
-        self.law, self.injector, self.robot, self.safety = law, injector, robot, safety
+        self.law, self.injector, self.robot, self.safety, self.track = law, injector, robot, safety, track
         self.keys = spec.keys
         self.dt = spec.scenario.dt
         self.body_spec = bodies.body_spec(spec.scenario.params)
@@ -167,8 +169,11 @@ class Agent:
             self.pose_key = self.keys.pose(cell, self.id)
         key = self.pose_key
         self.seq += 1
-        payload = msg.encode_pose(self.id, self.seq, time.time(), step, b.x, b.y, b.vx, b.vy, b.heading, b.z, b.vz,
+        stamp = time.time()
+        payload = msg.encode_pose(self.id, self.seq, stamp, step, b.x, b.y, b.vx, b.vy, b.heading, b.z, b.vz,
                                   self.safety_flag)
+        if self.track is not None:
+            self.track.extend((stamp, b.x, b.y) if b.z is None else (stamp, b.x, b.y, b.z))
         self.latest_reply = (key, payload)
         if step >= 0:
             self.replies_by_step = {s: r for s, r in self.replies_by_step.items() if s > step - 3}

@@ -5,8 +5,10 @@ from __future__ import annotations
 import argparse
 import asyncio
 import math
+import os
 import signal
 import sys
+from array import array
 from pathlib import Path
 from typing import TYPE_CHECKING, Sequence
 
@@ -48,6 +50,10 @@ def build_parser() -> Parser:
     parser.add_argument("--robots", type=Path, default=None, metavar="FILE.toml",
                         help="a robots file: if it names this agent's id, a ROS 2 robot is its body (its pose "
                              "from the robot's odometry, its command sent as cmd_vel; docs/robots.md)")
+    parser.add_argument("--tracks", type=Path, default=None, metavar="DIR",
+                        help="keep every pose this agent sends and write them, when it ends, to "
+                             "DIR/agent-ID-PID.npy (rows: stamp, x, y[, z]): the exact record the run's "
+                             "collisions are judged from at one instant (zswarm run --tracks)")
     parser.add_argument("--odom-timeout", type=float, default=1.0,
                         help="with a robot: stop it and leave the swarm when its odometry stops this long "
                              "(default 1 s)")
@@ -119,8 +125,10 @@ class Process:
         self.bridge = Bridge(self.session, loop, inbound_chain(sensing, injector, link), batch=loop is None,
                              channels=rings, capacity=CELL_CAPACITY,
                              reply_filter=injector.filter_replies if injector is not None else None)
+        self.tracks: Path | None = args.tracks
         self.agent = Agent(spec, args.id, body, sensing, Reach(sensing, self.bridge), self.bridge, law, injector,
-                           link, args.staleness, args.lockstep_wait, safety_of(spec.scenario, spec.safety))
+                           link, args.staleness, args.lockstep_wait, safety_of(spec.scenario, spec.safety),
+                           track=array("d") if args.tracks is not None else None)
         self.injector = injector
         self.declared = [self.bridge.subscribe_liveliness(keys.all_alive, "alive"),
                          self.bridge.subscribe(keys.prey, "prey"), self.bridge.subscribe(keys.tick, "tick")]
@@ -151,6 +159,14 @@ class Process:
         if final_stats:
             self.session.put(self.spec.keys.stats(self.id), self.agent.stats(final=True), encoding=msg.ENCODING)
         teardown(self.bridge, self.declared, self.session)
+        if self.tracks is not None and self.agent.track:
+            write_track(self.tracks, self.id, self.agent.track, self.spec.scenario.dimensions)
+
+
+def write_track(folder: Path, agent_id: int, track: array, dims: int) -> None:
+    """``--tracks``: the poses it sent, as rows (stamp, x, y[, z]), in one file per process."""
+    rows = np.frombuffer(track, dtype=float).reshape(-1, 1 + dims)
+    np.save(folder / f"agent-{agent_id}-{os.getpid()}.npy", rows)
 
 
 def run_free_agent(spec: RunSpec, args: argparse.Namespace, robots: RobotsFile | None = None) -> int:

@@ -18,10 +18,18 @@ def launch(*args: str, cwd, timeout: float = 180) -> subprocess.CompletedProcess
 
 def test_kill_restart_and_world_outage(tmp_path):
     res = launch("--agents", "5", "--duration", "10", "--kill", "1@2", "--restart-after", "2",
-                 "--world-outage", "6:1.5", "--record", str(tmp_path / "k.rrd"), "--quiet", cwd=tmp_path)
+                 "--world-outage", "6:1.5", "--record", str(tmp_path / "k.rrd"), "--quiet",
+                 "--tracks", str(tmp_path / "tracks"), cwd=tmp_path)
     assert res.returncode == 0, res.stderr
-    assert "killed agents" in res.stderr and "restarted agents" in res.stderr and "world frozen" in res.stderr
     s = json.loads((tmp_path / "k.json").read_text())
+    # --tracks: every process that ended wrote what it sent (the SIGKILLed one could not: 4 + its restart),
+    # and the collisions judged at one instant from them are in the summary, as the world's own judge's
+    tracks = s["tracks"]
+    assert tracks["processes"] == 5 == len(list((tmp_path / "tracks").glob("agent-*.npy")))
+    assert tracks["poses"] > 5 * 100 and tracks["collisions"] == 0
+    assert tracks["closest"] is None or tracks["closest"] > 0.1  # None: no pair came within twice 2 d^r
+    assert s["collisions_at_one_time"] == 0 and s["judged_at_one_time_s"] > 8.0
+    assert "killed agents" in res.stderr and "restarted agents" in res.stderr and "world frozen" in res.stderr
     early = [d for d in s["departures"] if d["t"] < 9.9]
     assert len(early) == 1 and 1.5 < early[0]["t"] < 3.5
     victim = str(early[0]["id"])

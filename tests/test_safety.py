@@ -72,7 +72,7 @@ def test_stale_data_inflates_the_margin_and_data_past_the_bound_brakes():
     fresh = sf.apply(u_hat, sf.rows(s, 1, np.zeros(1, np.intp), psi, np.array([0.0]), np.zeros(0, np.intp),
                                     np.zeros((0, 2)), np.zeros(0)))
     old = sf.apply(u_hat, sf.rows(s, 1, np.zeros(1, np.intp), psi, np.array([0.05]), np.zeros(0, np.intp),
-                                  np.zeros((0, 2)), np.zeros(0)))
+                                  np.zeros((0, 2)), np.zeros(0)), detour=False)
     any_side = sf.apply(u_hat, sf.rows(s, 1, np.zeros(1, np.intp), psi, np.array([0.3]), np.zeros(0, np.intp),
                                        np.zeros((0, 2)), np.zeros(0)))
     past = sf.apply(u_hat, sf.rows(s, 1, np.zeros(1, np.intp), psi, np.array([s.max_age + 0.01]),
@@ -107,20 +107,31 @@ def test_stale_rows_hold_for_every_direction_the_data_allow():
                 assert true @ u / np.linalg.norm(true) >= -b - 1e-9
 
 
-def test_fresh_data_keeps_a_head_on_pair_apart_in_discrete_time():
-    """Two agents driven straight at each other at full speed: apart by D_s at every step, exactly."""
+@pytest.mark.parametrize("detour", [False, True])
+def test_fresh_data_keeps_a_head_on_pair_apart_in_discrete_time(detour):
+    """Two agents driven straight at each other's start at full speed: apart by D_s at every step,
+    exactly. Without the detour they stall face to face for good (the symmetric deadlock); with it both
+    turn right, slide past each other and reach the other's start."""
     s = sf.Safety(distance=0.1, clearance=0.05, v_max=1.0, period=0.05, sensing_radius=1.0)
-    p = np.array([[0.0, 0.0], [0.6, 0.0]])
-    closest = np.inf
+    goals = np.array([[0.6, 0.0], [0.0, 0.0]])
+    p = goals[::-1].copy()
+    closest, stalled = np.inf, 0
     for _ in range(100):
-        u_hat = np.array([[1.0, 0.0], [-1.0, 0.0]])
+        u_hat = goals - p
+        u_hat *= np.minimum(1.0, 1.0 / np.maximum(np.linalg.norm(u_hat, axis=1), 1e-12))[:, None]
         psi = np.array([p[0] - p[1], p[1] - p[0]])
         r = sf.rows(s, 2, np.array([0, 1]), psi, np.zeros(2), np.zeros(0, np.intp), np.zeros((0, 2)), np.zeros(0))
-        p = p + s.period * sf.apply(u_hat, r).command
+        done = sf.apply(u_hat, r, detour=detour)
+        p = p + s.period * done.command
         closest = min(closest, float(np.linalg.norm(p[0] - p[1])))
+        stalled += int(done.stalled.sum())
     assert closest >= s.distance - 1e-12
-    unfiltered_gap = 0.6 - 2 * 1.0 * 0.05 * 100
-    assert unfiltered_gap < s.distance  # without the filter they would have passed through each other
+    assert 0.6 - 2 * 1.0 * 0.05 * 100 < s.distance  # without the filter they would pass through each other
+    left = np.linalg.norm(p - goals, axis=1)
+    if detour:
+        assert np.all(left < 0.01) and stalled < 10
+    else:
+        assert np.all(left > 0.2) and stalled > 150
 
 
 def test_a_unicycle_filters_its_lookahead_point_with_the_radius_grown():
@@ -145,15 +156,19 @@ def test_the_agents_float_filter_equals_the_vectorized_one(dims):
     """An agent process filters in floats (filter_one); the simulators use rows + apply: the same."""
     rng = np.random.default_rng(10 + dims)
     s = sf.Safety(distance=0.1, clearance=0.05, v_max=1.0, period=0.05, sensing_radius=1.0)
-    acted = braked = 0
-    for _ in range(300):
+    acted = braked = detours = 0
+    for case in range(400):
         point = rng.uniform(-1, 1, size=dims)
         k, m = int(rng.integers(0, 7)), int(rng.integers(0, 3))
         q = point + rng.uniform(-0.5, 0.5, size=(k, dims))
-        age = rng.choice([0.0, 0.1, 0.4, 1.0], size=k)
+        u_hat = rng.uniform(-0.7, 0.7, size=dims)
+        if case >= 300 and k:  # a neighbour just ahead, straight in the way: stalls, and detours
+            q[0] = point + rng.uniform(0.1, 0.12) * (u_hat + rng.normal(0, 0.05, dims)) / np.linalg.norm(u_hat)
+        age = rng.choice([0.0, 0.0, 0.0, 0.0, 0.1, 0.4, 1.0], size=k)
+        if case >= 300:
+            age[:] = 0.0
         centres = point + rng.uniform(-0.6, 0.6, size=(m, dims))
         radii = rng.uniform(0, 0.2, size=m)
-        u_hat = rng.uniform(-0.7, 0.7, size=dims)
         got, done = sf.filter_one(s, tuple(point), tuple(u_hat), [(tuple(x), float(a)) for x, a in zip(q, age)],
                                   [(*c, r) for c, r in zip(centres.tolist(), radii.tolist())])
         want = sf.apply(u_hat[None], sf.rows(s, 1, np.zeros(k, np.intp), point - q, age, np.zeros(m, np.intp),
@@ -164,7 +179,10 @@ def test_the_agents_float_filter_equals_the_vectorized_one(dims):
         assert (done is not None and done.stalled) == bool(want.stalled[0])
         acted += bool(want.acted[0])
         braked += bool(want.braked[0])
-    assert acted > 50 and braked > 5
+        straight = sf.apply(u_hat[None], sf.rows(s, 1, np.zeros(k, np.intp), point - q, age, np.zeros(m, np.intp),
+                                                 point - centres, radii), detour=False)
+        detours += not np.allclose(straight.command, want.command)
+    assert acted > 50 and braked > 5 and detours > 10, (acted, braked, detours)
 
 
 def test_the_batched_simulator_filters_each_run_as_the_reference_does_alone():

@@ -149,6 +149,8 @@ CASES = [
     ([LAUNCH, "--cluster", "local", "--role", "agents"], "--cluster runs every role itself"),
     ([LAUNCH, "--cluster", "local", "--ids", "0-3"], "--cluster places every agent itself"),
     ([LAUNCH, "--cluster", "local", "--secure", "{dir}"], "--secure over a cluster is not supported yet"),
+    ([LAUNCH, "--cluster", "local", "--tracks", "{dir}"], "--tracks over a cluster is not supported yet"),
+    ([LAUNCH, "--tracks", "{junk}"], "cannot make the folder"),
     ([LAUNCH, "--role", "agents", "--connect", "tcp/127.0.0.1:1", "--agents", "10", "--ids", "0-50"],
      "--ids 0-50 goes beyond the run's agents 0-9"),
     ([LAUNCH, "--connect-timeout", "0"], "--connect-timeout must be between"),

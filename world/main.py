@@ -103,7 +103,8 @@ def _main(argv: Sequence[str] | None) -> int:
         raise UsageError("--resume works with the free clock only (a lockstep run cannot re-issue its ticks)")
     result = asyncio.run(run_world(args, spec, viewer))
     keys = ("capture_time", "collisions", "min_pair_distance", "final_components", "messages_rejected")
-    print("world: done " + json.dumps({k: result.get(k) for k in keys}), flush=True)
+    timed = ("collisions_at_one_time", "closest_at_one_time") if "collisions_at_one_time" in result else ()
+    print("world: done " + json.dumps({k: result.get(k) for k in keys + timed}), flush=True)
     return 0
 
 

@@ -29,6 +29,7 @@ from world.report import StatsBook, transport_summary
 from zswarm.model.design import verdict
 from zswarm.model import prey as prey_motion
 from zswarm.model.observer import SwarmObserver
+from zswarm.model.timed_contacts import TimedContacts
 from zswarm.net import histogram
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Bridge, Inbound
@@ -118,6 +119,9 @@ class World:
         self.started_wall = time.time()
         self.resumed: Resumed | None = None
         self.snapshot_spread = 0.0  # free clock: the widest spread of send times in one observed snapshot
+        # free clock: collisions judged at one instant (a snapshot mixes poses sent at different times)
+        self.timed = (TimedContacts(2.0 * self.scenario.params.swarm.robot_radius)
+                      if spec.clock == "free" else None)
 
     # --- start ----------------------------------------------------------------------------------------
 
@@ -169,6 +173,8 @@ class World:
             if reason is not None:
                 self.rejected.add(reason)
                 return
+            if self.timed is not None:
+                self.timed.add(m.id, m.seq, m.stamp, m.position, received)
             self.pose_arrived.set()
         else:
             self.rejected.add("kind")
@@ -181,6 +187,8 @@ class World:
         if deleted:
             c.alive.discard(who)
             self.poses.forget(who)
+            if self.timed is not None:
+                self.timed.leave(who)
             if self.ending:  # the run is over and the agents stop: not a departure
                 c.stopped_at_end.append(who)
             else:
@@ -241,6 +249,15 @@ class World:
         self._log_network()
         return metrics
 
+    def judge_contacts(self) -> None:
+        """Free clock: judge the instants every agent's poses are in (:mod:`zswarm.model.timed_contacts`);
+        each collision found there is an event of the recording."""
+        if self.timed is None:
+            return
+        for onset in self.timed.judge(time.time()):
+            self._event(f"collision at one instant: agents {onset.i} and {onset.j} {onset.distance:.3f} apart "
+                        f"(poses sent {onset.stamp - self.started_wall:.2f} s after the world started)")
+
     def _log_network(self, every: float = 1.0, agents_every: float = 5.0) -> None:
         """The network panel: the world's own counters each second, and the latency and data age the
         agents measured every few seconds (decoding every agent's stats costs, at N = 100)."""
@@ -296,6 +313,7 @@ class World:
             live = self.poses.latest(self.census.alive)
             self.publish(self.keys.prey, msg.Prey(clock.step, time.time(), -1, *map(float, self.prey)))
             last_print = self._progress(self.observe(live), steps, progress, last_print)
+            self.judge_contacts()
             if clock.t >= duration - 1e-9:
                 break
             next_tick += period
@@ -353,6 +371,13 @@ class World:
 
     # --- end ------------------------------------------------------------------------------------------
 
+    def _timed_result(self) -> dict[str, Any]:
+        """The collisions judged at one instant, after judging what came in last (free clock only)."""
+        if self.timed is None:
+            return {}
+        self.judge_contacts()
+        return self.timed.result()
+
     def finish(self) -> dict[str, Any]:
         """The run's summary: outcome (the observer's), transport (the agents' stats) and the world's
         own figures; stored in the recording and written beside it."""
@@ -374,6 +399,7 @@ class World:
                        "poses_in_reach_per_s": self.reach.per_s(s.period),
                        "world_segments": self.recorder.segment + 1,
                        "snapshot_spread_max_s": self.snapshot_spread if s.clock == "free" else None,
+                       **self._timed_result(),
                        "resumed_from": None if self.resumed is None else self.resumed.to_dict(),
                        "design": verdict(self.scenario.params, self.scenario.dt)})
         self.recorder.close(result)

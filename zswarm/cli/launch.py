@@ -59,6 +59,9 @@ def build_parser(prog: str = "zswarm run") -> Parser:
                    help="overwrite the recording and summary an earlier run left at --record / --summary")
     p.add_argument("--summary", type=Path, default=None, help="summary JSON (default: beside the recording)")
     p.add_argument("--trajectory", type=Path, default=None, help="observed positions per step (.npz)")
+    p.add_argument("--tracks", type=Path, default=None, metavar="DIR",
+                   help="each agent writes every pose it sent into DIR; at the end the run's collisions are "
+                        "judged from them at one instant, exactly (summary: tracks)")
     p.add_argument("--role", type=parse_roles, default=list(ROLES),
                    help="what this machine runs: router,world,agents (default all three)")
     p.add_argument("--connect", action=ConnectAction, zenoh_dest="connect", append=False, default=None,

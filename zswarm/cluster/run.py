@@ -24,13 +24,14 @@ REFUSED = {
     "secure": "--secure over a cluster is not supported yet (zswarm certs would need every node's address)",
     "listen": "--cluster picks each node's router endpoint itself",
     "connect": "--cluster joins the routers itself; --connect names a router for machines started by hand",
+    "tracks": "--tracks over a cluster is not supported yet (each node would write its agents' tracks on its own disk)",
 }
 
 
 def check_flags(args: argparse.Namespace) -> None:
     given = {"role": args.role != ["router", "world", "agents"], "ids": args.ids is not None,
              "routers": args.routers != 1, "robots": args.robots is not None, "secure": args.secure is not None,
-             "listen": args.listen is not None, "connect": args.connect is not None}
+             "listen": args.listen is not None, "connect": args.connect is not None, "tracks": args.tracks is not None}
     for flag, set_ in given.items():
         if set_:
             raise UsageError(REFUSED[flag])

@@ -40,6 +40,7 @@ def agent_config_args(plan: Plan, configs: dict[str, list[str]], agent: int) -> 
     """Agent ``agent``'s config: under --secure, its own identity's if the directory has one; with
     --robots, the robots file (an agent it names drives that robot)."""
     robots = [] if plan.robots is None else ["--robots", str(plan.robots)]
+    robots += [] if plan.tracks is None else ["--tracks", str(plan.tracks)]
     if plan.secure is None:
         return configs.get("agent", []) + robots
     from zswarm.net.security import agent_config

@@ -30,8 +30,31 @@ def finish_recording(plan: Plan, world_code: int, started_at: float, routing: di
                 f"the summary recomputed from it (\"salvaged\": true)")
         except UsageError as exc:
             say(f"the world ended with code {world_code} and its recording cannot be salvaged: {exc}")
+    if plan.tracks is not None and plan.summary.exists():
+        add_tracks(plan, say)
     if not plan.quiet and plan.record.exists():
         say(f"recording {plan.record} (open with: {viewer_command()} {plan.record}); summary {plan.summary}", err=False)
+
+
+def add_tracks(plan: Plan, say: Callable[..., None]) -> None:
+    """``--tracks``: the collisions judged at one instant from what every agent sent
+    (:func:`zswarm.model.timed_contacts.judge_tracks`), into the summary as ``tracks``, and said."""
+    import json
+
+    import numpy as np
+
+    from zswarm.files import write_json
+    from zswarm.model.timed_contacts import judge_tracks
+
+    files = sorted(plan.tracks.glob("agent-*.npy"))
+    tracks = [(int(f.name.split("-")[1]), np.load(f)) for f in files]
+    judged = judge_tracks(tracks, 2.0 * plan.spec.scenario.params.swarm.robot_radius)
+    summary = json.loads(plan.summary.read_text())
+    write_json(plan.summary, {**summary, "tracks": {"folder": str(plan.tracks), **judged}})
+    closest = "-" if judged["closest"] is None else f"{judged['closest']:.3f}"
+    say(f"tracks: {judged['collisions']} collisions at one instant in the {judged['poses']} poses "
+        f"{judged['processes']} agent processes sent (closest {closest}; the world's snapshots counted "
+        f"{summary.get('collisions')})", err=False)
 
 
 def viewer_command() -> str:

@@ -56,6 +56,7 @@ class Plan:
     robots: Path | None = None  # a robots file: the agents it names drive ROS 2 robots
     notes: tuple[str, ...] = ()  # said at start: where the recording goes, which agents drive robots
     connect_timeout: float | None = None  # how long the world and agents retry their router (their default 15 s)
+    tracks: Path | None = None  # each agent writes the poses it sent here; judged at the end
 
 
 def plan_from_args(args: argparse.Namespace, cores: int | None = None, memory_mib: float | None = None) -> Plan:
@@ -107,6 +108,7 @@ def plan_from_args(args: argparse.Namespace, cores: int | None = None, memory_mi
         raise UsageError(f"--connect-timeout must be between 0 and 3600 seconds (got {args.connect_timeout})")
     if args.restart_after is not None and not args.restart_after >= 0:
         raise UsageError(f"--restart-after must be >= 0 (got {args.restart_after})")
+    tracks = tracks_folder(args.tracks)
     viewer = viewer_from_args(args) if "world" in args.role else Viewer()
     if (viewer.spawn or viewer.serve) and args.world_crash is not None and args.world_crash[1] is not None:
         raise UsageError("--world-crash T:S restarts the world; watch it with --connect to a viewer of your own "
@@ -133,7 +135,21 @@ def plan_from_args(args: argparse.Namespace, cores: int | None = None, memory_mi
                 connect=args.connect, listen=args.listen, secure=args.secure, config=args.config,
                 router_config=args.router_config, quiet=args.quiet, fork=args.fork, kill=args.kill, restart_after=args.restart_after,
                 world_outage=args.world_outage, world_crash=args.world_crash, viewer=viewer, design=design,
-                robots=args.robots, notes=tuple(notes), connect_timeout=args.connect_timeout)
+                robots=args.robots, notes=tuple(notes), connect_timeout=args.connect_timeout,
+                tracks=tracks)
+
+
+def tracks_folder(folder: Path | None) -> Path | None:
+    """``--tracks DIR``: made if missing; one that holds an earlier run's tracks is refused."""
+    if folder is None:
+        return None
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UsageError(f"--tracks {folder}: cannot make the folder ({exc.strerror})") from None
+    if any(folder.glob("agent-*.npy")):
+        raise UsageError(f"--tracks {folder} holds an earlier run's tracks: give an empty folder")
+    return folder.resolve()
 
 
 def run_files(record: Path | None, summary: Path | None, force: bool) -> tuple[Path, Path, str]:

@@ -54,6 +54,7 @@ from zswarm.model.neighbours import pairs_within
 MODES: tuple[str, ...] = ("off", "barrier")
 TOL = 1e-12  # a candidate satisfies a row when a.u - b <= TOL (rounding of the exact solutions)
 STALL_SHARE = 0.1  # an agent is stalled when the filter left it under this share of the law's speed
+DETOUR = math.pi / 4  # a stalled agent tries the law's command turned this far to its right (the detour)
 HAIR = 1e-6  # D_s and D_o are kept this share above the touching distances
 _CHUNK = 256  # agents solved at once (bounds the candidates' memory)
 
@@ -171,11 +172,38 @@ class Filtered(NamedTuple):
         return np.where(self.braked, 3, np.where(self.stalled, 2, self.acted.astype(int)))
 
 
-def apply(u_hat: np.ndarray, r: Rows) -> Filtered:
-    """(S1) for every agent: the exact projection of its command, braking where ``r.stale`` says."""
+def apply(u_hat: np.ndarray, r: Rows, detour: bool = True) -> Filtered:
+    """(S1) for every agent: the exact projection of its command, braking where ``r.stale`` says; with
+    ``detour``, a stalled agent takes the detour where it goes farther (:func:`take_detour`)."""
     u = project(u_hat, r.agent, r.a, r.b)
+    if detour:
+        u = take_detour(u_hat, u, r)
     u[r.stale] = 0.0
     return judged(u_hat, u, r.stale.copy())
+
+
+def turn_right(u: np.ndarray) -> np.ndarray:
+    """Commands (..., D) turned by :data:`DETOUR` clockwise about the vertical (z stays)."""
+    c, s = math.cos(DETOUR), math.sin(DETOUR)
+    out = np.array(u, dtype=float, copy=True)
+    out[..., 0], out[..., 1] = c * u[..., 0] + s * u[..., 1], -s * u[..., 0] + c * u[..., 1]
+    return out
+
+
+def take_detour(u_hat: np.ndarray, u: np.ndarray, r: Rows) -> np.ndarray:
+    """The right-hand rule against deadlock (D1 of ``docs/safety.md``): an agent the projection stalled
+    (under :data:`STALL_SHARE` of the law's speed) projects the law's command turned right by
+    :data:`DETOUR` onto the same rows, and keeps that where it is the longer (beyond rounding). Both satisfy every row,
+    so the guarantee is the same; two agents facing each other both turn right and slide past."""
+    speed = np.linalg.norm(u_hat, axis=-1)
+    stuck = np.flatnonzero((np.linalg.norm(u, axis=-1) < STALL_SHARE * speed) & ~r.stale)
+    if len(stuck) == 0:
+        return u
+    sel = np.isin(r.agent, stuck)
+    alt = project(turn_right(u_hat[stuck]), np.searchsorted(stuck, r.agent[sel]), r.a[sel], r.b[sel])
+    better = np.linalg.norm(alt, axis=-1) > np.linalg.norm(u[stuck], axis=-1) + 1e-9 * speed[stuck]  # not a tie
+    u[stuck[better]] = alt[better]
+    return u
 
 
 def judged(u_hat: np.ndarray, u: np.ndarray, braked: np.ndarray) -> Filtered:
@@ -287,7 +315,7 @@ class Acted(NamedTuple):
 
 def filter_one(safety: Safety, point: tuple[float, ...], u_hat: tuple[float, ...],
                neighbours: list[tuple[tuple[float, ...], float]],
-               obstacles: list[tuple[float, ...]]) -> tuple[tuple[float, ...], Acted | None]:
+               obstacles: list[tuple[float, ...]], detour: bool = True) -> tuple[tuple[float, ...], Acted | None]:
     """One agent's filter in plain floats (an agent process, every tick): :func:`apply` of
     :func:`rows` for one agent at ``point`` with ``neighbours`` as (believed point, age) and
     ``obstacles`` as (centre..., radius), the same rows and the same exact enumeration written for the
@@ -330,7 +358,15 @@ def filter_one(safety: Safety, point: tuple[float, ...], u_hat: tuple[float, ...
         return (0.0,) * dims, Acted(speed > 0.0, speed > 0.0, True)
     if not violated:
         return u_hat, None
-    u = _project_floats(u_hat, [r for r in binding if r[1] < speed * math.sqrt(sum(c * c for c in r[0])) + TOL])
+    binding = [r for r in binding if r[1] < speed * math.sqrt(sum(c * c for c in r[0])) + TOL]
+    u = _project_floats(u_hat, binding)
+    if detour and math.sqrt(sum(c * c for c in u)) < STALL_SHARE * speed:  # take_detour, in floats
+        cos, sin = math.cos(DETOUR), math.sin(DETOUR)
+        turned = (cos * u_hat[0] + sin * u_hat[1], -sin * u_hat[0] + cos * u_hat[1], *u_hat[2:])
+        fits = all(sum(a[k] * turned[k] for k in range(dims)) - b <= TOL for a, b in binding)
+        alt = turned if fits else _project_floats(turned, binding)
+        if math.sqrt(sum(x * x for x in alt)) > math.sqrt(sum(x * x for x in u)) + 1e-9 * speed:
+            u = alt
     change = math.sqrt(sum((u[k] - u_hat[k]) ** 2 for k in range(dims)))
     acted = change > 1e-9 * max(speed, 1.0)
     return u, Acted(acted, acted and math.sqrt(sum(c * c for c in u)) < STALL_SHARE * speed, False)
