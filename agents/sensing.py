@@ -210,11 +210,14 @@ class Sensing:
 
     # --- what the agent senses -------------------------------------------------------------------------
 
-    def _held(self, step: int | None):
+    def _held(self, step: int | None, guard: bool = False):
         """(entry, pose) of every neighbour holding a liveliness token: its step-k pose (lockstep) or its
-        newest (free, ``step`` None), where it has one."""
+        newest (free, ``step`` None), where it has one. ``guard`` (the safety filter): also one whose
+        token has not come yet (its poses prove it is there; under load a token can come seconds after
+        them); only one seen departing is not guarded against."""
+        departed = self.counters.departed
         for who, nb in self.neighbours.entries.items():
-            if who in self.alive:
+            if who in self.alive or (guard and who not in departed):
                 pose = nb.by_step.get(step) if step is not None else nb.latest
                 if pose is not None:
                     yield nb, pose
@@ -238,29 +241,34 @@ class Sensing:
     def safety_neighbours(self, step: int | None, time_scale: float, period: float, staleness: float,
                           lookahead: float = 0.0) -> list[tuple[tuple[float, ...], float]]:
         """What the safety filter guards against, as (where the filter acts on it, age in simulated
-        seconds): every neighbour holding a liveliness token whose newest pose was within the sensing
-        radius, unless nothing came from it for ``staleness`` wall seconds longer than from the one heard
-        last (then it has left the cells this agent listens to: an agent within the sensing disc
-        publishes into them, and the agent hears it as often as it hears anyone; a late network delays
-        every pose but keeps delivering them, and a late tick of this agent delays all alike).
-        ``docs/safety.md`` states this assumption.
+        seconds): every neighbour holding a liveliness token whose newest pose may be within the sensing
+        radius by now (no farther beyond it than v_max times its age). One from which nothing came for
+        ``staleness`` wall seconds longer than from the one heard last has gone *quiet*: it has left the
+        cells this agent listens to, or its poses are being lost. It is let go only if it can have left:
+        if its newest pose plus what it can have moved since reaches past the subscription disc (the
+        cells cover at least that disc about this agent). One deep inside cannot have left: its silence
+        is loss, and it stays guarded against where it may be (``docs/safety.md``).
 
         Lockstep: the step-k poses, exact for step k (age 0). Free: the newest pose, its age from its
         stamp scaled by ``time_scale``, plus one control period ``period`` (a neighbour on its own timer
         may have stepped once more than the age says: ticks that catch up on a late one come closer
         together). ``lookahead``: a unicycle's tracked point ahead of its axle, from the heading."""
-        now = time.time()
-        heard = [(pose, 0.0 if step is not None else max(now - pose.stamp, 0.0), now - nb.received)
-                 for nb, pose in self._held(step) if self.body.distance(pose) <= self.radius]
+        now, v, cells = time.time(), self.v_max, self.subscription_radius
+        heard = []
+        for nb, pose in self._held(step, guard=True):
+            age = 0.0 if step is not None else max(now - pose.stamp, 0.0) * time_scale + period
+            d = self.body.distance(pose)
+            if d - v * age <= self.radius:
+                heard.append((pose, age, now - nb.received, d))
         if not heard:
             return []
-        left = min(quiet for _, _, quiet in heard) + staleness
+        left = min(quiet for _, _, quiet, _ in heard) + staleness
         out = []
-        for pose, age, quiet in heard:
-            if step is None and quiet > left:
+        for pose, age, quiet, d in heard:
+            if step is None and quiet > left and d + v * age > cells:
                 continue
             point = pose.position
             if lookahead and pose.heading is not None:
                 point = (point[0] + lookahead * math.cos(pose.heading), point[1] + lookahead * math.sin(pose.heading))
-            out.append((point, 0.0 if step is not None else age * time_scale + period))
+            out.append((point, age))
         return out

@@ -94,7 +94,7 @@ def test_simulator_delay_uses_old_positions():
     """With a 0.2 s delay and no loss, agent i's neighbour data at step k is the position at k - 4."""
     from zswarm.sim.channel import FaultyChannel
 
-    ch = FaultyChannel(3, FaultModel(latency=0.2, seed=0), dt=0.05, sensing_radius=100.0)
+    ch = FaultyChannel(3, FaultModel(latency=0.2, seed=0), dt=0.05, sensing_radius=100.0, v_max=1.0)
     pos = lambda k: np.array([[k, 0.0], [k, 1.0], [k, 2.0]], dtype=float)  # noqa: E731
     for k in range(10):
         i, j, believed, goal = ch.step(k, pos(k), np.array([100.0 + k, 0.0]))

@@ -260,10 +260,12 @@ def test_bench_safety_puts_the_filter_beside_the_law_alone():
     assert bad.returncode == 2 and "--modes are off, barrier, orca" in bad.stderr
 
 
-def test_an_agent_guards_against_late_neighbours_but_not_ones_that_left():
+def test_an_agent_guards_against_late_neighbours_and_quiet_ones_that_cannot_have_left():
     """agents.sensing: a neighbour heard late is kept with its age (plus one period); one from which
-    nothing came for the staleness limit longer than from the one heard last has left the agent's cells
-    and is not guarded against; a neighbour last heard beyond the sensing radius neither."""
+    nothing came for the staleness limit longer than from the one heard last has gone quiet: let go if
+    it can have left the agent's cells, still guarded against (its poses lost) if it cannot have; a
+    neighbour last heard beyond the sensing radius is not guarded against, unless its pose is so old
+    that it may be within the radius by now."""
     import time
 
     from agents.sensing import Body, Sensing
@@ -275,19 +277,41 @@ def test_an_agent_guards_against_late_neighbours_but_not_ones_that_left():
     now = time.time()
     heard = {1: ((0.3, 0.0), 0.20, now - 0.01),   # late (sent 0.2 s ago) but still arriving
              2: ((0.0, 0.4), 0.02, now - 0.01),   # fresh
-             3: ((-0.4, 0.0), 2.00, now - 2.0),   # nothing from it for 2 s: it left
-             4: ((3.0, 0.0), 0.02, now - 0.01)}   # beyond the sensing radius (1.0)
+             3: ((-0.4, 0.0), 2.00, now - 2.0),   # nothing from it for 2 s: quiet, and it can have left
+             6: ((0.0, -0.3), 0.60, now - 0.6),   # quiet 0.6 s, but 0.3 + 0.65 < 1.1 (R + 2 v dt): lost, not gone
+             4: ((3.0, 0.0), 0.02, now - 0.01),   # beyond the sensing radius (1.0)
+             5: ((0.0, -1.3), 0.40, now - 0.01)}  # beyond it, but 0.45 s old at v_max 1: may be 0.85 away
     for who, (p, age, received) in heard.items():
         pose = msg.Pose(who, 1, now - age, -1, *p, 0.0, 0.0)
         assert sensing.neighbours.accept(who, pose, received) is None
         sensing.alive.add(who)
     got = dict((p, a) for p, a in sensing.safety_neighbours(None, 1.0, 0.05, 0.5))
-    assert set(got) == {(0.3, 0.0), (0.0, 0.4)}
+    assert set(got) == {(0.3, 0.0), (0.0, 0.4), (0.0, -1.3), (0.0, -0.3)}
+    assert got[(0.0, -0.3)] == pytest.approx(0.65, abs=0.01)  # guarded with its whole age
     assert got[(0.3, 0.0)] == pytest.approx(0.25, abs=0.01)  # its age, plus one control period
     assert got[(0.0, 0.4)] == pytest.approx(0.07, abs=0.01)
     half = dict((p, a) for p, a in sensing.safety_neighbours(None, 0.5, 0.05, 0.5))
     assert half[(0.3, 0.0)] == pytest.approx(0.15, abs=0.01)  # simulated seconds: at half pace, half the age
-    sensing.alive.discard(1)  # no liveliness token: not a neighbour
+    sensing.alive.discard(1)  # its token has not come yet: its poses say it is there, so it is guarded
+    assert (0.3, 0.0) in dict(sensing.safety_neighbours(None, 1.0, 0.05, 0.5))
+    assert (0.3, 0.0) not in dict((p, 0) for p in sensing.neighbour_positions(None, 0.5))  # the law waits for it
+    sensing.handle(("alive", spec.keys.alive(1), b"", True, time.time()))  # it departed: not a neighbour
     assert (0.3, 0.0) not in dict(sensing.safety_neighbours(None, 1.0, 0.05, 0.5))
     # lockstep: the step's poses, exact for that step
     assert sensing.safety_neighbours(7, 1.0, 0.05, 0.5) == []
+
+
+def test_poses_that_waited_in_a_queue_are_not_refused_as_jumps_but_a_forged_leap_is():
+    """zswarm.net.poses: after a queue, a burst brings an old pose and, at once, a much later one (the
+    poses between were lost). The receiver's clock since the old pose was *sent* bounds how far the
+    agent went; counted from when it was taken in, the true pose would be refused as a jump."""
+    from zswarm.net import messages as msg
+    from zswarm.net.poses import PoseTable
+
+    table, now = PoseTable(max_step=3.0 * 0.05, period=0.05), 1000.0
+    old = msg.Pose(1, 10, now - 2.0, -1, 0.0, 0.0, 1.0, 0.0)  # sent 2 s ago, taken in now
+    assert table.accept(1, old, now) is None
+    later = msg.Pose(1, 50, now - 0.01, -1, 1.9, 0.0, 1.0, 0.0)  # 40 ticks on, 1.9 farther: it could
+    assert table.accept(1, later, now + 0.001) is None
+    forged = msg.Pose(1, 10**6, now, -1, 500.0, 0.0, 0.0, 0.0)  # a huge sequence number buys no leap
+    assert table.accept(1, forged, now + 0.002) == "jump"

@@ -4,8 +4,9 @@ Every pose that arrives passes the same acceptance rules (:meth:`PoseTable.accep
 
 - the key's agent id must be the pose's own (else ``schema``);
 - a pose farther from the last accepted one than ``max_step`` per elapsed step could carry an agent
-  is an impossible jump (``jump``); elapsed steps are capped by the receiver's own clock, so a forged
-  sequence number cannot buy a forged pose an arbitrarily long way;
+  is an impossible jump (``jump``); elapsed steps are capped by the receiver's own clock since the last
+  accepted pose was sent (taken in, if its stamp claims later), so a forged sequence number cannot buy
+  a forged pose an arbitrarily long way, and poses that arrive in a burst after a queue are not refused;
 - the newest pose wins (or one so far behind that its sender must have restarted);
 - lockstep poses (step >= 0) are also kept by step, for the last ``keep_steps`` steps.
 
@@ -104,7 +105,9 @@ class PoseTable:
         if old is None:
             old = self.entries[pose.id] = Entry(pose, now)
         else:
-            elapsed = (now - old.received) / self.period + 2.0 if pose.step < 0 else None
+            # the receiver's clock since the old pose was sent (or taken in, if its stamp claims a time
+            # after that): a pose that waited in a queue does not make the next one an impossible jump
+            elapsed = (now - min(old.received, old.latest.stamp)) / self.period + 2.0 if pose.step < 0 else None
             if pose.seq > old.latest.seq and implausible_jump(old.latest, pose, self.max_step, elapsed):
                 return "jump"
             if supersedes(old.latest, pose):

@@ -200,7 +200,8 @@ class BatchSimulator:
             self.motions.setdefault(s.prey, np.zeros(b, dtype=bool))[r] = True
         self.faulty = np.flatnonzero([m.faulty for m in members])
         self.channel = (BatchChannel(self.n, [members[r].faults for r in self.faulty], self.dt,
-                                     self.radius[self.faulty], dims=self.dims) if len(self.faulty) else None)
+                                     self.radius[self.faulty], self.v_max[self.faulty], dims=self.dims)
+                        if len(self.faulty) else None)
         self.off_diagonal = ~np.eye(self.n, dtype=bool)
         self.step_index = 0
         self.filters = _safety_groups(members)

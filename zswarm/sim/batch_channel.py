@@ -22,7 +22,9 @@ BLOCK_BYTES = 64 * 2**20  # and at most this much memory for them (N = 2000 draw
 
 class BatchChannel:
     def __init__(self, n: int, models: list[FaultModel], dt: float, sensing_radius: np.ndarray,
-                 staleness: float = 0.5, dims: int = 2) -> None:
+                 v_max: np.ndarray, staleness: float = 0.5, dims: int = 2) -> None:
+        """``sensing_radius``, ``v_max``: of each run (B,). An agent's cells cover the disc
+        R + 2 v_max dt about it (:attr:`zswarm.net.runspec.RunSpec.subscription_radius`)."""
         b = len(models)
         self.n, self.dt = n, dt
         self.rngs = [np.random.default_rng([m.seed, 0x5EED]) for m in models]
@@ -34,6 +36,8 @@ class BatchChannel:
         self.r_bad = np.where(self.gilbert, 1.0 / np.where(burst > 0, burst, 1.0), 0.0)
         self.p_bad = np.where(self.gilbert, self.dropout * self.r_bad / (1.0 - self.dropout), 0.0)
         self.radius = np.asarray(sensing_radius, dtype=float)[:, None, None]
+        self.v_max = np.asarray(v_max, dtype=float)[:, None, None]
+        self.cells = self.radius + 2.0 * self.v_max * dt
         max_delay = max(int(math.ceil((m.latency + m.jitter) / dt)) + 1 for m in models)
         self.slots = max_delay + 1  # a ring longer than any run's delay: the same arrivals as its own ring
         s = n + 1  # column n is the prey
@@ -96,12 +100,16 @@ class BatchChannel:
     def known(self, k: int, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """After :meth:`step` k, what the safety filter guards against, as an agent process does
         (:meth:`agents.sensing.Sensing.safety_neighbours`): every neighbour an agent has heard whose newest
-        position is within the sensing radius of it, unless that is older than the staleness limit
-        beyond its freshest neighbour's; as (mask (B, N, N), believed positions (B, N, N, D), ages in
-        seconds (B, N, N))."""
+        position may be within the sensing radius of it by now (no farther than v_max times its age
+        beyond it), unless that is older than the staleness limit beyond its freshest neighbour's and
+        it can have left the agent's cells (its newest position plus what it can have moved since
+        reaches past the subscription disc); as (mask (B, N, N), believed positions (B, N, N, D), ages
+        in seconds (B, N, N))."""
         stamp = self.belief_stamp[:, :, : self.n]
         believed = self.belief_pos[:, :, : self.n]
-        heard = (stamp >= 0) & (np.linalg.norm(positions[:, :, None, :] - believed, axis=-1) <= self.radius)
+        age = (k - stamp) * self.dt
+        d = np.linalg.norm(positions[:, :, None, :] - believed, axis=-1)
+        heard = (stamp >= 0) & (d - self.v_max * age <= self.radius)
         newest = np.where(heard, stamp, -1).max(axis=-1, keepdims=True)
-        heard &= stamp >= newest - self.stale_steps
-        return heard, believed, (k - stamp) * self.dt
+        heard &= (stamp >= newest - self.stale_steps) | (d + self.v_max * age <= self.cells)
+        return heard, believed, age

@@ -24,13 +24,13 @@ class FaultyChannel:
     """One run's faulty channel: :class:`zswarm.sim.batch_channel.BatchChannel` with a batch of one
     (the same rules, the same draws), plus the counters a run's summary reports."""
 
-    def __init__(self, n: int, model: FaultModel, dt: float, sensing_radius: float, staleness: float = 0.5,
-                 seed: int = 0, dims: int = 2) -> None:
+    def __init__(self, n: int, model: FaultModel, dt: float, sensing_radius: float, v_max: float,
+                 staleness: float = 0.5, seed: int = 0, dims: int = 2) -> None:
         if n > MAX_AGENTS:
             raise ValueError(f"faults in the simulator handle at most {MAX_AGENTS} agents (got {n})")
         self.n, self.dt = n, dt
         self.batch = BatchChannel(n, [dataclasses.replace(model, seed=seed)], dt, np.array([sensing_radius]),
-                                  staleness, dims)
+                                  np.array([v_max]), staleness, dims)
         self.sent = 0
 
     def step(self, k: int, positions: np.ndarray, prey: np.ndarray):
@@ -42,7 +42,8 @@ class FaultyChannel:
 
     def known(self, k: int, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """After :meth:`step` k: every neighbour each agent has heard at all (fresh or stale) whose
-        newest position is within the sensing radius of it, as (i, P_i - P_j believed, age in seconds)."""
+        newest position may be within the sensing radius of it by now, as (i, P_i - P_j believed, age in
+        seconds): :meth:`~zswarm.sim.batch_channel.BatchChannel.known`."""
         heard, believed, age = self.batch.known(k, positions[None])
         i, j = np.nonzero(heard[0])
         return i, positions[i] - believed[0][i, j], age[0][i, j]

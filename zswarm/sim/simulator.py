@@ -56,7 +56,7 @@ class Simulator:
         self.obstacles = ObstacleIndex(centers, radii, p.swarm.sensing_radius)
         self.step_index = 0
         self.channel = (FaultyChannel(len(self.positions), faults, scenario.dt, p.swarm.sensing_radius,
-                                      seed=faults.seed, dims=scenario.dimensions)
+                                      p.swarm.v_max, seed=faults.seed, dims=scenario.dimensions)
                         if faults is not None and faults.active else None)
         self.safety = safety_of(scenario, safety, faulted=self.channel is not None)
         self.filtered: sf.Filtered | None = None  # what the filter did at the last step
