@@ -10,6 +10,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -159,6 +160,38 @@ def test_a_driver_killed_mid_run_leaves_no_process_within_ten_seconds(tmp_path):
         driver.wait(timeout=10)
         left = wait_gone(mark, 10.0)
         assert left == [], left
+    finally:
+        if driver.poll() is None:
+            driver.kill()
+        for pid in (int(p.split(":")[0]) for p in left_behind(mark)):
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+
+
+def test_a_nodes_router_that_dies_stops_the_run_in_one_line_and_leaves_nothing(tmp_path):
+    """As on one machine: a router that dies cuts its agents off, so the run stops (exit 1) and says
+    which node's router it was; every process on every node goes."""
+    mark = uuid.uuid4().hex
+    argv, env = offline(tmp_path, "-m", "zswarm", "run", "--cluster", "local:3", "--agents", "6", "--duration", "60",
+                        "--record", str(tmp_path / "r.rrd"), mark=mark)
+    driver = subprocess.Popen(argv, env=env, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                              text=True)
+    try:
+        deadline, endpoints = time.monotonic() + 120, []
+        for line in driver.stdout:
+            endpoints += re.findall(r"router (tcp/\S+?)(?:,|$)", line.strip())
+            if line.startswith("world: started") or time.monotonic() > deadline:
+                break
+        assert driver.poll() is None and len(endpoints) == 3, endpoints
+        victim = [p for p in left_behind(mark) if "zswarm.net.router" in p and endpoints[-1] in p]
+        assert len(victim) == 1, left_behind(mark)
+        os.kill(int(victim[0].split(":")[0]), signal.SIGKILL)  # the third node's router
+        out, err = driver.communicate(timeout=60)
+        assert driver.returncode == 1, err[-3000:]
+        assert re.search(r"the router died \(node2@\S+, exit -9\); stopping the run", err), err[-3000:]
+        assert wait_gone(mark, 10.0) == []
     finally:
         if driver.poll() is None:
             driver.kill()

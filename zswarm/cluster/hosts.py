@@ -55,6 +55,7 @@ class NodeLink:
         self.lost = False
         self.closed = False
         self.crashed: list[int] = []  # the agents that were running when the node was lost
+        self.router_exit: int | None = None  # the node's router's exit code, once it died
         self.info: dict[str, Any] = {}
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -100,6 +101,8 @@ class NodeLink:
                 return
             for line in report["lines"]:
                 print(line, file=sys.stderr, flush=True)
+            if report.get("router") is not None and self.router_exit is None:
+                self.router_exit = report["router"]
             for name, code in report["ended"].items():
                 if name in self.procs:
                     self.procs[name].exited(code)

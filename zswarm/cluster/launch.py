@@ -90,6 +90,12 @@ class ClusterLaunch(Launch):
                  f"{', '.join(sorted({self.links[self.node_of[i]].label for i in agents}))}")
         super()._note_crashes()
 
+    def _dead_routers(self) -> list[str]:
+        """A node's router that died, as its node reports it (a lost node is not a dead router: its
+        agents are crashed and the others carry on)."""
+        return [f"{link.label}, exit {link.router_exit}" for link in self.links
+                if link.router_exit is not None and not link.lost]
+
     def router_of(self, agent: int) -> int:
         return self.node_of[agent]
 

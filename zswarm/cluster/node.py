@@ -70,8 +70,8 @@ class NodeHost:
         threading.Thread(target=read, daemon=True).start()
 
     def poll(self) -> dict:
-        """The agents that ended since the last poll (name -> exit code, negative for a signal) and the
-        stderr lines written meanwhile."""
+        """The agents that ended since the last poll (name -> exit code, negative for a signal), the
+        stderr lines written meanwhile, and the router's exit code (None while it runs)."""
         ended = {}
         for c in self.kids.named("agent"):
             code = c.proc.poll()
@@ -81,7 +81,8 @@ class NodeHost:
         with self.lock:
             lines = list(self.lines)
             self.lines.clear()
-        return {"ended": ended, "lines": lines}
+        router = next((c.proc.poll() for c in self.kids.named("router") if c.proc.poll() is not None), None)
+        return {"ended": ended, "lines": lines, "router": router}
 
     def signal(self, name: str, sig: int) -> None:
         for c in self.kids.children:

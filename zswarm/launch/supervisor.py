@@ -179,7 +179,7 @@ class Launch:
             if self.world is None and "agents" in self.plan.roles and not any(
                     c.alive() for c in self.kids.named("agent")):
                 return self._agents_verdict()
-            dead = [c.name for c in self.kids.named("router") if not c.alive()]
+            dead = self._dead_routers()
             if dead:
                 _say(f"the router died ({', '.join(dead)}); stopping the run")
                 self.kids.stop_all()
@@ -249,6 +249,10 @@ class Launch:
             _say(f"world resumed at {t:.1f} s")
 
     # --- end ------------------------------------------------------------------------------------------
+
+    def _dead_routers(self) -> list[str]:
+        """The routers of this run that died (a run stops when one does: its agents are cut off)."""
+        return [c.name for c in self.kids.named("router") if not c.alive()]
 
     def _finish_recording(self) -> None:
         """Every run ends with a recording and a summary (:func:`zswarm.launch.ending.finish_recording`)."""
