@@ -241,8 +241,9 @@ class Sensing:
     def safety_neighbours(self, step: int | None, time_scale: float, period: float, staleness: float,
                           lookahead: float = 0.0) -> list[tuple[tuple[float, ...], float]]:
         """What the safety filter guards against, as (where the filter acts on it, age in simulated
-        seconds): every neighbour holding a liveliness token whose newest pose may be within the sensing
-        radius by now (no farther beyond it than v_max times its age). One from which nothing came for
+        seconds): every neighbour not seen departing (a token that has not come yet does not hide one:
+        :meth:`_held`) whose newest pose may be within the sensing radius by now (no farther beyond it
+        than v_max times its age). One from which nothing came for
         ``staleness`` wall seconds longer than from the one heard last has gone *quiet*: it has left the
         cells this agent listens to, or its poses are being lost. It is let go only if it can have left:
         if its newest pose plus what it can have moved since reaches past the subscription disc (the

@@ -38,12 +38,13 @@ def _role_configs(plan: Plan, n_agents: int, say: Callable[..., None]) -> dict[s
 
 def agent_config_args(plan: Plan, configs: dict[str, list[str]], agent: int) -> list[str]:
     """Agent ``agent``'s config: under --secure, its own identity's if the directory has one; with
-    --robots, the robots file (an agent it names drives that robot)."""
-    robots = [] if plan.robots is None else ["--robots", str(plan.robots)]
-    robots += [] if plan.tracks is None else ["--tracks", str(plan.tracks)]
+    --robots, the robots file (an agent it names drives that robot); with --tracks, the folder its
+    track goes to."""
+    extra = [] if plan.robots is None else ["--robots", str(plan.robots)]
+    extra += [] if plan.tracks is None else ["--tracks", str(plan.tracks)]
     if plan.secure is None:
-        return configs.get("agent", []) + robots
+        return configs.get("agent", []) + extra
     from zswarm.net.security import agent_config
 
     timeout = [] if plan.connect_timeout is None else ["--connect-timeout", f"{plan.connect_timeout:g}"]
-    return ["--config", str(agent_config(plan.secure, agent))] + timeout + robots
+    return ["--config", str(agent_config(plan.secure, agent))] + timeout + extra
