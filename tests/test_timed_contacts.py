@@ -121,3 +121,32 @@ def test_the_agents_own_tracks_are_judged_exactly() -> None:
     assert out["onsets"][0]["agents"] == [0, 1] and 1.4 < out["onsets"][0]["stamp"] < 1.5
     assert math.isclose(out["closest"], 0.05, abs_tol=1e-9)
     assert out["judged_s"] == 3.0  # agent 0 left at t = 2: no contact with the restarted agent 2 after
+
+
+def test_a_contact_across_a_lost_pose_is_uncertain_not_a_collision() -> None:
+    """Agent 1's poses 2-10 never came: at the instants between its poses 1 and 11 its position is not
+    known (it may have been anywhere a few steps away), so a contact there is counted as uncertain;
+    the same contact with every pose in is a collision."""
+    def run(lost: bool) -> TimedContacts:
+        judge = TimedContacts(D)
+        feed(judge, 0, [(0.1 * k, (0.05, 0.0)) for k in range(11)])  # agent 0 sits 0.05 from agent 1's start
+        ones = [(0.1 * k, (0.0, 0.0) if k == 0 else (1.0, 0.0)) for k in range(11)]  # agent 1 left at once
+        for k, (stamp, point) in enumerate(ones):
+            if not (lost and 1 <= k <= 9):
+                judge.add(1, k + 1, stamp, point, received=stamp)
+        judge.judge(now=2.0)
+        return judge
+
+    whole, holed = run(lost=False), run(lost=True)
+    assert whole.collisions == 1 and whole.uncertain == 0  # at t = 0, both poses exact
+    assert holed.collisions == 1 and holed.uncertain == 0  # t = 0 is agent 1's own stamp: still exact
+    assert holed.gaps == 9
+    # agent 0's stamps between 0 and 1 s find agent 1 held at the origin, across its lost poses: the
+    # contact continues there without a new onset; make it a fresh one by parting them first
+    judge = TimedContacts(D)
+    feed(judge, 0, [(0.1 * k, (0.05, 0.0) if k != 1 else (5.0, 0.0)) for k in range(11)])
+    judge.add(1, 1, 0.0, (0.0, 0.0), received=0.0)
+    judge.add(1, 10, 1.0, (1.0, 0.0), received=1.0)  # seq 2-9 lost: where was it at 0.2-0.9 s?
+    judge.judge(now=2.0)
+    assert judge.collisions == 1 and judge.uncertain == 1  # the onset at 0.2 s is not counted as certain
+    assert judge.result()["uncertain_contacts_at_one_time"] == 1

@@ -17,8 +17,10 @@ closer than 2 d^r *at the same instant*, on the senders' clock:
   through those instants, and an onset (a pair entering contact) counts once, as
   :class:`zswarm.model.metrics.Summary` counts the world's snapshots.
 
-Sequence numbers the judge never saw (poses lost on the way) are counted as ``gaps``: over a gap the
-hold is an approximation, so a run with gaps says so. A pose stamped at or before an instant already
+Sequence numbers the judge never saw (poses lost on the way) are counted as ``gaps``. Over a gap the
+hold is an approximation: a contact at an instant where either agent's position is not known exactly
+(its pose in force is not followed by the next sequence number, and the instant is not its own stamp)
+is counted apart, as ``uncertain``, not as a collision. A pose stamped at or before an instant already
 judged arrives too late to change it and is counted as ``late``.
 """
 
@@ -43,6 +45,7 @@ class Track:
 
     stamps: list[float] = field(default_factory=list)
     points: list[tuple[float, ...]] = field(default_factory=list)
+    seqs: list[int] = field(default_factory=list)
     last_seq: int = 0
     heard: float = -math.inf  # when its last pose arrived (the receiver's clock)
     ended: bool = False  # it left: its poses hold up to its last stamp and not after
@@ -54,6 +57,13 @@ class Track:
         if k < 0 or (self.ended and t > self.stamps[-1]):
             return None
         return self.points[k]
+
+    def exact(self, t: float) -> bool:
+        """Its position at ``t`` is known exactly: ``t`` is one of its stamps, or the pose in force is
+        followed by the next sequence number (no pose of it was lost in between), or by none yet (a
+        silent agent holds its place, as the judge assumes of it)."""
+        k = bisect_right(self.stamps, t) - 1
+        return k >= 0 and (self.stamps[k] == t or k + 1 == len(self.seqs) or self.seqs[k + 1] == self.seqs[k] + 1)
 
 
 @dataclass(frozen=True)
@@ -82,6 +92,7 @@ class TimedContacts:
         self.judged: float | None = None  # the last instant judged (t_c)
         self.contact: set[tuple[int, int]] = set()  # pairs in contact at t_c
         self.collisions = 0
+        self.uncertain = 0  # contacts at instants where a lost pose leaves a position unknown
         self.onsets: list[Onset] = []  # the first ONSETS_KEPT onsets
         self.closest = math.inf  # the smallest distance at one instant among the pairs walked
         self.gaps = self.late = 0
@@ -105,6 +116,7 @@ class TimedContacts:
         k = bisect_right(track.stamps, stamp)
         track.stamps.insert(k, stamp)
         track.points.insert(k, position)
+        track.seqs.insert(k, seq)
 
     def leave(self, who: int) -> None:
         """Agent ``who`` left (or crashed): its last pose holds up to its stamp, then it is gone."""
@@ -180,11 +192,14 @@ class TimedContacts:
                 dist = math.dist(p, q)
                 self.closest = min(self.closest, dist)
                 if dist < self.distance and not touching:
-                    self.collisions += 1
-                    onset = Onset(s, pair[0], pair[1], dist)
-                    found.append(onset)
-                    if len(self.onsets) < ONSETS_KEPT:
-                        self.onsets.append(onset)
+                    if not (ti.exact(s) and tj.exact(s)):
+                        self.uncertain += 1
+                    else:
+                        self.collisions += 1
+                        onset = Onset(s, pair[0], pair[1], dist)
+                        found.append(onset)
+                        if len(self.onsets) < ONSETS_KEPT:
+                            self.onsets.append(onset)
                 touching = dist < self.distance
             if touching:
                 now.add(pair)
@@ -199,13 +214,14 @@ class TimedContacts:
                 del self.tracks[who]
                 continue
             k = max(bisect_right(track.stamps, t_c) - 1, 0)
-            del track.stamps[:k], track.points[:k]
+            del track.stamps[:k], track.points[:k], track.seqs[:k]
 
     def result(self) -> dict[str, Any]:
         """The summary keys (``*_at_one_time``), judged up to the last instant every pose was in."""
         return {"collisions_at_one_time": self.collisions,
                 "closest_at_one_time": self.closest if math.isfinite(self.closest) else None,
                 "judged_at_one_time_s": (self.judged - self.first) if self.first is not None else None,
+                "uncertain_contacts_at_one_time": self.uncertain,
                 "pose_gaps": self.gaps, "poses_too_late_to_judge": self.late,
                 "collision_onsets_at_one_time": [{"stamp": o.stamp, "agents": [o.i, o.j], "distance": o.distance}
                                                  for o in self.onsets]}
