@@ -193,8 +193,9 @@ def turn_right(u: np.ndarray) -> np.ndarray:
 def take_detour(u_hat: np.ndarray, u: np.ndarray, r: Rows) -> np.ndarray:
     """The right-hand rule against deadlock (D1 of ``docs/safety.md``): an agent the projection stalled
     (under :data:`STALL_SHARE` of the law's speed) projects the law's command turned right by
-    :data:`DETOUR` onto the same rows, and keeps that where it is the longer (beyond rounding). Both satisfy every row,
-    so the guarantee is the same; two agents facing each other both turn right and slide past."""
+    :data:`DETOUR` onto the same rows, and keeps that where it is the longer (beyond rounding). Both
+    satisfy every row, so the guarantee is the same; two agents facing each other both turn right and
+    slide past."""
     speed = np.linalg.norm(u_hat, axis=-1)
     stuck = np.flatnonzero((np.linalg.norm(u, axis=-1) < STALL_SHARE * speed) & ~r.stale)
     if len(stuck) == 0:
