@@ -67,6 +67,13 @@ def left_behind(mark: str) -> list[str]:
     return out
 
 
+def end_run(driver: subprocess.Popen, mark: str) -> None:
+    """Whatever a test leaves when it fails: the driver, and every process of its run."""
+    if driver.poll() is None:
+        driver.kill()
+    kill_all([int(p.split(":")[0]) for p in left_behind(mark)])
+
+
 def wait_gone(mark: str, seconds: float) -> list[str]:
     deadline = time.monotonic() + seconds
     while (left := left_behind(mark)) and time.monotonic() < deadline:
@@ -161,13 +168,7 @@ def test_a_driver_killed_mid_run_leaves_no_process_within_ten_seconds(tmp_path):
         left = wait_gone(mark, 10.0)
         assert left == [], left
     finally:
-        if driver.poll() is None:
-            driver.kill()
-        for pid in (int(p.split(":")[0]) for p in left_behind(mark)):
-            try:
-                os.kill(pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
+        end_run(driver, mark)
 
 
 def test_a_nodes_router_that_dies_stops_the_run_in_one_line_and_leaves_nothing(tmp_path):
@@ -193,13 +194,7 @@ def test_a_nodes_router_that_dies_stops_the_run_in_one_line_and_leaves_nothing(t
         assert re.search(r"the router died \(node2@\S+, exit -9\); stopping the run", err), err[-3000:]
         assert wait_gone(mark, 10.0) == []
     finally:
-        if driver.poll() is None:
-            driver.kill()
-        for pid in (int(p.split(":")[0]) for p in left_behind(mark)):
-            try:
-                os.kill(pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
+        end_run(driver, mark)
 
 
 # --- two hosts: Ray's head and the world on one, a worker node on the other ---------------------------------
