@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -42,17 +43,40 @@ PROCESS_MODULES = {
 }
 
 
+#: The modules that take longest (wall seconds on 2 cores, 4 workers), longest first. Under
+#: ``--dist loadfile`` each module goes whole to one worker, in collection order, to whichever worker is
+#: free: starting the long ones first keeps one of them from being the run's tail. Modules not named
+#: keep their order, after these.
+LONGEST_FIRST = (
+    "test_cluster", "test_distributed", "test_design", "test_usage", "test_reliability", "test_render",
+    "test_sim", "test_space_procs", "test_experiments", "test_study", "test_security", "test_hostile",
+    "test_robots", "test_tune",
+)
+
+
 def pytest_collection_modifyitems(config, items) -> None:
-    """The ``procs`` marker: ``-m "not procs"`` is the quick tier (the math, the messages, the checks)."""
+    """The ``procs`` marker: ``-m "not procs"`` is the quick tier (the math, the messages, the checks).
+    The order: :data:`LONGEST_FIRST`, then the rest (a stable sort: tests keep their order in a module)."""
     for item in items:
         if item.module.__name__ in PROCESS_MODULES or "cli" in getattr(item, "fixturenames", ()):
             item.add_marker(pytest.mark.procs)
+    rank = {name: k for k, name in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda item: rank.get(item.module.__name__, len(rank)))
 
 
 def pytest_configure(config) -> None:
     """Under pytest-xdist each worker, and every process it starts, picks ports from a range of its own
     (``ZSWARM_PORTS``, :mod:`zswarm.ports`), below the kernel's ephemeral range: two workers never pick
-    the same free port before one of them binds it."""
+    the same free port before one of them binds it.
+
+    pytest-xdist hands modules out largest first (by test count) unless told not to; the suite's own
+    order (:data:`LONGEST_FIRST`, by time) is the one kept. And a suite started where SIGINT is ignored
+    (``nohup``, ``cmd &`` in a script) would pass that on to every process it starts, which then could
+    not be interrupted as the tests interrupt them: SIGINT is given its Python default back."""
+    if hasattr(config.option, "loadscopereorder"):
+        config.option.loadscopereorder = False
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     worker = os.environ.get("PYTEST_XDIST_WORKER", "")
     if worker.startswith("gw") and "ZSWARM_PORTS" not in os.environ:
         k = int(worker[2:]) % 11  # 10000-31999: below the kernel's ephemeral ports (32768-)

@@ -3,7 +3,6 @@ unknown options, bad values, unknown scenarios, unreadable files and occupied po
 
 from __future__ import annotations
 
-import os
 import socket
 import time
 from pathlib import Path
@@ -11,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from conftest import ROOT, run_cli
+from forked_cli import run_forked
 from swarm_procs import our_processes
 
 LAUNCH = str(ROOT / "launch.py")
@@ -185,20 +185,17 @@ def _prepare(folder: Path) -> dict[str, str]:
 @pytest.fixture(scope="module")
 def mistakes(tmp_path_factory, busy_port):
     """Every case of CASES run once, each its own process in its own folder, as many at a time as there
-    are cores (each is an interpreter starting and stopping: the suite need not wait for them one by one).
-    Returns each case's result and folder, by index."""
-    from concurrent.futures import ThreadPoolExecutor
-
+    are cores, forked from one interpreter that imported the project once (:mod:`forked_cli`: a hundred
+    interpreters starting up would cost the suite a core for a minute). Returns each case's result and
+    folder, by index."""
     root = tmp_path_factory.mktemp("mistakes")
-
-    def one(k: int) -> tuple[object, Path]:
+    jobs = []
+    for k, (argv, _) in enumerate(CASES):
         folder = root / f"case{k}"
         fill = {"busy": str(busy_port), **_prepare(folder)}
-        argv = [a.format(**fill) for a in CASES[k][0]]
-        return run_cli(*argv, timeout=60, cwd=folder), folder
-
-    with ThreadPoolExecutor(max_workers=(os.cpu_count() or 2) + 1) as pool:  # one more: some wait on a port
-        return dict(enumerate(pool.map(one, range(len(CASES)))))
+        jobs.append(([a.format(**fill) for a in argv], folder))
+    results = run_forked(jobs, root / "output", timeout=60)
+    return {k: (res, folder) for k, (res, (_, folder)) in enumerate(zip(results, jobs))}
 
 
 @pytest.mark.parametrize("k", range(len(CASES)), ids=[" ".join(a[:4]).replace(LAUNCH, "launch.py") for a, _ in CASES])
