@@ -37,6 +37,14 @@ def parse_cluster(text: str) -> str:
     return text
 
 
+def local_cores(address: str, cores: int) -> int:
+    """The cores a cluster started on this machine (``local`` or ``local:K``) has, of this machine's
+    ``cores``: each of its K nodes gets ``cores // K`` (at least 1), and together they have no more than
+    the machine (as :func:`connect` starts them)."""
+    k = int(address.split(":")[1]) if ":" in address else 1
+    return min(k * max(cores // k, 1), cores)
+
+
 def import_ray() -> Any:
     try:
         import ray
@@ -138,7 +146,7 @@ def connect(address: str, cores: int) -> RayCluster:
             from ray.cluster_utils import Cluster
 
             k = int(address.split(":")[1])
-            args = {"num_cpus": max(cores // k, 1), "node_ip_address": "127.0.0.1", **NODE_ARGS}
+            args = {"num_cpus": max(cores // k, 1), "node_ip_address": "127.0.0.1", **NODE_ARGS}  # local_cores
             with contextlib.redirect_stdout(io.StringIO()), loopback_only():
                 cluster.local = Cluster(initialize_head=True, head_node_args={**args, "_system_config": SYSTEM_CONFIG})
                 for _ in range(k - 1):

@@ -7,10 +7,11 @@ Everything that can be refused is refused here, in one line and before any agent
 from __future__ import annotations
 
 import argparse
+import copy
 
 from zswarm.cluster.hosts import NodeLink
 from zswarm.cluster.launch import ClusterLaunch
-from zswarm.cluster.ray_cluster import connect, parse_cluster
+from zswarm.cluster.ray_cluster import connect, local_cores, parse_cluster
 from zswarm.errors import UsageError
 from zswarm.launch.plan import available_cores, available_mib, plan_from_args
 from zswarm.launch.supervisor import _say
@@ -46,6 +47,8 @@ def cluster_run(args: argparse.Namespace) -> int:
 
     address = parse_cluster(args.cluster)
     check_flags(args)
+    if address.startswith("local"):  # its cores and memory are this machine's: refused before a node starts
+        plan_from_args(copy.copy(args), cores=local_cores(address, available_cores()), memory_mib=available_mib())
     cluster = connect(address, available_cores())
     links: list[NodeLink] = []
     try:
