@@ -2,18 +2,21 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from zswarm.model.neighbours import ObstacleIndex, pairs_within
+from zswarm.model.neighbours import ObstacleIndex, cell_pairs, pairs_within
 
 
 @settings(max_examples=100, deadline=None)
-@given(seed=st.integers(0, 10_000), n=st.integers(0, 80), radius=st.floats(0.05, 3.0),
+@given(seed=st.integers(0, 10_000), n=st.integers(0, 300), dims=st.sampled_from([2, 3]), radius=st.floats(0.05, 3.0),
        spread=st.floats(0.1, 20.0))
-def test_grid_pairs_equal_brute_force(seed, n, radius, spread):
-    x = np.random.default_rng(seed).uniform(-spread, spread, (n, 2))
-    i, j = pairs_within(x, radius)
+def test_grid_pairs_equal_brute_force(seed, n, dims, radius, spread):
+    """Both ways of finding pairs (every pair at once up to DENSE_MAX points, the cell index beyond it,
+    and the cell index at any N) find exactly the pairs within the radius."""
+    x = np.random.default_rng(seed).uniform(-spread, spread, (n, dims))
     d = np.linalg.norm(x[:, None] - x[None], axis=-1)
     bi, bj = np.nonzero((d <= radius) & ~np.eye(n, dtype=bool))
-    assert sorted(zip(i.tolist(), j.tolist())) == sorted(zip(bi.tolist(), bj.tolist()))
+    want = sorted(zip(bi.tolist(), bj.tolist()))
+    for i, j in (pairs_within(x, radius), cell_pairs(x, radius)):
+        assert sorted(zip(i.tolist(), j.tolist())) == want
 
 
 @settings(max_examples=100, deadline=None)

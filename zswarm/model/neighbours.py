@@ -68,8 +68,26 @@ class CellIndex:
         return np.concatenate(q_parts), np.concatenate(t_parts)
 
 
+#: Up to this many points, :func:`pairs_within` compares every pair at once: an (N, N) matrix is cheaper
+#: than sorting into cells (N = 10: 12 us against 260; N = 100: 200 against 410; N = 200: 840 against 1190).
+DENSE_MAX = 128
+
+
 def pairs_within(points: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
-    """Ordered pairs (i, j), i != j, with |p_i - p_j| <= radius; each unordered pair appears twice."""
+    """Ordered pairs (i, j), i != j, with |p_i - p_j| <= radius; each unordered pair appears twice.
+    Up to :data:`DENSE_MAX` points in row-major order (by i, then j); beyond, in the cell index's order."""
+    points = _points(points)
+    if len(points) <= DENSE_MAX:
+        d = points[:, None, :] - points[None, :, :]
+        near = np.einsum("ijk,ijk->ij", d, d) <= radius * radius
+        np.fill_diagonal(near, False)
+        i, j = np.nonzero(near)
+        return i.astype(np.intp), j.astype(np.intp)
+    return cell_pairs(points, radius)
+
+
+def cell_pairs(points: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`pairs_within` through the cell index, whatever N (the path beyond :data:`DENSE_MAX`)."""
     points = _points(points)
     i, j = CellIndex(points, radius).candidates(points)
     d = points[i] - points[j]
