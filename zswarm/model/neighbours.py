@@ -111,7 +111,11 @@ class ObstacleIndex:
         if len(self.centers) == 0:
             empty = np.zeros(0, dtype=np.intp)
             return empty, empty
-        i, m = self.index.candidates(points)
+        points = _points(points, self.centers.shape[1])
+        if len(points) * len(self.centers) <= DENSE_MAX * DENSE_MAX:  # every pair at once, as pairs_within
+            i, m = np.indices((len(points), len(self.centers))).reshape(2, -1)
+        else:
+            i, m = self.index.candidates(points)
         d = points[i] - self.centers[m]
         dist = np.sqrt(np.einsum("ij,ij->i", d, d))
         keep = dist - self.radii[m] <= self.sensing_radius
