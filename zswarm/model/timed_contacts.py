@@ -35,7 +35,9 @@ import numpy as np
 
 from zswarm.model.neighbours import pairs_within
 
-SEQ_RESTART = 1000  # as zswarm.net.poses: a sequence number this far behind is a restarted sender
+#: A sequence number this far behind the newest from its sender is a restarted sender (it counts from 1
+#: again), not an old pose: the rule of every reader of poses, here and in :mod:`zswarm.net.poses`.
+SEQ_RESTART = 1000
 ONSETS_KEPT = 20
 
 

@@ -20,6 +20,7 @@ import sys
 from dataclasses import dataclass, field
 from typing import Callable
 
+from zswarm.model.timed_contacts import SEQ_RESTART
 from zswarm.net import messages as msg
 
 
@@ -40,8 +41,6 @@ def implausible_jump(old: msg.Pose, new: msg.Pose, max_step: float, elapsed_step
         return math.hypot(new.x - old.x, new.y - old.y) > max_step * steps + 1e-9
     return math.hypot(new.x - old.x, new.y - old.y, new.z - old.z) > max_step * steps + 1e-9
 
-
-SEQ_RESTART = 1000
 
 
 def supersedes(old: msg.Pose, new: msg.Pose) -> bool:
