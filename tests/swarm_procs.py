@@ -120,6 +120,20 @@ def rerun_verify(path: Path) -> None:
     assert res.returncode == 0, res.stderr
 
 
+def scalar_series(path: Path) -> dict[str, list[tuple[int, float]]]:
+    """Every scalar series of a recording (metrics, thresholds, safety counts): (step, value) rows in
+    step order."""
+    from rerun.chunk import RrdReader
+
+    out: dict[str, list[tuple[int, float]]] = {}
+    for chunk in RrdReader(str(path)).stream().to_chunks():
+        rb = chunk.to_record_batch()
+        if "Scalars:scalars" in rb.schema.names and "step" in rb.schema.names:
+            values = [v[0] for v in rb.column("Scalars:scalars").to_pylist()]
+            out.setdefault(str(chunk.entity_path).lstrip("/"), []).extend(zip(rb.column("step").to_pylist(), values))
+    return {k: sorted(v) for k, v in out.items()}
+
+
 def our_processes(marker: str) -> list[int]:
     """Pids of every process whose command line holds ``marker`` (a run id): should be none."""
     out = []

@@ -21,6 +21,7 @@ from swarm_procs import (
     Watch,
     interrupt_at_step,
     load_summary,
+    scalar_series,
     our_processes,
     processes,
     rerun_verify,
@@ -209,6 +210,11 @@ def test_launch_stopped_by_a_signal_leaves_a_valid_recording_and_reaps_everyone(
     rerun_verify(tmp_path / "c.rrd")
     s = load_summary(tmp_path / "c.json")
     assert s["agents_reporting"] == 3 and s["steps"] > 20 and "salvaged" not in s
+    # the world sends its scalar series every 20 steps: stopped, it still sent every step's row
+    from zswarm.record.replay import load_run
+
+    steps = [f.step for f in load_run(tmp_path / "c.rrd").frames]
+    assert [step for step, _ in scalar_series(tmp_path / "c.rrd")["metrics/centroid_goal_distance"]] == steps
     assert our_processes(marker) == []
 
 

@@ -4,6 +4,7 @@ import json
 
 import numpy as np
 import pytest
+from swarm_procs import scalar_series
 
 from zswarm.args import UsageError
 from zswarm.model.law import sense_one
@@ -140,6 +141,12 @@ def test_cli_sim_json_and_recording(cli, tmp_path):
     rerun = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")
     verify = subprocess.run([rerun, "rrd", "verify", str(out)], capture_output=True, text=True, timeout=60)
     assert verify.returncode == 0, verify.stderr
+    # the scalar series, sent as columns every 20 steps: one row for every step, the last one included
+    series = scalar_series(out)
+    for path in ("metrics/centroid_goal_distance", "thresholds/capture_radius", "safety/filtered"):
+        steps = [step for step, _ in series[path]]
+        assert steps == list(range(81)), (path, steps)
+    assert series["metrics/centroid_goal_distance"][-1][1] == pytest.approx(s["final_centroid_goal_distance"])
 
 
 def test_cli_scenarios_and_bench(cli):

@@ -50,6 +50,7 @@ class WorldRecorder:
         self.graph_radius: float | None = None
         self.n_agents, self.dt = n_agents, dt
         self.rec = None
+        self.series = None  # the scalar series of self.rec (swarm_log.Series), sent every 20 steps
         self.segment = 0
         self.trail: deque[np.ndarray] = deque(maxlen=TRAIL)
         self.traj: list[np.ndarray] = []
@@ -110,6 +111,7 @@ class WorldRecorder:
         swarm_log.log_config(self.rec, config)
         swarm_log.log_obstacles(self.rec, centers, radii)
         swarm_log.log_threshold_styles(self.rec, self.thresholds)
+        self.series = swarm_log.Series(self.rec)
         self.rec.flush()
 
     # --- every step -----------------------------------------------------------------------------------
@@ -124,13 +126,13 @@ class WorldRecorder:
             return
         from zswarm.record import swarm_log
 
-        swarm_log.set_time(self.rec, step, t)
+        swarm_log.set_time(self.rec, step, t, self.series)
         self.trail.append(prey.copy())
         swarm_log.log_swarm(self.rec, t, ids, pos, vel, headings=heading, stamps=stamps)
         if safety is not None:
-            swarm_log.log_safety(self.rec, pos, *safety)
+            swarm_log.log_safety(self.rec, pos, *safety, self.series)
         swarm_log.log_prey(self.rec, prey, np.array(self.trail))
-        swarm_log.log_metrics(self.rec, metrics, self.thresholds)
+        swarm_log.log_metrics(self.series, metrics, self.thresholds)
         if self.graph_radius is not None:
             swarm_log.log_sensing_graph(self.rec, pos, self.graph_radius)
 
@@ -170,6 +172,7 @@ class WorldRecorder:
             from zswarm.record import swarm_log
             from zswarm.record.recording import close_recording
 
+            self.series.flush()
             swarm_log.log_summary(self.rec, result)
             close_recording(self.rec)
         if self.trajectory_path is not None and self.traj:

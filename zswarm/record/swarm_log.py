@@ -128,9 +128,11 @@ def log_obstacles(rec: rr.RecordingStream, centers: np.ndarray, radii: np.ndarra
         rec.log(OBSTACLES, _points(centers, radii=np.maximum(radii, 0.03), colors=(150, 150, 150)), static=True)
 
 
-def set_time(rec: rr.RecordingStream, step: int, t: float) -> None:
+def set_time(rec: rr.RecordingStream, step: int, t: float, series: Series | None = None) -> None:
     rec.set_time("step", sequence=step)
     rec.set_time(TIMELINE, duration=t)
+    if series is not None:
+        series.at(step, t)
 
 
 def log_swarm(rec: rr.RecordingStream, t: float, ids: np.ndarray, positions: np.ndarray,
@@ -160,7 +162,8 @@ def log_swarm(rec: rr.RecordingStream, t: float, ids: np.ndarray, positions: np.
                                 vy=velocities[:, 1].astype(np.float64), **state))
 
 
-def log_safety(rec: rr.RecordingStream, positions: np.ndarray, flags: np.ndarray, radius: float) -> None:
+def log_safety(rec: rr.RecordingStream, positions: np.ndarray, flags: np.ndarray, radius: float,
+               series: Series) -> None:
     """A translucent halo of twice ``radius`` (the body's radius: two halos overlap well before two
     agents touch) under each agent whose command the filter changed this step, coloured by what it
     did (:data:`SAFETY_COLOURS`: filtered, stalled, braked); the count of each as a time series."""
@@ -170,7 +173,7 @@ def log_safety(rec: rr.RecordingStream, positions: np.ndarray, flags: np.ndarray
     extra = {"draw_order": 5.0} if np.shape(positions)[-1] == 2 else {}  # under the agents (rerun's default 30)
     rec.log(SAFETY, _points(positions[acted], radii=2.0 * radius, colors=colours, **extra))
     for f, name in SAFETY_LABELS.items():
-        rec.log(f"safety/{name}", rr.Scalars(float(np.sum(flags == f))))
+        series.add(f"safety/{name}", float(np.sum(flags == f)))
 
 
 def log_prey(rec: rr.RecordingStream, prey: np.ndarray, trail: np.ndarray) -> None:
@@ -181,16 +184,49 @@ def log_prey(rec: rr.RecordingStream, prey: np.ndarray, trail: np.ndarray) -> No
     rec.log(PREY_STATE, rr.AnyValues(x=np.array([prey[0]], np.float64), y=np.array([prey[1]], np.float64), **z))
 
 
-def log_metrics(rec: rr.RecordingStream, metrics: dict[str, float],
-                thresholds: dict[str, float] | None = None) -> None:
-    """The step's metrics, and the threshold lines beside them (logged with every step, so they grow
-    with a live run)."""
+class Series:
+    """The scalar series of a run (its metrics, their threshold lines, the safety filter's counts), kept
+    for ``every`` steps and then sent as columns: one call per series, not one per series and step.
+    Logging one scalar costs about 25 us, and a step has about twenty: most of what recording a small
+    swarm cost. The rows are the same ones, on the ``step`` and ``sim_time`` timelines (not on the
+    logger's own ``log_time``); a live viewer sees them up to ``every`` steps late. :meth:`flush` before
+    the recording closes (:func:`~zswarm.record.recording.close_recording` does not know of it)."""
+
+    def __init__(self, rec: rr.RecordingStream, every: int = 20) -> None:
+        self.rec, self.every = rec, every
+        self.rows: dict[str, tuple[list[int], list[float], list[float]]] = {}
+        self.step, self.t, self.steps = 0, 0.0, 0
+
+    def at(self, step: int, t: float) -> None:
+        """The step the next values belong to; every ``every`` steps, what was kept is sent."""
+        self.steps += 1
+        if self.steps % self.every == 0:
+            self.flush()
+        self.step, self.t = step, t
+
+    def add(self, path: str, value: float) -> None:
+        steps, times, values = self.rows.setdefault(path, ([], [], []))
+        steps.append(self.step)
+        times.append(self.t)
+        values.append(float(value))
+
+    def flush(self) -> None:
+        for path, (steps, times, values) in self.rows.items():
+            self.rec.send_columns(path, indexes=[rr.TimeColumn("step", sequence=steps),
+                                                 rr.TimeColumn(TIMELINE, duration=times)],
+                                  columns=rr.Scalars.columns(scalars=values))
+        self.rows.clear()
+
+
+def log_metrics(series: Series, metrics: dict[str, float], thresholds: dict[str, float] | None = None) -> None:
+    """The step's metrics, and the threshold lines beside them (with every step, so they grow with a
+    live run)."""
     for name, value in metrics.items():
         if np.isfinite(value):
-            rec.log(f"{METRICS}/{name}", rr.Scalars(value))
+            series.add(f"{METRICS}/{name}", value)
     for name, value in (thresholds or {}).items():
         if np.isfinite(value):
-            rec.log(f"{THRESHOLDS}/{name}", rr.Scalars(value))
+            series.add(f"{THRESHOLDS}/{name}", value)
 
 
 def log_threshold_styles(rec: rr.RecordingStream, thresholds: dict[str, float]) -> None:
