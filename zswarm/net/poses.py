@@ -42,7 +42,6 @@ def implausible_jump(old: msg.Pose, new: msg.Pose, max_step: float, elapsed_step
     return math.hypot(new.x - old.x, new.y - old.y, new.z - old.z) > max_step * steps + 1e-9
 
 
-
 def supersedes(old: msg.Pose, new: msg.Pose) -> bool:
     """``new`` replaces ``old``: a newer sequence number, or one so far behind that the sender must
     have restarted (a restarted agent counts from 1 again, and may be anywhere: no jump check then;
