@@ -150,17 +150,23 @@ def test_a_lockstep_run_over_two_nodes_equals_the_reference(tmp_path):
     assert wait_gone(mark, 10.0) == []
 
 
+def start_local_run(tmp_path: Path, mark: str, stderr: int) -> tuple[subprocess.Popen, list[str]]:
+    """``zswarm run --cluster local:2 --agents 6 --duration 60``, offline, read until its world has
+    started (every node's router and agents are up): the driver, and the lines it printed so far."""
+    argv, env = offline(tmp_path, "-m", "zswarm", "run", "--cluster", "local:2", "--agents", "6", "--duration", "60",
+                        "--record", str(tmp_path / "run.rrd"), mark=mark)
+    driver = subprocess.Popen(argv, env=env, cwd=tmp_path, stdout=subprocess.PIPE, stderr=stderr, text=True)
+    try:
+        return driver, read_until(driver, "world: started", 120)
+    except BaseException:
+        end_run(driver, mark)
+        raise
+
+
 def test_a_driver_killed_mid_run_leaves_no_process_within_ten_seconds(tmp_path):
     mark = uuid.uuid4().hex
-    argv, env = offline(tmp_path, "-m", "zswarm", "run", "--cluster", "local:2", "--agents", "6", "--duration", "60",
-                        "--record", str(tmp_path / "k.rrd"), mark=mark)
-    driver = subprocess.Popen(argv, env=env, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-                              text=True)
+    driver, _ = start_local_run(tmp_path, mark, subprocess.DEVNULL)
     try:
-        deadline = time.monotonic() + 120
-        for line in driver.stdout:  # the run is under way: every node's router and agents are up
-            if line.startswith("world: started") or time.monotonic() > deadline:
-                break
         assert driver.poll() is None, "the run ended before it was killed"
         assert len(left_behind(mark)) > 10  # Ray's nodes, the routers, the world, the agents
         driver.send_signal(signal.SIGKILL)  # unshare and sh exec'd it: this pid is the driver itself
@@ -175,16 +181,9 @@ def test_a_nodes_router_that_dies_stops_the_run_in_one_line_and_leaves_nothing(t
     """As on one machine: a router that dies cuts its agents off, so the run stops (exit 1) and says
     which node's router it was; every process on every node goes."""
     mark = uuid.uuid4().hex
-    argv, env = offline(tmp_path, "-m", "zswarm", "run", "--cluster", "local:2", "--agents", "6", "--duration", "60",
-                        "--record", str(tmp_path / "r.rrd"), mark=mark)
-    driver = subprocess.Popen(argv, env=env, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                              text=True)
+    driver, lines = start_local_run(tmp_path, mark, subprocess.PIPE)
     try:
-        deadline, endpoints = time.monotonic() + 120, []
-        for line in driver.stdout:
-            endpoints += re.findall(r"router (tcp/\S+?)(?:,|$)", line.strip())
-            if line.startswith("world: started") or time.monotonic() > deadline:
-                break
+        endpoints = [e for line in lines for e in re.findall(r"router (tcp/\S+?)(?:,|$)", line.strip())]
         assert driver.poll() is None and len(endpoints) == 2, endpoints
         victim = [p for p in left_behind(mark) if "zswarm.net.router" in p and endpoints[-1] in p]
         assert len(victim) == 1, left_behind(mark)

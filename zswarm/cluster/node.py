@@ -81,7 +81,7 @@ class NodeHost:
         with self.lock:
             lines = list(self.lines)
             self.lines.clear()
-        router = next((c.proc.poll() for c in self.kids.named("router") if c.proc.poll() is not None), None)
+        router = next((code for c in self.kids.named("router") if (code := c.proc.poll()) is not None), None)
         return {"ended": ended, "lines": lines, "router": router}
 
     def signal(self, name: str, sig: int) -> None:
