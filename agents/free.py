@@ -5,7 +5,7 @@ under an injected delay, in the bridge's inbox stamped with the time they arrive
 injector), asks for what it lacks without waiting for the answer (obstacles, the poses of cells it
 just entered: the replies join the inbox), steps its control law and publishes its pose. No Python
 code runs between ticks but the one stamped subscription to a neighbour's poses (the latency figure,
-:meth:`~agents.sensing.Sensing.follow_probe`): this is what keeps an agent close to the middleware's
+one second in five: :mod:`agents.probe`): this is what keeps an agent close to the middleware's
 own cost.
 
 A late tick is counted and the schedule moves on (never a backlog of ticks). The run ends on the
@@ -66,7 +66,7 @@ def run_free(agent: Agent, injector: FaultInjector | None, stopped: Callable[[],
             agent.move(s.prey, s.neighbour_positions(None, agent.staleness))
         agent.body.step += 1
         agent.reach.follow_cells()
-        agent.reach.follow_probe()
+        agent.reach.follow_probe(now)
         agent.publish_pose(-1)
         if c.ticks % stats_every == 0:
             agent.publish_stats_now()

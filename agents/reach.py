@@ -40,10 +40,11 @@ class Reach:
         for cell in self.cell_view.move():
             self.bridge.get_into_inbox(self.keys.cell_poses(cell), "pose", 1.0)
 
-    def follow_probe(self) -> None:
-        """Ring-channel inbox: keep the latency probe on the nearest live neighbour (:mod:`agents.probe`)."""
+    def follow_probe(self, now: float) -> None:
+        """Ring-channel inbox: keep the latency probe on the nearest live neighbour, in its windows
+        (:mod:`agents.probe`)."""
         if self.sensing.latency_from_probe:
-            self.sensing.latency_probe.follow(self.bridge)
+            self.sensing.latency_probe.follow(self.bridge, now)
 
     # --- on an event loop (lockstep) ----------------------------------------------------------------
 

@@ -12,6 +12,7 @@ import time
 
 import zenoh
 
+from agents import probe
 from agents.free import take_in
 from agents.main import Process, build_parser
 from conftest import free_port
@@ -28,12 +29,13 @@ def agent(endpoint: str, agent_id: int, x: float) -> Process:
     return proc
 
 
-def tick(*procs: Process) -> None:
-    """One free-clock tick of each (as :func:`agents.free.run_free`, without the control law)."""
+def tick(*procs: Process, now: float | None = None) -> None:
+    """One free-clock tick of each (as :func:`agents.free.run_free`, without the control law);
+    ``now``: the monotonic time the probe's windows are judged at (default: now)."""
     for p in procs:
         take_in(p.agent, None)
         p.agent.reach.follow_cells()
-        p.agent.reach.follow_probe()
+        p.agent.reach.follow_probe(time.monotonic() if now is None else now)
         p.agent.publish_pose(-1)
 
 
@@ -64,6 +66,22 @@ def test_a_ring_agent_times_a_neighbours_poses_and_not_its_own_echo():
                 assert alone.agent.sensing.probe is not None and alone.agent.sensing.probe[0] == 1
                 assert neighbour.agent.sensing.probe is not None and neighbour.agent.sensing.probe[0] == 0
                 assert alone.agent.counters.poses > 0
+
+                # between its windows the probe holds no subscription, and times nothing
+                first = alone.agent.sensing.latency_probe.first
+                shut = first + probe.ON_S + 0.5
+                tick(alone, now=shut)
+                assert alone.agent.sensing.probe is None, "the probe listened between its windows"
+                subs = len(alone.bridge.channels)
+                tick(alone, now=shut)
+                before, poses = samples(alone), alone.agent.counters.poses
+                while alone.agent.counters.poses < poses + 10:
+                    assert time.monotonic() < deadline, "the neighbour's poses stopped"
+                    tick(alone, neighbour, now=shut)
+                    time.sleep(0.01)
+                assert samples(alone) == before and len(alone.bridge.channels) == subs
+                tick(alone, now=first + probe.EVERY_S)  # the next window: the probe is back
+                assert alone.agent.sensing.probe is not None and alone.agent.sensing.probe[0] == 1
             finally:
                 neighbour.close(final_stats=False)
 
