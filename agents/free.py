@@ -33,9 +33,9 @@ def take_in(agent: Agent, injector: FaultInjector | None) -> int:
 def wait_for_world(agent: Agent, injector: FaultInjector | None, timeout: float,
                    stopped: Callable[[], bool]) -> bool:
     """Until the world has answered the first obstacle query (it is there) and, beside a robot, the
-    robot's first odometry came (the agent starts where it is), then enter the cells; False if that
-    took longer than ``timeout`` seconds, the world answered in another dimension, or the agent was
-    stopped."""
+    robot's first odometry came (the agent starts where it is), then enter the cells and hear who is
+    in them (:func:`hear_cells`); False if that took longer than ``timeout`` seconds, the world
+    answered in another dimension, or the agent was stopped."""
     s = agent.sensing
     deadline = time.monotonic() + timeout
     while s.obstacle_query_at is None or (agent.robot is not None and not agent.follow_robot()):
@@ -45,7 +45,21 @@ def wait_for_world(agent: Agent, injector: FaultInjector | None, timeout: float,
         time.sleep(0.2)  # a few wake-ups a second: hundreds of agents waiting together must not load the machine
         take_in(agent, injector)
     agent.reach.follow_cells()
+    hear_cells(agent, injector, min(CELLS_WAIT, max(deadline - time.monotonic(), 0.0)), stopped)
     return True
+
+
+CELLS_WAIT = 2.0  # the longest an agent waits, at its start, for its cells' agents to answer
+
+
+def hear_cells(agent: Agent, injector: FaultInjector | None, wait: float, stopped: Callable[[], bool]) -> None:
+    """Take in the answers of the cells it just entered before its first step: an agent that joins a
+    swarm under way (a restart, a late start) then steers, and filters, from its first tick on the
+    neighbours around it, not as if it were alone until their next poses come."""
+    deadline = time.monotonic() + wait
+    while agent.reach.asking and time.monotonic() < deadline and not stopped():
+        time.sleep(0.01)
+    take_in(agent, injector)
 
 
 def run_free(agent: Agent, injector: FaultInjector | None, stopped: Callable[[], bool]) -> None:

@@ -25,6 +25,7 @@ class Reach:
     def __init__(self, sensing: Sensing, bridge: Bridge) -> None:
         self.sensing, self.bridge, self.keys = sensing, bridge, sensing.keys
         self.cell_view = CellView(self.keys, bridge, sensing.body, sensing.subscription_radius)
+        self.asking: set[tuple[int, ...]] = set()  # cells asked for their agents, answers not all in
 
     @property
     def cells(self) -> dict[tuple[int, ...], object]:
@@ -36,9 +37,12 @@ class Reach:
         self.sensing.obstacle_view.request(self.bridge, now, timeout)
 
     def follow_cells(self) -> None:
-        """Listen to the cells the sensing disc overlaps; the new cells' agents are asked at once."""
+        """Listen to the cells the sensing disc overlaps; the new cells' agents are asked at once (the
+        cells whose answers are not all in yet: :attr:`asking`)."""
         for cell in self.cell_view.move():
-            self.bridge.get_into_inbox(self.keys.cell_poses(cell), "pose", 1.0)
+            self.asking.add(cell)
+            self.bridge.get_into_inbox(self.keys.cell_poses(cell), "pose", 1.0,
+                                       done=lambda cell=cell: self.asking.discard(cell))
 
     def follow_probe(self, now: float) -> None:
         """Ring-channel inbox: keep the latency probe on the nearest live neighbour, in its windows

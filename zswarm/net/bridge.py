@@ -158,15 +158,18 @@ class Bridge:
             replies = await self.reply_filter(replies)
         return replies
 
-    def get_into_inbox(self, selector: str, tag: str, timeout: float) -> None:
+    def get_into_inbox(self, selector: str, tag: str, timeout: float,
+                       done: Callable[[], None] | None = None) -> None:
         """Send a query and return at once; each reply lands in the inbox as a ``tag`` sample (batch
-        mode), to be taken in at a later tick like any other sample."""
+        mode), to be taken in at a later tick like any other sample. ``done`` runs on a Zenoh thread
+        once the query is over (every reply in the inbox, or the timeout passed)."""
         append, now = self.inbox.append, time.time
 
         def on_reply(reply: Any) -> None:
             if not self.closed and reply.ok is not None:
                 append((tag, str(reply.ok.key_expr), reply.ok.payload.to_bytes(), False, now()))
-        self.session.get(selector, on_reply, timeout=timeout)
+        self.session.get(selector, on_reply if done is None else zenoh.handlers.Callback(on_reply, done),
+                         timeout=timeout)
 
     def close(self) -> None:
         self.closed = True
