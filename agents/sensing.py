@@ -246,9 +246,11 @@ class Sensing:
         than v_max times its age). One from which nothing came for
         ``staleness`` wall seconds longer than from the one heard last has gone *quiet*: it has left the
         cells this agent listens to, or its poses are being lost. It is let go only if it can have left:
-        if its newest pose plus what it can have moved since reaches past the subscription disc (the
-        cells cover at least that disc about this agent). One deep inside cannot have left: its silence
-        is loss, and it stays guarded against where it may be (``docs/safety.md``).
+        if its newest pose plus what it can have moved while the others were still heard (its age beyond
+        the freshest neighbour's: had it stayed, its poses would have come through the same delay as
+        theirs) reaches past the subscription disc (the cells cover at least that disc about this
+        agent). One deep inside cannot have left: its silence is loss, and it stays guarded against
+        where it may be (``docs/safety.md``).
 
         Lockstep: the step-k poses, exact for step k (age 0). Free: the newest pose, its age from its
         stamp scaled by ``time_scale``, plus one control period ``period`` (a neighbour on its own timer
@@ -264,9 +266,10 @@ class Sensing:
         if not heard:
             return []
         left = min(quiet for _, _, quiet, _ in heard) + staleness
+        fresh = min(age for _, age, _, _ in heard)  # the delay every pose heard now has come through
         out = []
         for pose, age, quiet, d in heard:
-            if step is None and quiet > left and d + v * age > cells:
+            if step is None and quiet > left and d + v * (age - fresh) > cells:
                 continue
             point = pose.position
             if lookahead and pose.heading is not None:

@@ -301,6 +301,47 @@ def test_an_agent_guards_against_late_neighbours_and_quiet_ones_that_cannot_have
     assert sensing.safety_neighbours(7, 1.0, 0.05, 0.5) == []
 
 
+def test_under_a_common_delay_a_quiet_neighbour_deep_inside_stays_guarded_in_agents_and_simulators():
+    """When everything arrives seconds late (a machine far behind), each pose's age says nothing about
+    whether a quiet neighbour can have left: had it stayed in the cells, its poses would have come
+    through the same delay as the others'. So it counts as gone only if its newest position plus what
+    it can have moved *beyond the freshest neighbour's age* reaches past the cells: agents
+    (``Sensing.safety_neighbours``) and simulators (``BatchChannel.known``) alike. On its whole age
+    (2.65 s at v_max 1) the neighbour 0.3 away would be let go; it is guarded."""
+    import time
+
+    from agents.sensing import Body, Sensing
+    from zswarm.model.faults import FaultModel
+    from zswarm.net import messages as msg
+    from zswarm.net.runspec import RunSpec
+    from zswarm.sim.batch_channel import BatchChannel
+
+    spec = RunSpec(scenario_name="moving-prey")  # R = 1, v_max = 1, dt = 0.05: cells reach 1.1
+    swarm = spec.scenario.params.swarm
+    assert (swarm.sensing_radius, swarm.v_max, spec.scenario.dt) == (1.0, 1.0, 0.05)
+    sensing = Sensing(spec, 0, Body(0.0, 0.0), probe_latency=False)
+    now = time.time()
+    late = {1: ((0.5, 0.0), 2.0, now - 0.01),   # 2 s late, still arriving: the common delay
+            2: ((0.0, -0.3), 2.6, now - 0.6),   # quiet 0.6 s longer, deep inside: lost, not gone
+            3: ((-0.9, 0.0), 4.0, now - 2.0)}   # quiet 2 s longer, 0.9 + 2.0 > 1.1: can have left
+    for who, (p, age, received) in late.items():
+        assert sensing.neighbours.accept(who, msg.Pose(who, 1, now - age, -1, *p, 0.0, 0.0), received) is None
+        sensing.alive.add(who)
+    got = dict(sensing.safety_neighbours(None, 1.0, 0.05, 0.5))
+    assert set(got) == {(0.5, 0.0), (0.0, -0.3)}
+    assert got[(0.0, -0.3)] == pytest.approx(2.65, abs=0.01)  # guarded with its whole age
+
+    channel = BatchChannel(4, [FaultModel()], 0.05, np.array([1.0]), np.array([1.0]))
+    k = 100
+    for who, ((x, y), age, _) in late.items():
+        channel.belief_stamp[0, 0, who] = k - int(round(age / 0.05))
+        channel.belief_pos[0, 0, who] = (x, y)
+    positions = np.array([[[0.0, 0.0], [0.5, 0.0], [0.0, -0.3], [-0.9, 0.0]]])
+    mask, _, ages = channel.known(k, positions)
+    assert mask[0, 0].tolist() == [False, True, True, False]
+    assert ages[0, 0, 2] == pytest.approx(2.6)
+
+
 def test_poses_that_waited_in_a_queue_are_not_refused_as_jumps_but_a_forged_leap_is():
     """zswarm.net.poses: after a queue, a burst brings an old pose and, at once, a much later one (the
     poses between were lost). The receiver's clock since the old pose was *sent* bounds how far the

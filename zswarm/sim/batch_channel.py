@@ -102,14 +102,16 @@ class BatchChannel:
         (:meth:`agents.sensing.Sensing.safety_neighbours`): every neighbour an agent has heard whose newest
         position may be within the sensing radius of it by now (no farther than v_max times its age
         beyond it), unless that is older than the staleness limit beyond its freshest neighbour's and
-        it can have left the agent's cells (its newest position plus what it can have moved since
-        reaches past the subscription disc); as (mask (B, N, N), believed positions (B, N, N, D), ages
-        in seconds (B, N, N))."""
+        it can have left the agent's cells (its newest position plus what it can have moved while the
+        freshest was still heard, v_max times its age beyond the freshest's, reaches past the
+        subscription disc); as (mask (B, N, N), believed positions (B, N, N, D), ages in seconds
+        (B, N, N))."""
         stamp = self.belief_stamp[:, :, : self.n]
         believed = self.belief_pos[:, :, : self.n]
         age = (k - stamp) * self.dt
         d = np.linalg.norm(positions[:, :, None, :] - believed, axis=-1)
         heard = (stamp >= 0) & (d - self.v_max * age <= self.radius)
         newest = np.where(heard, stamp, -1).max(axis=-1, keepdims=True)
-        heard &= (stamp >= newest - self.stale_steps) | (d + self.v_max * age <= self.cells)
+        beyond = (newest - stamp) * self.dt  # its age beyond the freshest neighbour's
+        heard &= (stamp >= newest - self.stale_steps) | (d + self.v_max * beyond <= self.cells)
         return heard, believed, age
