@@ -134,6 +134,27 @@ def scalar_series(path: Path) -> dict[str, list[tuple[int, float]]]:
     return {k: sorted(v) for k, v in out.items()}
 
 
+def map_agents(path: Path) -> list[tuple[int, int, list[str] | None]]:
+    """The map's agent points in a recording, as (step, how many positions, labels or None where that
+    row updated only the positions), in step order (2-D or 3-D)."""
+    from rerun.chunk import RrdReader
+
+    from zswarm.record.swarm_log import AGENTS
+
+    rows = []
+    for chunk in RrdReader(str(path)).stream().to_chunks():
+        if str(chunk.entity_path).lstrip("/") != AGENTS:
+            continue
+        rb = chunk.to_record_batch()
+        kind = "Points3D" if "Points3D:positions" in rb.schema.names else "Points2D"
+        labels = (rb.column(f"{kind}:labels").to_pylist() if f"{kind}:labels" in rb.schema.names
+                  else [None] * rb.num_rows)
+        for step, positions, text in zip(rb.column("step").to_pylist(), rb.column(f"{kind}:positions").to_pylist(),
+                                         labels):
+            rows.append((step, len(positions), text))
+    return sorted(rows, key=lambda r: r[0])
+
+
 def our_processes(marker: str) -> list[int]:
     """Pids of every process whose command line holds ``marker`` (a run id): should be none."""
     out = []

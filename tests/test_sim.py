@@ -4,7 +4,7 @@ import json
 
 import numpy as np
 import pytest
-from swarm_procs import scalar_series
+from swarm_procs import map_agents, scalar_series
 
 from zswarm.args import UsageError
 from zswarm.model.law import sense_one
@@ -147,6 +147,38 @@ def test_cli_sim_json_and_recording(cli, tmp_path):
         steps = [step for step, _ in series[path]]
         assert steps == list(range(81)), (path, steps)
     assert series["metrics/centroid_goal_distance"][-1][1] == pytest.approx(s["final_centroid_goal_distance"])
+    # the map's agents: labelled once (nobody came or went), their positions at every step
+    points = map_agents(out)
+    assert [k for k, _, _ in points] == list(range(81)) and all(n == 10 for _, n, _ in points)
+    assert [(k, text) for k, _, text in points if text is not None] == [(0, [str(i) for i in range(10)])]
+
+
+def test_the_maps_labels_are_logged_when_the_agents_change_and_always_name_the_points_shown(tmp_path):
+    """zswarm.record.swarm_log.Labels: labels go with the positions when the set of agents changes (a
+    departure, a return), and only then; at every step the newest labels name as many agents as the
+    newest positions place, in the same order."""
+    import rerun as rr
+
+    from zswarm.record import swarm_log
+
+    out = tmp_path / "labels.rrd"
+    rec = rr.RecordingStream("zswarm-test-labels")
+    rec.save(str(out))
+    labels = swarm_log.Labels()
+    agents = [[0, 1, 2]] * 4 + [[0, 2]] * 3 + [[0, 1, 2]] * 2  # agent 1 leaves at step 4, is back at 7
+    for k, ids in enumerate(agents):
+        ids = np.array(ids)
+        swarm_log.set_time(rec, k, 0.05 * k)
+        positions = np.column_stack([ids + 0.1 * k, np.zeros(len(ids))])
+        swarm_log.log_swarm(rec, 0.05 * k, ids, positions, np.zeros_like(positions), labels=labels)
+    rec.flush()
+    rec.disconnect()
+    points = map_agents(out)
+    assert [k for k, _, text in points if text is not None] == [0, 4, 7]
+    newest = None
+    for (k, n, text), ids in zip(points, agents):
+        newest = text if text is not None else newest
+        assert newest == [str(i) for i in ids] and n == len(ids), k
 
 
 def test_cli_scenarios_and_bench(cli):

@@ -112,6 +112,7 @@ class WorldRecorder:
         swarm_log.log_obstacles(self.rec, centers, radii)
         swarm_log.log_threshold_styles(self.rec, self.thresholds)
         self.series = swarm_log.Series(self.rec)
+        self.labels = swarm_log.Labels()
         self.rec.flush()
 
     # --- every step -----------------------------------------------------------------------------------
@@ -128,7 +129,7 @@ class WorldRecorder:
 
         swarm_log.set_time(self.rec, step, t, self.series)
         self.trail.append(prey.copy())
-        swarm_log.log_swarm(self.rec, t, ids, pos, vel, headings=heading, stamps=stamps)
+        swarm_log.log_swarm(self.rec, t, ids, pos, vel, headings=heading, stamps=stamps, labels=self.labels)
         if safety is not None:
             swarm_log.log_safety(self.rec, pos, *safety, self.series)
         swarm_log.log_prey(self.rec, prey, np.array(self.trail))

@@ -59,6 +59,11 @@ def _points(positions: np.ndarray, **kw: Any) -> Any:
     return (rr.Points3D if np.shape(positions)[-1] == 3 else rr.Points2D)(positions, **kw)
 
 
+def _positions(positions: np.ndarray) -> Any:
+    """Points that update only their positions (a partial update: the other components logged last stay)."""
+    return (rr.Points3D if np.shape(positions)[-1] == 3 else rr.Points2D).from_fields(positions=positions)
+
+
 def _arrows(origins: np.ndarray, vectors: np.ndarray, **kw: Any) -> Any:
     return (rr.Arrows3D if np.shape(origins)[-1] == 3 else rr.Arrows2D)(origins=origins, vectors=vectors, **kw)
 
@@ -135,13 +140,36 @@ def set_time(rec: rr.RecordingStream, step: int, t: float, series: Series | None
         series.at(step, t)
 
 
+class Labels:
+    """Which agents the map's points were last labelled for. Their labels, class ids and radius are
+    logged when the set of agents changes, their positions every step: the viewer shows, at every
+    instant, the newest of each component (a partial update), so the map is the same, and a recorder
+    does not turn every id into text at every step (at N = 1000: 368 us a step against 45 for the
+    positions alone)."""
+
+    def __init__(self) -> None:
+        self.ids: np.ndarray | None = None
+
+    def due(self, ids: np.ndarray) -> bool:
+        """The agents (in this order) differ from those labelled last: label them now."""
+        if self.ids is not None and np.array_equal(self.ids, ids):
+            return False
+        self.ids = np.array(ids, copy=True)
+        return True
+
+
 def log_swarm(rec: rr.RecordingStream, t: float, ids: np.ndarray, positions: np.ndarray,
               velocities: np.ndarray, sensing_radius: float | None = None,
-              headings: np.ndarray | None = None, stamps: np.ndarray | None = None) -> None:
+              headings: np.ndarray | None = None, stamps: np.ndarray | None = None,
+              labels: Labels | None = None) -> None:
     """Agents (with id labels), their velocity arrows, optional sensing discs and exact float64 state;
-    ``headings`` (radians, NaN where none): a short white arrow from each agent the way it faces."""
-    labels = [str(int(i)) for i in ids]
-    rec.log(AGENTS, _points(positions, radii=0.05, labels=labels, class_ids=ids, show_labels=len(ids) <= 30))
+    ``headings`` (radians, NaN where none): a short white arrow from each agent the way it faces.
+    ``labels``: the recording's :class:`Labels` (without one, every step carries them)."""
+    if labels is None or labels.due(ids):
+        rec.log(AGENTS, _points(positions, radii=0.05, labels=[str(int(i)) for i in ids], class_ids=ids,
+                                show_labels=len(ids) <= 30))
+    else:
+        rec.log(AGENTS, _positions(positions))
     rec.log(VELOCITIES, _arrows(positions, velocities))
     if sensing_radius is not None:
         rec.log(SENSING, _points(positions, radii=sensing_radius, colors=(120, 160, 255, 25)))

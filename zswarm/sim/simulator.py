@@ -163,7 +163,7 @@ def simulate(scenario: Scenario, seed: int, *, combination: Combination | None =
                                    "versions": versions(), "argv": argv or sys.argv})
         swarm_log.log_obstacles(rec, sim.obstacles.centers, sim.obstacles.radii)
         swarm_log.log_threshold_styles(rec, observer.thresholds())
-        series = swarm_log.Series(rec)
+        series, labels = swarm_log.Series(rec), swarm_log.Labels()
     graph = sensing_graph if sensing_graph is not None else len(sim.positions) <= 100
     trail: list[np.ndarray] = []
     for k in range(steps + 1):
@@ -176,8 +176,9 @@ def simulate(scenario: Scenario, seed: int, *, combination: Combination | None =
             energy = float(u.sum()) if sim.channel is None else None
             metrics = observer.observe(sim.t, sim.ids, sim.positions, v, sim.prey, energy)
             if rec is not None and (k % record_every == 0 or k == steps):
-                _log_step(rec, series, sim, v, metrics, trail, p.swarm.sensing_radius if sensing_discs else None,
-                          observer.thresholds(), p.swarm.sensing_radius if graph else None)
+                _log_step(rec, series, labels, sim, v, metrics, trail,
+                          p.swarm.sensing_radius if sensing_discs else None, observer.thresholds(),
+                          p.swarm.sensing_radius if graph else None)
         if k < steps:
             sim.advance(command)
     result = {**header, **observer.summary.result(), **sim.tally.result()}
@@ -195,13 +196,14 @@ def simulate(scenario: Scenario, seed: int, *, combination: Combination | None =
     return RunResult(result, observer.summary, traj, prey_traj)
 
 
-def _log_step(rec, series, sim: Simulator, v: np.ndarray, metrics: dict[str, float], trail: list[np.ndarray],
-              sensing_radius: float | None, thresholds: dict[str, float], graph_radius: float | None) -> None:
+def _log_step(rec, series, labels, sim: Simulator, v: np.ndarray, metrics: dict[str, float],
+              trail: list[np.ndarray], sensing_radius: float | None, thresholds: dict[str, float],
+              graph_radius: float | None) -> None:
     from zswarm.record import swarm_log
 
     swarm_log.set_time(rec, sim.step_index, sim.t, series)
     trail.append(sim.prey.copy())
-    swarm_log.log_swarm(rec, sim.t, sim.ids, sim.positions, v, sensing_radius, sim.headings)
+    swarm_log.log_swarm(rec, sim.t, sim.ids, sim.positions, v, sensing_radius, sim.headings, labels=labels)
     if sim.safety is not None and sim.filtered is not None:
         swarm_log.log_safety(rec, sim.positions, sim.filtered.flags(), sim.scenario.params.swarm.robot_radius, series)
     swarm_log.log_prey(rec, sim.prey, np.array(trail[-400:]))
