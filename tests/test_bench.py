@@ -11,3 +11,20 @@ def test_repeats_fold_into_medians_key_by_key():
     assert out["cpu"] == 2.0 and out["n_agents"] == 50
     assert out["latency_ms"] == {"p50": 0.5, "p99": 4.0}  # a repeat without a figure is left out
     assert out["ok"] is True and out["gone"] == 7
+
+
+def test_bench_world_measures_a_world_fed_by_crowds_and_a_crowd_refuses_ids_beyond_the_run(cli):
+    """``zswarm bench world``: crowd processes carry N agents' poses to a real world over a real router;
+    the world takes in what they send, keeps its clock and reports its own CPU; a crowd asked to stand
+    in for agents the run does not have refuses in one line."""
+    import json
+
+    res = cli("-m", "zswarm", "bench", "world", "--agents", "12", "--duration", "2", "--json", timeout=120)
+    assert res.returncode == 0, res.stderr
+    (r,) = json.loads(res.stdout)["runs"]
+    assert r["n_agents"] == 12 and r["rate_hz"] == 40.0 and r["poses_per_s_sent"] == 480.0
+    assert 0.8 * 480 < r["poses_per_s_taken_in"] < 1.3 * 480, r  # every agent's poses reached the world
+    assert r["world_ticks"] >= 40 and 0.0 < r["world_cpu_share"] < 2.0 and r["recording_mb"] > 0
+    bad = cli("-m", "zswarm.bench.crowd", "--first", "10", "--count", "5", "--scenario", "large-swarm",
+              "--set", "n_agents=12", "--connect", "tcp/127.0.0.1:1")
+    assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "beyond the run's 12 agents" in bad.stderr

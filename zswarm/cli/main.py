@@ -26,7 +26,8 @@ def module_command(sub: argparse._SubParsersAction, name: str, text: str, module
 
 def build_parser() -> Parser:
     from zswarm.cli import (bench_bodies, bench_guidelines, bench_interactions, bench_net, bench_placement,
-                            bench_safety, certs, design, export, monitor, replay, robot_sim, sim, soak, tune)
+                            bench_safety, bench_world, certs, design, export, monitor, replay, robot_sim, sim, soak,
+                            tune)
 
     parser = Parser(prog="zswarm", description="Decentralized APF swarms (Kim, Wang & Shin 2006).")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
@@ -68,6 +69,8 @@ def build_parser() -> Parser:
     module_command(bench_sub, "safety", "the safety filter beside the law alone and ORCA, same runs", bench_safety)
     module_command(bench_sub, "placement", "neighbour traffic crossing between routers: space vs round-robin",
                    bench_placement)
+    module_command(bench_sub, "world", "what the world costs at N agents (crowd processes carry their poses)",
+                   bench_world)
 
     replay.add_arguments(sub)
     module_command(sub, "export", "write a recorded run as ROS 2 messages (MCAP, for Foxglove and ros2 bag)", export)
