@@ -118,10 +118,12 @@ def _min_pair_distance(positions: np.ndarray, i: np.ndarray, j: np.ndarray) -> f
 
 
 def step_metrics(positions: np.ndarray, velocities: np.ndarray, prey: np.ndarray, ctx: MetricContext,
-                 energy: float = math.nan) -> tuple[dict[str, float], np.ndarray, np.ndarray]:
-    """Metrics of one step, plus the colliding agent pairs (i < j) and agent-obstacle contacts."""
+                 energy: float = math.nan, pairs: tuple[np.ndarray, np.ndarray] | None = None,
+                 ) -> tuple[dict[str, float], np.ndarray, np.ndarray]:
+    """Metrics of one step, plus the colliding agent pairs (i < j) and agent-obstacle contacts.
+    ``pairs``: ``pairs_within(positions, ctx.sensing_radius)``, when the caller has it already."""
     n = len(positions)
-    i, j = pairs_within(positions, ctx.sensing_radius)
+    i, j = pairs if pairs is not None else pairs_within(positions, ctx.sensing_radius)
     centroid = positions.mean(axis=0)
     to_goal = np.linalg.norm(positions - prey, axis=1)
     labels = components(n, i, j)

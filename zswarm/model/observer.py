@@ -14,7 +14,7 @@ import numpy as np
 from zswarm.model.design import epsilon
 from zswarm.model.law import Law, compile_law, swarm_field
 from zswarm.model.metrics import MetricContext, Summary, step_metrics
-from zswarm.model.neighbours import ObstacleIndex
+from zswarm.model.neighbours import ObstacleIndex, pairs_within
 from zswarm.model.potentials import Combination
 from zswarm.model.scenarios import Scenario
 
@@ -42,16 +42,21 @@ class SwarmObserver:
         return {"capture_radius": self.scenario.capture_radius, "collision_distance": 2.0 * p.swarm.robot_radius,
                 "d_m_ro": p.margins.d_m_ro, "epsilon": self.summary.epsilon}
 
-    def energy(self, positions: np.ndarray, goal: np.ndarray) -> float:
-        """Sum of the agents' potentials U_i (eq 35), each from what it senses at ``positions``."""
-        u, _ = swarm_field(self.law, self.obstacles, positions, goal)
+    def energy(self, positions: np.ndarray, goal: np.ndarray,
+               pairs: tuple[np.ndarray, np.ndarray] | None = None) -> float:
+        """Sum of the agents' potentials U_i (eq 35), each from what it senses at ``positions``;
+        ``pairs``: every pair within the sensing radius there, when the caller has them already."""
+        sensed = None if pairs is None else (pairs[0], positions[pairs[0]] - positions[pairs[1]])
+        u, _ = swarm_field(self.law, self.obstacles, positions, goal, sensed)
         return float(u.sum())
 
     def observe(self, t: float, ids: np.ndarray, positions: np.ndarray, velocities: np.ndarray,
                 prey: np.ndarray, energy: float | None = None) -> dict[str, float]:
-        """Measure one step and add it to the summary; ``energy`` if the caller has it already."""
+        """Measure one step and add it to the summary; ``energy`` if the caller has it already. The
+        pairs within the sensing radius are found once, for the energy and the metrics."""
+        pairs = pairs_within(positions, self.context.sensing_radius)
         if energy is None:
-            energy = self.energy(positions, prey)
-        metrics, colliding, contacts = step_metrics(positions, velocities, prey, self.context, energy)
+            energy = self.energy(positions, prey, pairs)
+        metrics, colliding, contacts = step_metrics(positions, velocities, prey, self.context, energy, pairs)
         self.summary.add(t, metrics, np.asarray(ids)[colliding] if len(colliding) else colliding, contacts)
         return metrics
