@@ -40,6 +40,10 @@ def test_an_agent_that_joins_hears_its_cells_before_its_first_step():
             assert wait_for_world(first.agent, None, 10.0, lambda: False)
             first.announce()
             first.agent.publish_pose(-1)  # it is there: its queryable answers for its cell
+            deadline = time.monotonic() + 10.0
+            while not list(router.get(keys.cell_poses(keys.cell(0.5, 0.5)), timeout=1.0)):
+                assert time.monotonic() < deadline, "agent 0's queryable never answered"
+                time.sleep(0.01)
 
             late = agent(endpoint, 1, 0.9)
             try:
