@@ -146,6 +146,7 @@ def test_a_lockstep_run_over_two_nodes_equals_the_reference(tmp_path):
     observed = np.load(tmp_path / "l.npz")["positions"]
     assert observed.shape == ref.trajectory.shape
     assert np.max(np.abs(observed - ref.trajectory)) < 1e-6
+    assert s["agents_final_reports"] == 8, s["agents_final_reports"]  # every count complete
     assert s["safety_interventions"] == ref.summary["safety_interventions"] > 0
     assert wait_gone(mark, 10.0) == []
 

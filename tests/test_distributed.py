@@ -65,7 +65,7 @@ def test_lockstep_swarm_reproduces_the_reference_and_catches_the_prey(tmp_path, 
     assert (summary["capture_time"] is not None) == (ref.summary["capture_time"] is not None)
     assert summary["capture_time"] is not None or not catches
     assert summary["collisions"] == 0
-    assert summary["agents_reporting"] == n and summary["missed_lockstep_poses"] == 0
+    assert summary["agents_reporting"] == summary["agents_final_reports"] == n and summary["missed_lockstep_poses"] == 0
     if scenario == "goal-near-obstacle":  # the filter acted, in the processes as in the reference
         assert summary["safety_interventions"] == ref.summary["safety_interventions"] > 0
     else:

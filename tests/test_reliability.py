@@ -144,7 +144,8 @@ def test_router_crash_ends_the_run_with_a_valid_recording_and_summary(tmp_path):
 
 def test_the_world_repeats_the_final_tick_until_every_agent_has_said_goodbye(tmp_path):
     """An agent that missed the world's one final tick would run on alone forever: the world publishes it
-    again every 0.25 s for as long as (up to 3 s) an agent alive at the end has not sent its final stats.
+    again every 0.25 s for as long as an agent alive at the end has not sent its final stats (3 s after
+    the last final stats came, here none).
     A stand-in agent here holds a liveliness token and never answers."""
     import threading
 

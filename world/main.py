@@ -22,8 +22,11 @@ from zswarm.net.runspec import RunSpec, add_run_args, spec_from_args
 from zswarm.record.live import Viewer, add_viewer_args, viewer_from_args
 
 
-#: Until every agent has sent its final stats (3 s at most), the final tick is published again this often.
+#: Until every agent has sent its final stats (FINAL_STATS_WAIT after the last came), the final tick is
+#: published again this often.
 FINAL_TICK_REPEAT = 0.25
+FINAL_STATS_WAIT = 3.0  # seconds the world waits for the next agent's final stats at the end of a run
+FINAL_STATS_MAX = 15.0  # and at most, in all
 
 
 def build_parser() -> Parser:
@@ -81,11 +84,18 @@ async def run_world(args: argparse.Namespace, spec: RunSpec, viewer: Viewer | No
         world.ending = True
         final = msg.Tick(world.clock.step + 1, time.time(), *map(float, world.prey), final=True)
         world.publish(keys.tick, final)
-        deadline = loop.time() + 3.0  # let the agents' final stats arrive
-        again = loop.time() + FINAL_TICK_REPEAT
-        while loop.time() < deadline and not all(world.stats.final(i) for i in expected):
+        # let the agents' final stats arrive: FINAL_STATS_WAIT after the last one came (on a loaded
+        # machine they trickle in over seconds), FINAL_STATS_MAX in all
+        began = heard_at = loop.time()
+        again = began + FINAL_TICK_REPEAT
+        reported = sum(world.stats.final(i) for i in expected)
+        while (reported < len(expected) and loop.time() < heard_at + FINAL_STATS_WAIT
+               and loop.time() < began + FINAL_STATS_MAX):
             await asyncio.sleep(0.05)
             bridge.drain()
+            now_reported = sum(world.stats.final(i) for i in expected)
+            if now_reported > reported:
+                reported, heard_at = now_reported, loop.time()
             if loop.time() >= again:  # an agent that missed the one final tick would run on, alone, forever
                 world.publish(keys.tick, final)
                 again += FINAL_TICK_REPEAT

@@ -28,6 +28,7 @@ def transport_summary(stats: list[msg.Stats], world_rejected: dict[str, int]) ->
     counted = sum(s.health.seq_lost + s.health.seq_received for s in stats)
     return {
         "agents_reporting": len(stats),
+        "agents_final_reports": sum(1 for s in stats if s.final),  # the rest: counts up to their last second
         "messages_sent": sum(s.sent for s in stats),
         "messages_received": sum(s.received for s in stats),
         "messages_rejected": sum(rejected.values()), "rejected_by_reason": rejected,
