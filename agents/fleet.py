@@ -42,10 +42,6 @@ def _child(argv: list[str]) -> None:
         os._exit(code)
 
 
-def _status(status: int) -> int:
-    return -os.WTERMSIG(status) if os.WIFSIGNALED(status) else os.WEXITSTATUS(status)
-
-
 def main() -> int:
     # no BLAS thread pool to fork (an agent's control law is plain floats; numpy only draws spawns)
     one_blas_thread(os.environ)
@@ -67,7 +63,7 @@ def main() -> int:
                 return
             name = children.pop(pid, None)
             if name is not None:
-                out.write(f"exit {name} {_status(status)}\n")
+                out.write(f"exit {name} {os.waitstatus_to_exitcode(status)}\n")
                 out.flush()
 
     stopping: list[bool] = []

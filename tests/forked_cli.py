@@ -80,10 +80,6 @@ def _child(job: dict, out: str, err: str) -> None:
         os._exit(code)
 
 
-def _status(status: int) -> int:
-    return -os.WTERMSIG(status) if os.WIFSIGNALED(status) else os.WEXITSTATUS(status)
-
-
 def run_jobs(jobs: list[dict], folder: Path, parallel: int) -> list[dict]:
     """Each job forked, ``parallel`` at a time; returns returncode, stdout and stderr of each, in order."""
     for module in PRELOAD:
@@ -114,7 +110,7 @@ def run_jobs(jobs: list[dict], folder: Path, parallel: int) -> list[dict]:
         if pid not in running:
             continue
         k, _ = running.pop(pid)
-        results[k] = {"returncode": _status(status), "stdout": Path(folder / f"{k}.out").read_text(errors="replace"),
+        results[k] = {"returncode": os.waitstatus_to_exitcode(status), "stdout": Path(folder / f"{k}.out").read_text(errors="replace"),
                       "stderr": Path(folder / f"{k}.err").read_text(errors="replace")}
     return results  # type: ignore[return-value]
 

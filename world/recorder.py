@@ -51,6 +51,7 @@ class WorldRecorder:
         self.n_agents, self.dt = n_agents, dt
         self.rec = None
         self.series = None  # the scalar series of self.rec (swarm_log.Series), sent every 20 steps
+        self.labels = None  # which agents its map was last labelled for (swarm_log.Labels)
         self.segment = 0
         self.trail: deque[np.ndarray] = deque(maxlen=TRAIL)
         self.traj: list[np.ndarray] = []

@@ -37,12 +37,17 @@ def parse_cluster(text: str) -> str:
     return text
 
 
-def local_cores(address: str, cores: int) -> int:
-    """The cores a cluster started on this machine (``local`` or ``local:K``) has, of this machine's
-    ``cores``: each of its K nodes gets ``cores // K`` (at least 1), and together they have no more than
-    the machine (as :func:`connect` starts them)."""
+def local_nodes(address: str, cores: int) -> tuple[int, int]:
+    """A cluster started on this machine (``local`` or ``local:K``): its K nodes, and the cores each
+    gets of this machine's ``cores`` (``cores // K``, at least 1)."""
     k = int(address.split(":")[1]) if ":" in address else 1
-    return min(k * max(cores // k, 1), cores)
+    return k, max(cores // k, 1)
+
+
+def local_cores(address: str, cores: int) -> int:
+    """The cores such a cluster has in all: its nodes' (:func:`local_nodes`), no more than the machine's."""
+    k, each = local_nodes(address, cores)
+    return min(k * each, cores)
 
 
 def import_ray() -> Any:
@@ -145,8 +150,8 @@ def connect(address: str, cores: int) -> RayCluster:
         elif address.startswith("local:"):
             from ray.cluster_utils import Cluster
 
-            k = int(address.split(":")[1])
-            args = {"num_cpus": max(cores // k, 1), "node_ip_address": "127.0.0.1", **NODE_ARGS}  # local_cores
+            k, each = local_nodes(address, cores)
+            args = {"num_cpus": each, "node_ip_address": "127.0.0.1", **NODE_ARGS}
             with contextlib.redirect_stdout(io.StringIO()), loopback_only():
                 cluster.local = Cluster(initialize_head=True, head_node_args={**args, "_system_config": SYSTEM_CONFIG})
                 for _ in range(k - 1):
