@@ -3,8 +3,17 @@
 An agent process spends most of its start importing (Python, numpy, Zenoh's bindings, msgpack); a
 hundred of them starting at once on two cores take tens of seconds, and each keeps a private copy of
 what it imported. The fleet imports everything once and forks each agent from itself before any Zenoh
-session exists; each agent is still its own OS process with its own session and its own pid, and the
-imported pages stay shared between them until written.
+session exists; each agent is still its own OS process with its own Zenoh session and its own pid, and
+the imported pages stay shared between them until written.
+
+Each agent is a process group of its own (a terminal's Ctrl-C reaches the launcher, which stops the
+agents in order) inside the fleet's session, not a session of its own: on Linux with autogroup
+scheduling (the default on desktop and server kernels) every session is a group that gets an equal
+share of the CPU, so a hundred agents in a hundred sessions left the router and the world a hundredth
+each. Starved, the router read the agents' sockets seconds late, and agents steered and filtered on
+poses up to 30 s old (docs/safety.md, "A machine that falls behind"). In one session the agents
+together weigh what the router weighs: on a machine too small for the swarm, the agents tick late
+(their ticks are counted and skipped) while the poses they do send arrive fresh.
 
 Protocol (one line each, on stdin and stdout): the launcher writes ``spawn NAME ARG...`` (JSON, the
 agent's command line), the fleet answers ``pid NAME PID``, and ``exit NAME CODE`` when that agent
@@ -24,12 +33,13 @@ from zswarm.net.procs import die_with_parent, one_blas_thread
 
 
 def _child(argv: list[str]) -> None:
-    """In the forked agent: its own session of the terminal, no stdin/stdout, then the program."""
+    """In the forked agent: a process group of its own in the fleet's session, no stdin/stdout, then the
+    program."""
     from agents.main import main as agent_main
 
     code = 1
     try:
-        os.setsid()
+        os.setpgid(0, 0)
         die_with_parent()
         devnull = os.open(os.devnull, os.O_RDWR)
         os.dup2(devnull, 0)

@@ -39,7 +39,7 @@ PROCESS_MODULES = {
     "test_distributed", "test_reliability", "test_hostile", "test_space_procs", "test_usage", "test_experiments",
     "test_robots", "test_security", "test_netns", "test_render", "test_install", "test_routers", "test_faults",
     "test_monitor", "test_live", "test_latency", "test_api", "test_export", "test_bench", "test_soak",
-    "test_tune", "test_study", "test_cluster", "test_joining",
+    "test_tune", "test_study", "test_cluster", "test_joining", "test_fleet",
 }
 
 

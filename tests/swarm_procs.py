@@ -46,7 +46,7 @@ def start_world(kids: Children, endpoint: str, run: str, scenario: str, tmp: Pat
 
 #: The agent fleet of each set of children (``zswarm run`` forks its agents the same way): the agent
 #: program is imported once, and each agent is forked from it in milliseconds, still its own process
-#: with its own session and pid, instead of a fresh interpreter importing numpy and Zenoh again.
+#: with its own process group and pid, instead of a fresh interpreter importing numpy and Zenoh again.
 _FLEETS: dict[int, Fleet] = {}
 
 
