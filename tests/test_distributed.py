@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import select
 import signal
 import subprocess
 import sys
@@ -186,6 +187,49 @@ def test_killing_one_agent_leaves_the_others_running_and_is_recorded(tmp_path):
     assert s["agents_reporting"] == 5 and s["final_components"] >= 1
     run = load_run(record)
     assert 2 in run.frames[1].ids and run.frames[-1].ids.tolist() == [0, 1, 4]
+
+
+def test_an_agents_only_machine_times_its_faults_from_the_worlds_start_heard_on_zenoh(tmp_path):
+    """A machine that runs agents and no world hears the world's start on Zenoh (its liveliness
+    token): ``--kill 1@2`` fires 2 s into the world's clock, though the world starts seconds after
+    that machine did."""
+    run = "worldwatch"
+    with processes() as kids:
+        endpoint = start_router(kids)
+        launch = kids.spawn("launch", [str(ROOT / "launch.py"), "--role", "agents", "--connect", endpoint,
+                                       "--agents", "4", "--scenario", "moving-prey", "--run", run, "--duration", "8",
+                                       "--kill", "1@2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        out = _lines_until(launch.proc.stdout, "4 agent processes", 60)  # the agents are started
+        # the setup under test: the world starts 4 s after the agents, so a kill timed from the agents'
+        # machine's own start would come before the world's clock, and the world would wait for an
+        # agent that is gone (its --start-timeout) and start without it
+        time.sleep(4.0)
+        world, summary_path, _, _ = start_world(kids, endpoint, run, "moving-prey", tmp_path, "--set", "n_agents=4",
+                                                "--duration", "8", "--start-timeout", "10")
+        assert wait_exit(world, 90) == 0
+        assert wait_exit(launch, 30) == 0
+        out += launch.proc.stdout.read().decode()
+        err = launch.proc.stderr.read().decode()
+    assert "killed agents" in err, err
+    s = load_summary(summary_path)
+    assert s["startup_s"] is not None  # every agent was there when the world's clock started
+    (gone,) = s["departures"]
+    assert gone["how"] == "crashed" and 1.5 <= gone["t"] <= 4.0, gone
+    assert "faults are timed from the world's start" in out  # and it said so at start
+
+
+def _lines_until(stream, text: str, timeout: float) -> str:
+    """What ``stream`` (a pipe) says up to and including the first line holding ``text``."""
+    seen, deadline = "", time.monotonic() + timeout
+    while text not in seen:
+        left = deadline - time.monotonic()
+        if left <= 0 or not select.select([stream], [], [], left)[0]:
+            raise AssertionError(f"no {text!r} within {timeout} s; it said: {seen!r}")
+        line = stream.readline().decode()
+        if not line:
+            raise AssertionError(f"the stream ended before {text!r}; it said: {seen!r}")
+        seen += line
+    return seen
 
 
 def test_launch_runs_a_swarm_and_leaves_nothing_behind(tmp_path):

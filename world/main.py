@@ -75,6 +75,8 @@ async def run_world(args: argparse.Namespace, spec: RunSpec, viewer: Viewer | No
         print(f"world: run {spec.run!r}, scenario {spec.scenario.name}, {spec.scenario.n_agents} agents, "
               f"{spec.clock} clock; waiting for the agents", flush=True)
         await world.wait_for_agents(bridge, min(args.start_timeout, 3.0) if world.resumed else args.start_timeout)
+        # on Zenoh, for whoever did not start this process (an agents-only machine times its chaos from it)
+        declared.append(session.liveliness().declare_token(keys.world_started))
         print(f"world: started with {len(world.census.alive)} agents alive", flush=True)
         if spec.clock == "lockstep":
             await world.run_lockstep(spec.steps, args.progress, args.step_timeout)

@@ -11,6 +11,7 @@ import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -21,6 +22,7 @@ from zswarm.launch.ending import finish_recording
 from zswarm.launch.plan import Plan
 from zswarm.net.config import endpoint_host_port
 from zswarm.launch.world_lines import DONE, follow_world
+from zswarm.launch.world_watch import WorldWatch
 from zswarm.net.procs import (
     Child,
     Children,
@@ -56,6 +58,7 @@ class Launch:
         self.endpoints: list[str] = []
         self.configs: dict[str, list[str]] = {}
         self.fleet: Fleet | None = None
+        self.watch: WorldWatch | None = None  # agents and no world here: the world's start, heard on Zenoh
         self.pending: list[Event] = schedule(plan.kill, plan.restart_after, plan.world_outage, plan.world_crash)
         self.rng = np.random.default_rng([self.spec.seed, 0xC0FFEE])
         self.killed: list[int] = []
@@ -91,6 +94,8 @@ class Launch:
             return 143 if interrupted else 130
         finally:
             self.kids.stop_all()
+            if self.watch is not None:
+                self.watch.close()
 
     def _start(self) -> None:
         plan = self.plan
@@ -104,6 +109,8 @@ class Launch:
                 raise UsageError(str(exc)) from None
         if "world" in plan.roles:
             self._spawn_world(resume=False)
+        if "agents" in plan.roles and self.world is None and self.pending:
+            self._watch_world()
         if "agents" in plan.roles:
             for k, i in enumerate(plan.ids):
                 if self.world is not None and not self.world.alive():  # the run is over: start no more
@@ -117,6 +124,16 @@ class Launch:
             _say(f"run {self.spec.run!r}, {len(self.kids.named('agent'))} agent processes, {routers}", err=False)
             for note in plan.notes:
                 _say(note, err=False)
+
+    def _watch_world(self) -> None:
+        """Chaos on a machine without the world counts from the world's start, heard on Zenoh."""
+        args = self._agent_config(self.plan.ids[0])
+        config = Path(args[args.index("--config") + 1]) if "--config" in args else None
+        timeout = self.plan.connect_timeout if self.plan.connect_timeout is not None else 15.0
+        self.watch = WorldWatch(self.spec.keys, self.endpoint, config, timeout)
+        self.world_started = self.watch.started
+        if not self.plan.quiet:
+            _say("faults are timed from the world's start, when this machine hears it", err=False)
 
     def _agent_config(self, agent: int) -> list[str]:
         return agent_config_args(self.plan, self.configs, agent)
@@ -167,7 +184,7 @@ class Launch:
 
     def _supervise(self) -> int:
         """Wait for the world to finish (or, without a world, for the agents / for Ctrl-C)."""
-        t0: float | None = None if self.world is not None else time.monotonic()
+        t0: float | None = None if self.world is not None or self.watch is not None else time.monotonic()
         while True:
             if t0 is None and self.world_started.is_set():
                 t0 = time.monotonic()  # chaos times count from the start of the world's clock

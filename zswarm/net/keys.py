@@ -12,6 +12,7 @@ Key space of a run (``RUN`` is the run id, cells are ``floor(x/size)``, ``floor(
                                the obstacles within r
     zswarm/RUN/stats/ID        agent ID's transport counters (for the world's summary)
     zswarm/RUN/control         run control (end of run)
+    zswarm/RUN/world/started   the world's liveliness token, held from the start of its clock to its end
 """
 
 from __future__ import annotations
@@ -100,6 +101,10 @@ class Keys:
     @property
     def control(self) -> str:
         return f"{self.root}/control"
+
+    @property
+    def world_started(self) -> str:
+        return f"{self.root}/world/started"
 
     @staticmethod
     def agent_of(key: str) -> int | None:

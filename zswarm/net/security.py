@@ -57,9 +57,11 @@ def access_control(agents: int = 0) -> dict:
         {"id": "world-send", "permission": "allow", "flows": ["ingress"],
          "messages": ["put", "declare_queryable", "reply"],
          "key_exprs": [ANY_RUN.prey, ANY_RUN.tick, ANY_RUN.control, ANY_RUN.obstacles]},
+        {"id": "world-started", "permission": "allow", "flows": ["ingress"], "messages": ["liveliness_token"],
+         "key_exprs": [ANY_RUN.world_started]},
     ]
     subjects = [{"id": "world", "cert_common_names": ["world"]}]
-    policies = [{"rules": ["world-send"], "subjects": ["world"]}]
+    policies = [{"rules": ["world-send", "world-started"], "subjects": ["world"]}]
     if agents == 0:
         rules.append({"id": "agent-send", "permission": "allow", "flows": ["ingress"], "messages": AGENT_SEND,
                       "key_exprs": [ANY_RUN.all_poses, ANY_RUN.all_stats, ANY_RUN.all_alive]})

@@ -1,0 +1,39 @@
+"""The start of a world that another machine runs, heard on Zenoh.
+
+The world holds a liveliness token (:attr:`zswarm.net.keys.Keys.world_started`) from the start of its
+clock to its end. A machine that runs agents and no world times its chaos (``--kill K@T``, restarts)
+from that start, as the machine that runs the world does, instead of from its own.
+"""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+
+import zenoh
+
+from zswarm.net.config import open_session, zenoh_config
+from zswarm.net.keys import Keys
+
+
+class WorldWatch:
+    """A client session that waits for the world's token; ``started`` is set once it is heard (at
+    once, if the world had started before)."""
+
+    def __init__(self, keys: Keys, endpoint: str, config: Path | None = None, retry_for: float = 15.0) -> None:
+        self.started = threading.Event()
+        self.session = open_session(zenoh_config("client", [endpoint], config=config), what="launcher",
+                                    retry_for=retry_for)
+
+        def heard(sample: zenoh.Sample) -> None:  # on a Zenoh thread: only sets an event
+            if sample.kind == zenoh.SampleKind.PUT:
+                self.started.set()
+
+        self.subscriber = self.session.liveliness().declare_subscriber(keys.world_started, history=True,
+                                                                       handler=heard)
+
+    def close(self) -> None:
+        try:
+            self.subscriber.undeclare()
+        finally:
+            self.session.close()
