@@ -197,15 +197,15 @@ def test_an_agents_only_machine_times_its_faults_from_the_worlds_start_heard_on_
     with processes() as kids:
         endpoint = start_router(kids)
         launch = kids.spawn("launch", [str(ROOT / "launch.py"), "--role", "agents", "--connect", endpoint,
-                                       "--agents", "4", "--scenario", "moving-prey", "--run", run, "--duration", "8",
+                                       "--agents", "4", "--scenario", "moving-prey", "--run", run, "--duration", "6",
                                        "--kill", "1@2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
         out = _lines_until(launch.proc.stdout, "4 agent processes", 60)  # the agents are started
-        # the setup under test: the world starts 4 s after the agents, so a kill timed from the agents'
+        # the setup under test: the world starts 3 s after the agents, so a kill timed from the agents'
         # machine's own start would come before the world's clock, and the world would wait for an
         # agent that is gone (its --start-timeout) and start without it
-        time.sleep(4.0)
+        time.sleep(3.0)
         world, summary_path, _, _ = start_world(kids, endpoint, run, "moving-prey", tmp_path, "--set", "n_agents=4",
-                                                "--duration", "8", "--start-timeout", "10")
+                                                "--duration", "6", "--start-timeout", "10")
         assert wait_exit(world, 90) == 0
         assert wait_exit(launch, 30) == 0
         out += launch.proc.stdout.read().decode()
