@@ -78,10 +78,13 @@ class Children:
     new_session: bool = True
 
     def spawn(self, name: str, args: Sequence[str], stdout: int | IO | None = None,
-              stderr: int | IO | None = None, stdin: int | IO | None = subprocess.DEVNULL) -> Child:
+              stderr: int | IO | None = None, stdin: int | IO | None = subprocess.DEVNULL,
+              new_session: bool | None = None) -> Child:
+        """``new_session``: this child's, over the set's (a router always has a session of its own)."""
+        own = self.new_session if new_session is None else new_session
         proc = subprocess.Popen([sys.executable, *args], env=python_env(),
                                 stdout=stdout, stderr=stderr, stdin=stdin,
-                                preexec_fn=die_with_parent, start_new_session=self.new_session)
+                                preexec_fn=die_with_parent, start_new_session=own)
         child = Child(name, proc)
         self.children.append(child)
         return child
@@ -242,9 +245,12 @@ def start_mesh(kids: Children, endpoints: Sequence[str], join: str | None = None
 
 def _spawn_router(kids: Children, name: str, endpoint: str, join: str | None, extra: Sequence[str],
                   stderr: int | None = None) -> Child:
-    """One router on ``endpoint`` (joining ``join``), once it accepts connections."""
+    """One router on ``endpoint`` (joining ``join``), once it accepts connections. It is a session of its
+    own, whatever ``kids`` does: with Linux's autogroup scheduling a session is the unit that shares
+    the CPU, and a router that shared one with a node's agents competed with them thread by thread
+    (``agents.fleet`` says what a starved router did to a swarm)."""
     router = kids.spawn(name, ["-m", ROUTER_MODULE, "--listen", endpoint, *(["--connect", join] if join else []),
-                               *extra], stdout=subprocess.DEVNULL, stderr=stderr)
+                               *extra], stdout=subprocess.DEVNULL, stderr=stderr, new_session=True)
     host, port = endpoint.split("/", 1)[1].rsplit(":", 1)
     if not wait_for_port(local_host(host.strip("[]")), int(port), 10.0, router):
         raise RuntimeError(f"the router did not start on {endpoint} (port taken? address not local?)")
