@@ -72,6 +72,18 @@ def test_in_reach_counts_the_others_in_the_cells_each_disc_meets():
         assert in_reach_counts(pos, r, KEYS.cell_size).tolist() == expected
 
 
+def test_in_reach_counts_per_cell_equal_the_pair_matrix_on_and_off_the_cell_edges():
+    from zswarm.net.keys import in_reach
+
+    rng = np.random.default_rng(5)
+    for n, side, r, size, dims in ((500, 20.0, 1.55, 1.5, 2), (300, 8.0, 1.1, 1.0, 3), (200, 6.0, 0.4, 1.0, 2),
+                                   (150, 9.0, 3.2, 1.5, 2)):
+        pos = rng.uniform(-side / 2, side / 2, (n, dims))
+        pos[: n // 3] = np.round(pos[: n // 3] / size * 2) * size / 2  # a third on cell edges and corners
+        assert in_reach_counts(pos, r, size).tolist() == in_reach(pos, r, size).sum(axis=1).tolist()
+    assert in_reach_counts(np.zeros((0, 2)), 1.0, 1.0).tolist() == []
+
+
 @settings(max_examples=150, deadline=None)
 @given(coord, coord, coord, st.floats(0.05, 2.5), st.floats(0, 2 * math.pi), st.floats(0, math.pi),
        st.floats(0, 0.999))

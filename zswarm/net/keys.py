@@ -162,8 +162,29 @@ def in_reach(positions: np.ndarray, r: float, cell_size: float) -> np.ndarray:
 
 def in_reach_counts(positions: np.ndarray, r: float, cell_size: float) -> np.ndarray:
     """For each agent, how many others are :func:`in_reach`: the poses a lossless transport hands it per
-    publishing round."""
-    return in_reach(positions, r, cell_size).sum(axis=1)
+    publishing round. Counted per cell, not per pair: for each cell offset that can meet a disc, the
+    agents whose disc meets their offset cell add that cell's head count (less themselves, in their
+    own cell). The same counts as ``in_reach(...).sum(axis=1)``, in O(N) memory (at N = 1000 the pair
+    matrix took the world 70 ms, once a second)."""
+    p = np.asarray(positions, dtype=float)
+    p = p.reshape(-1, p.shape[-1] if p.ndim > 1 else 2)
+    if len(p) == 0:
+        return np.zeros(0, dtype=np.intp)
+    cell = np.floor(p / cell_size).astype(np.int64)
+    reach = int(r // cell_size) + 1  # a cell this many steps away can still meet a disc; one more cannot
+    base = cell.min(axis=0) - reach
+    width = cell.max(axis=0) + reach - base + 1
+    stride = np.concatenate([[1], np.cumprod(width[:-1])]).astype(np.int64)
+    codes, heads = np.unique((cell - base) @ stride, return_counts=True)
+    counts = np.full(len(p), -1, dtype=np.intp)  # not itself
+    for offset in itertools.product(range(-reach, reach + 1), repeat=p.shape[1]):
+        other = cell + np.asarray(offset, dtype=np.int64)
+        lo = other * cell_size
+        meets = ((np.clip(p, lo, lo + cell_size) - p) ** 2).sum(axis=1) <= r * r
+        code = (other[meets] - base) @ stride
+        k = np.minimum(np.searchsorted(codes, code), len(codes) - 1)
+        counts[meets] += np.where(codes[k] == code, heads[k], 0)
+    return counts
 
 
 def parse_parameters(text: str) -> dict[str, str]:
