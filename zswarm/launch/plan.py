@@ -258,9 +258,10 @@ def pace_load(n_local: int, dt: float, time_scale: float, cores: int) -> float:
 
 def pace_warning(n_local: int, dt: float, time_scale: float, cores: int, refused: bool = False,
                  where: str = "this machine") -> str | None:
-    """A free-clock run whose agents need more CPU than the machine has falls behind: poses arrive late,
-    agents act on stale neighbours and collide, whatever the design says. The warning names a time scale
-    that fits (measured: large-swarm, 100 agents at dt = 0.025 on 2 cores: 0.25 on time, 0.5 not);
+    """A free-clock run whose agents need more CPU than the machine has falls behind: the agents' ticks
+    come late and are skipped, so the swarm moves slower than asked (its poses still arrive fresh: the
+    agents share one scheduling group, ``agents.fleet``). The warning names a time scale that fits
+    (measured: large-swarm, 100 agents at dt = 0.025 on 2 cores: 0.25 on time, 0.5 not);
     ``refused``: the line of a run refused for needing more than :data:`HOPELESS` times that."""
     load = pace_load(n_local, dt, time_scale, cores)
     if load <= 1.0:
@@ -270,7 +271,7 @@ def pace_warning(n_local: int, dt: float, time_scale: float, cores: int, refused
     fits = math.floor(20.0 * time_scale * budget / need) / 20.0
     advice = f"--time-scale {fits:g}" if fits >= 0.05 else "fewer agents on this machine (--ids)"
     what = (f"more than {HOPELESS:g} times what it can step: the agents could not all start in time; give {advice}"
-            if refused else f"the run may fall behind and act on stale poses; use {advice}")
+            if refused else f"its agents will tick late and the swarm move slower than asked; use {advice}")
     return (f"{n_local} agents stepping {time_scale / dt:g} times a second need about {need:.2g} cores "
             f"({AGENT_TICK_MS:g} ms a step) and {where} has {cores}: {what}")
 
