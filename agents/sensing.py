@@ -250,7 +250,11 @@ class Sensing:
         the freshest neighbour's: had it stayed, its poses would have come through the same delay as
         theirs) reaches past the subscription disc (the cells cover at least that disc about this
         agent). One deep inside cannot have left: its silence is loss, and it stays guarded against
-        where it may be (``docs/safety.md``).
+        where it may be (``docs/safety.md``). That premise holds only for a neighbour whose poses came
+        through no slower a path than the others': one whose newest pose arrived later after it was
+        sent than the promptest neighbour's by some extra delay is given that extra before its silence
+        counts (a router that reads some senders seconds late made them fall silent while they were
+        there, and neighbours walked into them).
 
         Lockstep: the step-k poses, exact for step k (age 0). Free: the newest pose, its age from its
         stamp scaled by ``time_scale``, plus one control period ``period`` (a neighbour on its own timer
@@ -262,14 +266,17 @@ class Sensing:
             age = 0.0 if step is not None else max(now - pose.stamp, 0.0) * time_scale + period
             d = self.body.distance(pose)
             if d - v * age <= self.radius:
-                heard.append((pose, age, now - nb.received, d))
+                heard.append((pose, age, now - nb.received, d, nb.received - pose.stamp))
         if not heard:
             return []
-        left = min(quiet for _, _, quiet, _ in heard) + staleness
-        fresh = min(age for _, age, _, _ in heard)  # the delay every pose heard now has come through
+        left = min(h[2] for h in heard) + staleness
+        fresh = min(h[1] for h in heard)  # the delay every pose heard now has come through
+        path = min(h[4] for h in heard)  # the shortest delay a newest pose came through
         out = []
-        for pose, age, quiet, d in heard:
-            if step is None and quiet > left and d + v * (age - fresh) > cells:
+        for pose, age, quiet, d, lag in heard:
+            # its silence counts only beyond its own path's extra delay: a sender whose poses queue
+            # (a router that reads it late) falls silent while it is still there
+            if step is None and quiet - max(lag - path, 0.0) > left and d + v * (age - fresh) > cells:
                 continue
             point = pose.position
             if lookahead and pose.heading is not None:

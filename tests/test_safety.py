@@ -342,6 +342,34 @@ def test_under_a_common_delay_a_quiet_neighbour_deep_inside_stays_guarded_in_age
     assert ages[0, 0, 2] == pytest.approx(2.6)
 
 
+def test_a_quiet_neighbour_whose_poses_came_through_a_slower_path_is_given_that_delay_before_it_is_let_go():
+    """The quiet rule assumes a neighbour that stayed would be heard through the delay the others are
+    heard through. A router that reads some senders seconds late (measured: a starved router, agents
+    walking into neighbours they had let go, docs/safety.md) breaks that: a neighbour whose newest pose
+    arrived later after it was sent than the promptest one's is given that extra delay before its
+    silence counts, and no longer: a neighbour that really left is let go once its silence outlasts it."""
+    import time
+
+    from agents.sensing import Body, Sensing
+    from zswarm.net import messages as msg
+    from zswarm.net.runspec import RunSpec
+
+    spec = RunSpec(scenario_name="moving-prey")  # R = 1, v_max = 1, dt = 0.05: cells reach 1.1
+    sensing = Sensing(spec, 0, Body(0.0, 0.0), probe_latency=False)
+    now = time.time()
+    # who: (position, sent s ago, received s ago); each quiet one is near the edge and can have left
+    heard = {1: ((0.5, 0.0), 0.11, 0.01),   # prompt: its poses come through 0.1 s
+             3: ((-0.9, 0.0), 5.0, 2.0),    # quiet 2 s, but its newest pose took 3 s: still there?
+             4: ((0.0, 0.9), 2.1, 2.0),     # quiet 2 s, through the same 0.1 s as the others: left
+             5: ((0.0, -0.9), 6.0, 3.5)}    # took 2.5 s, quiet 3.5 s: longer than its extra delay
+    for who, (p, sent, received) in heard.items():
+        assert sensing.neighbours.accept(who, msg.Pose(who, 1, now - sent, -1, *p, 0.0, 0.0), now - received) is None
+        sensing.alive.add(who)
+    got = dict(sensing.safety_neighbours(None, 1.0, 0.05, 0.5))
+    assert set(got) == {(0.5, 0.0), (-0.9, 0.0)}
+    assert got[(-0.9, 0.0)] == pytest.approx(5.05, abs=0.01)  # guarded with its whole age
+
+
 def test_poses_that_waited_in_a_queue_are_not_refused_as_jumps_but_a_forged_leap_is():
     """zswarm.net.poses: after a queue, a burst brings an old pose and, at once, a much later one (the
     poses between were lost). The receiver's clock since the old pose was *sent* bounds how far the
