@@ -122,8 +122,10 @@ def run_floor(n_agents: int, duration: float, scenario: str = "bench-field", han
         endpoint = start_routers(kids, 1)[0]
         kids.spawn("floor-world", ["-m", "zswarm.bench.floor", "--prey", *spec.to_argv(), "--connect", endpoint],
                    stdout=subprocess.DEVNULL)
+        # in one session, as a fleet's agents are (agents.fleet): one scheduling group under autogroup
         floors = [kids.spawn(f"floor-{i}", ["-m", "zswarm.bench.floor", "--id", str(i), "--handler", handler,
-                                            *spec.to_argv(), "--connect", endpoint], stdout=subprocess.DEVNULL)
+                                            *spec.to_argv(), "--connect", endpoint], stdout=subprocess.DEVNULL,
+                             new_session=False)
                   for i in range(n_agents)]
         window = CpuWindow({c.name: c.pid for c in kids.children})
         time.sleep(0.3 * duration + 3.0)  # every process connected and publishing
