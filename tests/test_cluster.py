@@ -100,7 +100,11 @@ def three_nodes(tmp_path_factory):
 def test_a_swarm_over_three_nodes_catches_the_prey_and_says_where_each_agent_ran(three_nodes):
     res, s, _, _, _ = three_nodes
     assert res.returncode == 0, res.stderr[-3000:]
-    assert s["capture_time"] is not None and s["collisions"] == 0 and s["final_components"] == 1, s
+    said = {k: s.get(k) for k in ("capture_time", "collisions", "final_components", "final_centroid_goal_distance",
+                                  "on_time_ratio", "pose_latency_ms", "safety_braked_ticks", "safety_stalled_ticks",
+                                  "ticks", "world_late_ticks", "startup_s")}
+    print(said)  # shown when it fails
+    assert s["capture_time"] is not None and s["collisions"] == 0 and s["final_components"] == 1, said
     assert s["agents_reporting"] == 12 and s["messages_rejected"] == 0
     cluster = s["cluster"]
     nodes = cluster["nodes"]

@@ -5,12 +5,13 @@
 (as ``zswarm run`` does on one machine), and answers the driver's polls with the agents that ended and
 the lines they wrote to stderr, prefixed with the node and the agent.
 
-The fleet stays in the actor's process group (no new session) and every child gets
-``PR_SET_PDEATHSIG``: when the actor's worker dies, Ray's raylet kills that group and the worker's
-children, the router dies with the worker, and the fleet's agents die with the fleet, so a driver
-that is killed, or a node Ray drops, leaves no zswarm process behind. The router is a session of its
-own (:func:`zswarm.net.procs.start_router`): under Linux's autogroup scheduling it then gets a group's
-share of the CPU beside the agents, not one thread's share among theirs.
+Every child gets ``PR_SET_PDEATHSIG``: when the actor's worker dies (Ray's raylet also kills its
+process group and its children), the router and the fleet die with it and the fleet's agents die with
+the fleet, so a driver that is killed, or a node Ray drops, leaves no zswarm process behind. The router
+and the fleet are sessions of their own (:func:`zswarm.net.procs.start_router`,
+:class:`zswarm.net.procs.Fleet`): under Linux's autogroup scheduling the router then gets a group's
+share of the CPU and the node's agents together another, rather than each a thread's share among
+the Ray worker's.
 """
 
 from __future__ import annotations

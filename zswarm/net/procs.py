@@ -163,8 +163,10 @@ class Fleet:
 
     def __init__(self, kids: Children, stderr: int | None = None) -> None:
         self.kids = kids
+        # a session of its own, whatever ``kids`` does: its agents are then one scheduling group under
+        # Linux's autogroup (agents.fleet), beside the router's, not threads among a Ray worker's
         self.child = kids.spawn("fleet", ["-m", "agents.fleet"], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                stderr=stderr)
+                                stderr=stderr, new_session=True)
         self.procs: dict[str, ForkedProc] = {}
         self.started: dict[str, threading.Event] = {}
         self.lock = threading.Lock()
