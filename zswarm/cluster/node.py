@@ -38,7 +38,7 @@ class NodeHost:
 
     def __init__(self, label: str) -> None:
         self.label = label  # how this node's lines are prefixed
-        self.kids = Children(new_session=False)
+        self.kids = Children()  # the router and the fleet: sessions of their own, dying with this worker
         self.fleet: Fleet | None = None
         self.lines: deque[str] = deque(maxlen=10_000)
         self.reported: set[str] = set()

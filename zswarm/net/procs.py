@@ -70,21 +70,19 @@ class Child:
 
 @dataclass
 class Children:
-    """A set of named child processes, stopped and reaped together. ``new_session``: each child in a
-    session of its own (a terminal's Ctrl-C reaches only the launcher); a cluster node keeps its
-    children in its own process group instead, so that Ray, killing the node's worker, kills them too."""
+    """A set of named child processes, stopped and reaped together."""
 
     children: list[Child] = field(default_factory=list)
-    new_session: bool = True
 
     def spawn(self, name: str, args: Sequence[str], stdout: int | IO | None = None,
               stderr: int | IO | None = None, stdin: int | IO | None = subprocess.DEVNULL,
-              new_session: bool | None = None) -> Child:
-        """``new_session``: this child's, over the set's (a router always has a session of its own)."""
-        own = self.new_session if new_session is None else new_session
+              new_session: bool = True) -> Child:
+        """``new_session``: the child in a session of its own (a terminal's Ctrl-C reaches only the
+        launcher; under Linux's autogroup scheduling a session is also the unit that shares the CPU,
+        which is why a router and a fleet always get one: ``agents.fleet``)."""
         proc = subprocess.Popen([sys.executable, *args], env=python_env(),
                                 stdout=stdout, stderr=stderr, stdin=stdin,
-                                preexec_fn=die_with_parent, start_new_session=own)
+                                preexec_fn=die_with_parent, start_new_session=new_session)
         child = Child(name, proc)
         self.children.append(child)
         return child
@@ -163,10 +161,10 @@ class Fleet:
 
     def __init__(self, kids: Children, stderr: int | None = None) -> None:
         self.kids = kids
-        # a session of its own, whatever ``kids`` does: its agents are then one scheduling group under
-        # Linux's autogroup (agents.fleet), beside the router's, not threads among a Ray worker's
+        # a session of its own: its agents are then one scheduling group under Linux's autogroup
+        # (agents.fleet), beside the router's, not threads among a Ray worker's
         self.child = kids.spawn("fleet", ["-m", "agents.fleet"], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                stderr=stderr, new_session=True)
+                                stderr=stderr)
         self.procs: dict[str, ForkedProc] = {}
         self.started: dict[str, threading.Event] = {}
         self.lock = threading.Lock()
@@ -248,11 +246,11 @@ def start_mesh(kids: Children, endpoints: Sequence[str], join: str | None = None
 def _spawn_router(kids: Children, name: str, endpoint: str, join: str | None, extra: Sequence[str],
                   stderr: int | None = None) -> Child:
     """One router on ``endpoint`` (joining ``join``), once it accepts connections. It is a session of its
-    own, whatever ``kids`` does: with Linux's autogroup scheduling a session is the unit that shares
-    the CPU, and a router that shared one with a node's agents competed with them thread by thread
-    (``agents.fleet`` says what a starved router did to a swarm)."""
+    own: with Linux's autogroup scheduling a session is the unit that shares the CPU, and a router that
+    shared one with a node's agents competed with them thread by thread (``agents.fleet`` says what a
+    starved router did to a swarm)."""
     router = kids.spawn(name, ["-m", ROUTER_MODULE, "--listen", endpoint, *(["--connect", join] if join else []),
-                               *extra], stdout=subprocess.DEVNULL, stderr=stderr, new_session=True)
+                               *extra], stdout=subprocess.DEVNULL, stderr=stderr)
     host, port = endpoint.split("/", 1)[1].rsplit(":", 1)
     if not wait_for_port(local_host(host.strip("[]")), int(port), 10.0, router):
         raise RuntimeError(f"the router did not start on {endpoint} (port taken? address not local?)")
