@@ -183,7 +183,7 @@ class Agent:
                 if old is not None:
                     old.undeclare()
             self.queryable = self.bridge.queryable(key, self._answer)
-            self.publisher = self.bridge.session.declare_publisher(key, encoding=msg.ENCODING)
+            self.publisher = self.bridge.session.declare_publisher(key, encoding=msg.POSE_ENCODING)
             self.pose_cell = cell
         self.publisher.put(payload)
         self.counters.sent += 1

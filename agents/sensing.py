@@ -26,7 +26,7 @@ from agents.probe import LatencyProbe
 from zswarm.model.faults import OBSTACLE_SOURCE, PREY_SOURCE
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Inbound
-from zswarm.net.poses import PoseTable, Rejections
+from zswarm.net.poses import Entry, PoseTable, Rejections
 from zswarm.net.runspec import RunSpec
 
 
@@ -112,6 +112,9 @@ class Sensing:
 
     def handle(self, item: Inbound) -> None:
         tag, key, payload, deleted, received = item
+        if tag == "pose":  # most of what it hears: a few a tick
+            self._pose_sample(key, payload, received)
+            return
         if tag == "alive":
             who = self.keys.agent_of(key)
             if who is None:
@@ -128,21 +131,10 @@ class Sensing:
             self.latency_probe.heard(payload, received)
             return
         self.counters.received += 1
-        who = self.keys.agent_of(key) if tag == "pose" else None
-        if tag == "pose" and who == self.id:
-            return  # its own pose, answered by its own queryable when it asked a cell
-        try:
-            m = msg.decode(payload)
-        except msg.DecodeError as exc:
-            self.counters.rejections.add(exc.reason, str(exc))
+        m = self._decoded(payload)
+        if m is None:
             return
-        if isinstance(m, (msg.Pose, msg.Prey, msg.Tick)) and (m.z is None) != (self.body.z is None):
-            self.counters.rejections.add("dimensions", f"a {len(m.position)}-D {type(m).__name__.lower()} in a "
-                                         f"{self.body.dims}-D run (every process of a run needs the same --scenario)")
-            return
-        if tag == "pose" and isinstance(m, msg.Pose):
-            self._on_pose(who, key, m, received)
-        elif tag == "prey" and isinstance(m, msg.Prey):
+        if tag == "prey" and isinstance(m, msg.Prey):
             self.prey, self.prey_stamp = m.position, m.stamp
         elif tag == "tick" and isinstance(m, msg.Tick):
             self.final_tick = self.final_tick or m.final
@@ -151,6 +143,31 @@ class Sensing:
             self.obstacle_view.answered(m)
         else:
             self.counters.rejections.add("kind", f"{type(m).__name__} on {tag} key")
+
+    def _pose_sample(self, key: str, payload: bytes, received: float) -> None:
+        """A sample of the cells it listens to, or an answer of one it asked: a neighbour's pose."""
+        self.counters.received += 1
+        who = self.keys.agent_of(key)
+        if who == self.id:
+            return  # its own pose, answered by its own queryable when it asked a cell
+        m = self._decoded(payload)
+        if type(m) is msg.Pose:
+            self._on_pose(who, key, m, received)
+        elif m is not None:
+            self.counters.rejections.add("kind", f"{type(m).__name__} on pose key")
+
+    def _decoded(self, payload: bytes) -> msg.Message | None:
+        """The message, or None (counted by reason) if it is malformed or of the other dimension."""
+        try:
+            m = msg.decode(payload)
+        except msg.DecodeError as exc:
+            self.counters.rejections.add(exc.reason, str(exc))
+            return None
+        if isinstance(m, (msg.Pose, msg.Prey, msg.Tick)) and (m.z is None) != (self.body.z is None):
+            self.counters.rejections.add("dimensions", f"a {len(m.position)}-D {type(m).__name__.lower()} in a "
+                                         f"{self.body.dims}-D run (every process of a run needs the same --scenario)")
+            return None
+        return m
 
     def fault_source(self, tag: str, key: str, payload: bytes) -> tuple[int, float | None] | None:
         """The link a message arrives on, and (poses) its sender's distance over the sensing radius."""
@@ -169,43 +186,43 @@ class Sensing:
             return (who, self.body.distance(m) / self.radius if isinstance(m, msg.Pose) else None)
         return None
 
-    def _count_sequence(self, pose: msg.Pose) -> None:
+    def _count_sequence(self, pose: msg.Pose, nb: Entry | None) -> None:
         """Observed loss from sequence numbers: a gap of g counts g - 1 lost when the sender was within
         the sensing radius both before and after it (then every pose it sent reached the agent's cells;
-        otherwise it may simply have been out of range); a late arrival that filled a gap is taken back."""
+        otherwise it may simply have been out of range); a late arrival that filled a gap is taken back.
+        ``nb``: what it held of the sender before this pose."""
         last = self.last_seq.get(pose.id)
-        c = self.counters
-        nb = self.neighbours.get(pose.id)
-        r = self.radius
-        within = nb is not None and self.body.distance(nb.latest) <= r and self.body.distance(pose) <= r
-        if last is not None and within:
-            if pose.seq > last:
-                gap = pose.seq - last - 1
-                if gap <= 50:
-                    c.seq_lost += gap
-                c.seq_received += 1
-            elif pose.seq < last and c.seq_lost > 0:
-                c.seq_lost -= 1
-                c.seq_received += 1
+        if last is not None and nb is not None:
+            c, r, distance = self.counters, self.radius, self.body.distance
+            if distance(pose) <= r and distance(nb.latest) <= r:
+                if pose.seq > last:
+                    gap = pose.seq - last - 1
+                    if gap <= 50:
+                        c.seq_lost += gap
+                    c.seq_received += 1
+                elif pose.seq < last and c.seq_lost > 0:
+                    c.seq_lost -= 1
+                    c.seq_received += 1
         self.last_seq[pose.id] = max(pose.seq, last or 0)
 
     def _on_pose(self, who: int | None, key: str, pose: msg.Pose, now: float) -> None:
         """``pose`` arrived under ``key``, which names agent ``who``."""
+        c = self.counters
         if who != pose.id:
-            self.counters.rejections.add("schema", f"pose of {pose.id} under key {key}")
+            c.rejections.add("schema", f"pose of {pose.id} under key {key}")
             return
-        self._count_sequence(pose)
-        self.counters.heard[pose.id] = self.counters.heard.get(pose.id, 0) + 1
-        self.counters.poses += 1
+        nb = self.neighbours.entries.get(who)
+        self._count_sequence(pose, nb)
+        c.heard[who] = c.heard.get(who, 0) + 1
+        c.poses += 1
         if not self.latency_from_probe:
-            self.counters.add(self.counters.latency, (now - pose.stamp) * 1000.0)
-        known = pose.id in self.neighbours.entries
-        reason = self.neighbours.accept(pose.id, pose, now)
+            c.add(c.latency, (now - pose.stamp) * 1000.0)
+        reason = self.neighbours.accept(who, pose, now)
         if reason is not None:
-            self.counters.rejections.add(reason, f"agent {pose.id} jumped implausibly far")
+            c.rejections.add(reason, f"agent {who} jumped implausibly far")
             return
-        if not known and pose.id in self.counters.departed:
-            self.counters.returned.setdefault(pose.id, now)
+        if nb is None and who in c.departed:
+            c.returned.setdefault(who, now)
         self.pose_arrived.set()
 
     # --- what the agent senses -------------------------------------------------------------------------

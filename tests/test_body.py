@@ -119,12 +119,11 @@ def test_a_pose_carries_its_heading_and_a_bad_heading_is_refused():
     pose = msg.Pose(3, 1, 1.0, 4, 0.5, -0.5, 0.1, 0.0, -2.5)
     assert msg.decode(msg.encode(pose)) == pose
     plain = msg.Pose(3, 1, 1.0, 4, 0.5, -0.5, 0.1, 0.0)
-    assert msg.decode(msg.encode(plain)).heading is None and b"\xa1h" not in msg.encode(plain)
-    import msgpack
+    assert msg.decode(msg.encode(plain)).heading is None and len(msg.encode(plain)) < len(msg.encode(pose))
+    import struct
 
-    for bad, reason in ((float("nan"), "nonfinite"), (100.0, "range"), ("north", "schema")):
-        raw = msgpack.unpackb(msg.encode(pose))
-        raw["h"] = bad
+    for bad, reason in ((float("nan"), "nonfinite"), (100.0, "range")):
+        data = msg.encode(pose)[:-8] + struct.pack("<d", bad)  # the heading is the record's last field
         with pytest.raises(msg.DecodeError) as err:
-            msg.decode(msgpack.packb(raw))
+            msg.decode(data)
         assert err.value.reason == reason

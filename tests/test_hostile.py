@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import struct
 import time
 
 import msgpack
@@ -20,12 +21,13 @@ from swarm_procs import Watch, processes, start_agent, start_world, wait_exit, w
 def garbage(rng: np.random.Generator, keys: Keys, cell: tuple[int, int], i: int) -> list[tuple[str, bytes]]:
     pose_key = keys.pose(cell, 1)
     good = msg.encode(msg.Pose(1, 10**9 + i, time.time(), -1, 0.0, 0.0, 0.0, 0.0))
-    nan_pose = msgpack.packb({"v": 1, "k": "pose", "id": 1, "seq": 10**9 + i, "t": 0.0, "s": -1,
-                              "p": [math.nan, 0.0], "u": [0.0, math.inf]})
+    nan_pose = struct.pack(msg.POSE_LAYOUT + "4d", 0xC1, msg.VERSION, 0, 0, 1, 10**9 + i, 0.0, -1,
+                           math.nan, 0.0, 0.0, math.inf)
     return [
         (pose_key, rng.bytes(int(rng.integers(1, 64)))),                       # random bytes
-        (pose_key, good[: len(good) // 2]),                                     # truncated msgpack
+        (pose_key, good[: len(good) // 2]),                                     # a truncated record
         (pose_key, msgpack.packb({"v": 7, "k": "pose"})),                       # wrong version
+        (pose_key, bytes([0xC1, 7]) + good[2:]),                                # a record of another version
         (pose_key, nan_pose),                                                   # NaN / infinite
         (pose_key, b"\x92" * (msg.MAX_PAYLOAD + 10)),                           # huge payload
         (pose_key, msg.encode(msg.Pose(1, 10**9 + i, time.time(), -1, 500.0, 500.0, 0.0, 0.0))),  # jump
@@ -33,7 +35,7 @@ def garbage(rng: np.random.Generator, keys: Keys, cell: tuple[int, int], i: int)
                                                    0.0, 0.0))),                  # an agent nobody announced
         (keys.prey, rng.bytes(16)),
         (keys.stats(4), rng.bytes(32)),
-        (keys.tick, msgpack.packb({"v": 1, "k": "tick", "s": "soon"})),
+        (keys.tick, msgpack.packb({"v": msg.VERSION, "k": "tick", "s": "soon"})),
     ]
 
 

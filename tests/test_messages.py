@@ -1,6 +1,7 @@
 """Wire messages: round trips, and no input whatsoever makes decode raise anything but DecodeError."""
 
 import math
+import struct
 
 import msgpack
 import pytest
@@ -14,7 +15,8 @@ finite = st.floats(-1e5, 1e5, allow_nan=False)
 pose_fields = (st.integers(0, 10_000), st.integers(0, 2**40), st.floats(0, 2e9), st.integers(-1, 10**6),
                finite, finite, finite, finite, st.one_of(st.none(), st.floats(-3.15, 3.15)))  # heading last
 poses = st.one_of(st.builds(msg.Pose, *pose_fields, z=st.none(), vz=st.none(), safety=st.integers(0, 3)),
-                  st.builds(msg.Pose, *pose_fields, z=finite, vz=finite, safety=st.integers(0, 3)))  # 2-D, 3-D
+                  st.builds(msg.Pose, *pose_fields[:-1], heading=st.none(), z=finite, vz=finite,
+                            safety=st.integers(0, 3)))  # 2-D, 3-D (no heading in 3-D)
 hist = st.dictionaries(st.integers(0, msg.MAX_HIST_BINS - 1), st.integers(0, 10**6), max_size=20)
 
 
@@ -65,8 +67,8 @@ json_like = st.recursive(st.none() | st.booleans() | st.integers(-2**63, 2**64 -
 
 
 @settings(max_examples=1000, deadline=None)
-@given(m=messages, key=st.sampled_from(["v", "k", "id", "seq", "t", "s", "p", "u", "c", "r", "ages", "h", "f"]),
-       value=json_like)
+@given(m=messages.filter(lambda m: not isinstance(m, msg.Pose)),
+       key=st.sampled_from(["v", "k", "id", "seq", "t", "s", "p", "u", "c", "r", "ages", "h", "f"]), value=json_like)
 def test_mutated_fields_are_rejected_or_valid(m, key, value):
     obj = msgpack.unpackb(msg.encode(m), raw=False, strict_map_key=False)
     obj[key] = value
@@ -78,21 +80,71 @@ def test_mutated_fields_are_rejected_or_valid(m, key, value):
         assert out is not None
 
 
+@settings(max_examples=1000, deadline=None)
+@given(m=poses, at=st.integers(0, 79), byte=st.integers(0, 255), cut=st.integers(0, 80))
+def test_mutated_pose_records_are_rejected_or_valid(m, at, byte, cut):
+    """Any byte of a pose record changed, or the record cut short: rejected by reason, or a Pose
+    within every bound (the checks do not depend on which field the bytes fell in)."""
+    data = bytearray(msg.encode(m))
+    data[at % len(data)] = byte
+    for payload in (bytes(data), bytes(data[:cut])):
+        try:
+            out = msg.decode(payload)
+        except msg.DecodeError as exc:
+            assert exc.reason in msg.REASONS
+        else:
+            assert isinstance(out, msg.Pose) and 0 <= out.id <= msg.MAX_ID and out.seq >= 0 and out.step >= -1
+            assert all(math.isfinite(c) and abs(c) <= msg.MAX_COORD for c in (*out.position, *out.velocity))
+            assert out.heading is None or abs(out.heading) <= msg.MAX_HEADING
+            assert 0 <= out.safety < len(msg.SAFETY_FLAGS)
+
+
+V = msg.VERSION
+
+
+def record(i=1, seq=1, t=0.0, s=-1, x=0.0, y=0.0, vx=0.0, vy=0.0, *, v=V, flags=0, f=0, extra=()) -> bytes:
+    """A 2-D pose record built field by field from :data:`messages.POSE_LAYOUT` (unchecked)."""
+    fmt = msg.POSE_LAYOUT + "d" * (4 + len(extra))
+    return struct.pack(fmt, 0xC1, v, flags, f, i, seq, t, s, x, y, vx, vy, *extra)
+
+
+@pytest.mark.parametrize("payload,reason", [
+    (record(v=V + 1), "version"),
+    (record(x=math.nan), "nonfinite"),
+    (record(x=math.inf), "nonfinite"),
+    (record(vy=-math.inf), "nonfinite"),
+    (record(x=1e9), "range"),
+    (record(t=1e13), "range"),
+    (record(i=msg.MAX_ID + 1), "range"),
+    (record(s=-2), "range"),
+    (record(seq=-1), "range"),
+    (record(f=len(msg.SAFETY_FLAGS)), "range"),
+    (record(flags=msg.POSE_3D), "schema"),                          # a 2-D record flagged 3-D
+    (record(extra=(math.nan,), flags=msg.POSE_HEADING), "nonfinite"),  # its heading
+    (record(extra=(100.0,), flags=msg.POSE_HEADING), "range"),
+    (record()[:-3], "malformed"),
+    (record() + b"\0", "malformed"),
+    (b"\xc1", "malformed"),
+])
+def test_specific_pose_rejections(payload, reason):
+    with pytest.raises(msg.DecodeError) as err:
+        msg.decode(payload)
+    assert err.value.reason == reason
+
+
 @pytest.mark.parametrize("obj,reason", [
-    ({"v": 2, "k": "pose"}, "version"),
-    ({"v": 1, "k": "teleport"}, "kind"),
-    ({"v": 1, "k": "pose", "id": 1, "seq": 1, "t": 0.0, "s": -1, "p": [math.nan, 0.0], "u": [0, 0]}, "nonfinite"),
-    ({"v": 1, "k": "pose", "id": 1, "seq": 1, "t": 0.0, "s": -1, "p": [math.inf, 0.0], "u": [0, 0]}, "nonfinite"),
-    ({"v": 1, "k": "pose", "id": 1, "seq": 1, "t": 0.0, "s": -1, "p": [1e9, 0.0], "u": [0, 0]}, "range"),
-    ({"v": 1, "k": "pose", "id": -3, "seq": 1, "t": 0.0, "s": -1, "p": [0, 0], "u": [0, 0]}, "range"),
-    ({"v": 1, "k": "pose", "id": 1, "seq": 1, "t": 0.0, "s": -1, "p": [0], "u": [0, 0]}, "schema"),
-    ({"v": 1, "k": "pose", "id": 1, "seq": 1, "t": 0.0, "s": -1, "p": [0, 0, 0], "u": [0, 0]}, "schema"),
-    ({"v": 1, "k": "pose", "id": 1, "seq": 1, "t": 0.0, "s": -1, "p": [0, 0, 0, 0], "u": [0, 0, 0, 0]}, "schema"),
-    ({"v": 1, "k": "obst", "c": [[0, 0]], "r": [1.0], "d": 3}, "schema"),
-    ({"v": 1, "k": "obst", "c": [], "r": [], "d": 4}, "range"),
-    ({"v": 1, "k": "pose", "id": True, "seq": 1, "t": 0.0, "s": -1, "p": [0, 0], "u": [0, 0]}, "schema"),
-    ({"v": 1, "k": "obst", "c": [[0, 0]] * (msg.MAX_OBSTACLES + 1), "r": [0] * (msg.MAX_OBSTACLES + 1)}, "size"),
-    ({"v": 1, "k": "obst", "c": [[0, 0]], "r": [-1.0]}, "range"),
+    ({"v": V + 1, "k": "prey"}, "version"),
+    ({"v": V - 1, "k": "pose", "id": 1, "seq": 1, "t": 0.0, "s": -1, "p": [0.0, 0.0], "u": [0, 0]}, "version"),
+    ({"v": V, "k": "teleport"}, "kind"),
+    ({"v": V, "k": "pose", "id": 1, "seq": 1, "t": 0.0, "s": -1, "p": [0.0, 0.0], "u": [0, 0]}, "kind"),
+    ({"v": V, "k": "prey", "seq": 1, "t": 0.0, "s": -1, "p": [math.nan, 0.0]}, "nonfinite"),
+    ({"v": V, "k": "prey", "seq": 1, "t": 0.0, "s": -1, "p": [1e9, 0.0]}, "range"),
+    ({"v": V, "k": "prey", "seq": True, "t": 0.0, "s": -1, "p": [0.0, 0.0]}, "schema"),
+    ({"v": V, "k": "prey", "seq": 1, "t": 0.0, "s": -1, "p": [0.0, 0.0, 0.0, 0.0]}, "schema"),
+    ({"v": V, "k": "obst", "c": [[0, 0]], "r": [1.0], "d": 3}, "schema"),
+    ({"v": V, "k": "obst", "c": [], "r": [], "d": 4}, "range"),
+    ({"v": V, "k": "obst", "c": [[0, 0]] * (msg.MAX_OBSTACLES + 1), "r": [0] * (msg.MAX_OBSTACLES + 1)}, "size"),
+    ({"v": V, "k": "obst", "c": [[0, 0]], "r": [-1.0]}, "range"),
     ([1, 2, 3], "malformed"),
 ])
 def test_specific_rejections(obj, reason):
@@ -101,11 +153,22 @@ def test_specific_rejections(obj, reason):
     assert err.value.reason == reason
 
 
+def test_a_pose_is_a_fixed_record_and_names_its_encoding():
+    for pose, size in ((msg.Pose(1, 1, 0.0, -1, 0.0, 0.0, 0.0, 0.0), 64),
+                       (msg.Pose(1, 1, 0.0, -1, 0.0, 0.0, 0.0, 0.0, 1.0), 72),
+                       (msg.Pose(1, 1, 0.0, -1, 0.0, 0.0, 0.0, 0.0, None, 0.0, 0.0), 80)):
+        data = msg.encode(pose)
+        assert len(data) == size and data[:1] == b"\xc1" and msg.encoding_of(data) == msg.POSE_ENCODING
+    assert msg.encoding_of(msg.encode(msg.Prey(1, 0.0, -1, 0.0, 0.0))) == msg.ENCODING
+    with pytest.raises(ValueError):
+        msg.encode(msg.Pose(1, 1, 0.0, -1, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0))  # 3-D has no heading
+
+
 def test_oversized_and_truncated_payloads():
     with pytest.raises(msg.DecodeError) as err:
         msg.decode(b"\x00" * (msg.MAX_PAYLOAD + 1))
     assert err.value.reason == "size"
-    good = msg.encode(msg.Pose(1, 1, 0.0, -1, 0.0, 0.0, 0.0, 0.0))
+    good = msg.encode(msg.Prey(1, 0.0, -1, 0.0, 0.0))
     with pytest.raises(msg.DecodeError) as err:
         msg.decode(good[:-3])
     assert err.value.reason == "malformed"

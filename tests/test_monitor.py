@@ -13,7 +13,7 @@ import time
 import zenoh
 
 from conftest import ROOT, free_port, run_cli, wait_for_port
-from zswarm.net.messages import ENCODING
+from zswarm.net.messages import ENCODING, POSE_ENCODING
 
 
 def _stock_subscriber(endpoint: str, run: str, until: float) -> dict[str, set[str]]:
@@ -61,7 +61,8 @@ def test_monitor_matches_the_runs_summary_and_payloads_name_their_encoding(tmp_p
             os.killpg(swarm.pid, signal.SIGKILL)
             swarm.wait()
     assert {"pose", "prey", "stats"} <= seen.keys(), seen
-    assert all(encodings == {ENCODING} for encodings in seen.values()), seen
+    assert seen.pop("pose") == {POSE_ENCODING}, seen  # a fixed record
+    assert all(encodings == {ENCODING} for encodings in seen.values()), seen  # msgpack
 
     assert mon.returncode == 0, mon.stderr
     snapshots = [json.loads(line) for line in mon.stdout.splitlines()]

@@ -56,7 +56,7 @@ def run_crowd(args: argparse.Namespace) -> int:
         for i in ids:
             point = tuple(float(c) for c in spawn[i])
             declared.append(session.liveliness().declare_token(keys.alive(i)))
-            publisher = session.declare_publisher(keys.pose(keys.cell(*point), i), encoding=msg.ENCODING)
+            publisher = session.declare_publisher(keys.pose(keys.cell(*point), i), encoding=msg.POSE_ENCODING)
             declared.append(publisher)
             agents.append((i, point, publisher))
         z = len(spawn[0]) == 3

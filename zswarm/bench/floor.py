@@ -4,7 +4,7 @@ The floor of ``zswarm bench net --floor``: what the middleware alone costs for o
 Like agent ``--id`` of the same run, it holds a liveliness token, subscribes to the cells within
 R + 2 v_max dt of the agent's spawn position (its own publications not handed back, as an agent's)
 and to the prey, and publishes a real pose message
-(msgpack, about 76 bytes) into its cell at the agent's rate through a declared publisher. It decodes
+(the 64-byte record of ``zswarm.net.messages``) into its cell at the agent's rate through a declared publisher. It decodes
 nothing, runs no control law and no event loop: samples wait in a ring channel emptied once per tick
 (``--handler callback``: a Python callback appends each to a list, as an agent's inbox does).
 ``--prey`` makes it the world's stand-in instead: it only publishes the prey at the same rate.
@@ -67,7 +67,7 @@ def run_floor(args: argparse.Namespace) -> int:
                         *(session.declare_subscriber(keys.cell_poses(c), handler(),
                                                      allowed_origin=zenoh.Locality.REMOTE)
                           for c in cells_in_disc(keys, (x, y), reach)),
-                        session.declare_publisher(keys.pose(keys.cell(x, y), args.id), encoding=msg.ENCODING)]
+                        session.declare_publisher(keys.pose(keys.cell(x, y), args.id), encoding=msg.POSE_ENCODING)]
             message = lambda seq: msg.encode(msg.Pose(args.id, seq, time.time(), -1, x, y, 0.0, 0.0))  # noqa: E731
         subs = [d for d in declared if hasattr(d, "try_recv") and args.handler == "ring"]
         publisher = declared[-1] if not args.prey else declared[0]

@@ -329,7 +329,7 @@ def filter_one(safety: Safety, point: tuple[float, ...], u_hat: tuple[float, ...
     violated = stale = False
     for q, age in neighbours:
         psi = [point[k] - q[k] for k in range(dims)]
-        d = math.sqrt(sum(c * c for c in psi))
+        d = math.hypot(*psi)
         gap = d - safety.distance - v * age
         if gap >= far and age <= safety.max_age:
             continue
@@ -348,13 +348,13 @@ def filter_one(safety: Safety, point: tuple[float, ...], u_hat: tuple[float, ...
                 violated |= sum(a[k] * u_hat[k] for k in range(dims)) - bound > TOL
     for obstacle in obstacles:
         psi = [point[k] - obstacle[k] for k in range(dims)]
-        d = math.sqrt(sum(c * c for c in psi))
+        d = math.hypot(*psi)
         b = rate * max(d - obstacle[dims] - safety.clearance, 0.0)
         if b < v:
             a = tuple(-c / d for c in psi) if d > 0 else (0.0,) * dims
             binding.append((a, b))
             violated |= sum(a[k] * u_hat[k] for k in range(dims)) - b > TOL
-    speed = math.sqrt(sum(c * c for c in u_hat))
+    speed = math.hypot(*u_hat)
     if stale:
         return (0.0,) * dims, Acted(speed > 0.0, speed > 0.0, True)
     if not violated:

@@ -15,7 +15,7 @@ from typing import Any, Callable
 import zenoh
 
 from zswarm.net.keys import parse_parameters
-from zswarm.net.messages import ENCODING
+from zswarm.net.messages import encoding_of
 from zswarm.net.rings import WIDE_CAPACITY
 
 Inbound = tuple[str, str, bytes, bool, float]  # (tag, key, payload, is_delete, local wall time of receipt)
@@ -141,7 +141,7 @@ class Bridge:
         def handler(query: Any) -> None:
             try:
                 for reply_key, payload in answer(parse_parameters(query.parameters)):
-                    query.reply(reply_key, payload, encoding=ENCODING)
+                    query.reply(reply_key, payload, encoding=encoding_of(payload))
             except Exception:  # a bad query must never take the process down
                 pass
         return self.session.declare_queryable(key, handler)

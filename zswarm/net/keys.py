@@ -51,7 +51,10 @@ class Keys:
 
     def cell(self, *coords: float) -> tuple[int, ...]:
         """The cell (voxel in 3-D) a point lies in."""
-        return tuple(math.floor(c / self.cell_size) for c in coords)
+        size = self.cell_size
+        if len(coords) == 2:  # every agent, every tick
+            return (math.floor(coords[0] / size), math.floor(coords[1] / size))
+        return tuple(math.floor(c / size) for c in coords)
 
     def pose(self, cell: tuple[int, ...], agent: int) -> str:
         return f"{self.root}/pose/{'/'.join(map(str, cell))}/{agent}"

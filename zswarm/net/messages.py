@@ -1,26 +1,33 @@
-"""Every wire message, encoded and decoded in one place (msgpack), versioned and validated.
+"""Every wire message, encoded and decoded in one place, versioned and validated.
 
-A message is a msgpack map with ``v`` (format version) and ``k`` (kind). Positions and velocities
-are lists of two numbers in a 2-D run and of three in a 3-D one (``p``, ``u``; an obstacle answer says
-``d``: 3); a process refuses a message of the other dimension with the reason ``dimensions``, so a
-2-D agent and a 3-D world never mix silently. Decoding never trusts the bytes: a payload that is too large, not msgpack, of an unknown version or kind, with missing or
-mistyped fields, non-finite numbers or out-of-range sizes raises :class:`DecodeError`, whose
-``reason`` is one of :data:`REASONS` (processes count rejections by reason).
+A pose, the message every agent sends and hears every tick, is a fixed little-endian record
+(:data:`POSE_LAYOUT`, 64 bytes in 2-D) that opens with the byte 0xC1, which msgpack never uses, so it
+cannot be taken for anything else; it is unpacked in one call. Every other message is a msgpack map
+with ``v`` (format version) and ``k`` (kind). Positions and velocities are two numbers in a 2-D run
+and three in a 3-D one (``p``, ``u``; an obstacle answer says ``d``: 3); a process refuses a message of
+the other dimension with the reason ``dimensions``, so a 2-D agent and a 3-D world never mix silently.
+Decoding never trusts the bytes: a payload that is too large, not msgpack (nor a pose record), of an
+unknown version or kind, with missing or mistyped fields, non-finite numbers or out-of-range sizes
+raises :class:`DecodeError`, whose ``reason`` is one of :data:`REASONS` (processes count rejections
+by reason).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+import struct
 from dataclasses import dataclass
 from typing import Any, NamedTuple, Union
 
 import msgpack
 
-VERSION = 1
-#: The Zenoh encoding every zswarm payload is published with: generic Zenoh tools (z_sub, z_get) can
-#: tell it is msgpack, and of which zswarm schema version.
+VERSION = 2  # 2: poses are fixed binary records (1: msgpack maps)
+#: The Zenoh encoding every zswarm payload but a pose is published with: generic Zenoh tools (z_sub,
+#: z_get) can tell it is msgpack, and of which zswarm schema version.
 ENCODING = f"application/msgpack;zswarm/{VERSION}"
+#: The encoding of a pose (:data:`POSE_LAYOUT`).
+POSE_ENCODING = f"application/octet-stream;zswarm/{VERSION}/pose"
 MAX_PAYLOAD = 256 * 1024
 MAX_OBSTACLES = 4096
 MAX_ID = 1_000_000
@@ -175,6 +182,24 @@ def _pack(obj: dict[str, Any]) -> bytes:
     return msgpack.packb({"v": VERSION, **obj}, use_bin_type=True)
 
 
+def encoding_of(payload: bytes) -> str:
+    """The Zenoh encoding to publish ``payload`` with (a pose record or a msgpack map)."""
+    return POSE_ENCODING if payload[:1] == POSE_MAGIC else ENCODING
+
+
+#: A pose on the wire, little-endian, no padding: the byte 0xC1 (never a msgpack byte), the version,
+#: flags (1: 3-D, 2: a heading follows), the safety flag, id (uint32), seq (int64), stamp (double,
+#: sender wall time), step (int64, -1 free), then doubles: x, y, vx, vy (2-D), x, y, z, vx, vy, vz (3-D),
+#: and the heading last where flagged. 64 bytes in 2-D, 72 with a heading, 80 in 3-D.
+POSE_LAYOUT = "<BBBBIqdq"
+POSE_MAGIC = b"\xc1"
+POSE_3D, POSE_HEADING = 1, 2
+_POSE_2D = struct.Struct(POSE_LAYOUT + "4d")
+_POSE_2DH = struct.Struct(POSE_LAYOUT + "5d")
+_POSE_3D = struct.Struct(POSE_LAYOUT + "6d")
+_POSE_LAYOUTS = {layout.size: layout for layout in (_POSE_2D, _POSE_2DH, _POSE_3D)}
+POSE_SIZES = tuple(_POSE_LAYOUTS)
+
 #: A pose's ``f``: the safety filter (zswarm.model.safety) passed the command, changed it, stalled it, braked.
 SAFETY_FLAGS = ("passed", "acted", "stalled", "braked")
 
@@ -182,14 +207,15 @@ SAFETY_FLAGS = ("passed", "acted", "stalled", "braked")
 def encode_pose(agent: int, seq: int, stamp: float, step: int, x: float, y: float, vx: float, vy: float,
                 heading: float | None = None, z: float | None = None, vz: float | None = None,
                 safety: int = 0) -> bytes:
-    """``encode(Pose(...))`` without building the Pose: an agent publishes one every tick."""
-    p, u = ([x, y], [vx, vy]) if z is None else ([x, y, z], [vx, vy, vz])
-    pose = {"v": VERSION, "k": "pose", "id": agent, "seq": seq, "t": stamp, "s": step, "p": p, "u": u}
+    """``encode(Pose(...))`` without building the Pose: an agent publishes one every tick
+    (:data:`POSE_LAYOUT`). A 3-D pose has no heading."""
+    if z is None:
+        if heading is None:
+            return _POSE_2D.pack(0xC1, VERSION, 0, safety, agent, seq, stamp, step, x, y, vx, vy)
+        return _POSE_2DH.pack(0xC1, VERSION, POSE_HEADING, safety, agent, seq, stamp, step, x, y, vx, vy, heading)
     if heading is not None:
-        pose["h"] = heading
-    if safety:
-        pose["f"] = safety
-    return msgpack.packb(pose, use_bin_type=True)
+        raise ValueError("a 3-D pose has no heading")
+    return _POSE_3D.pack(0xC1, VERSION, POSE_3D, safety, agent, seq, stamp, step, x, y, z, vx, vy, vz)
 
 
 def encode(msg: Message) -> bytes:
@@ -287,6 +313,8 @@ def decode(data: bytes) -> Message:
     """Parse and validate one message; raises :class:`DecodeError` for anything unacceptable."""
     if len(data) > MAX_PAYLOAD:
         raise DecodeError("size", f"{len(data)} bytes > {MAX_PAYLOAD}")
+    if data[:1] == POSE_MAGIC:
+        return _pose(data)
     try:
         obj = msgpack.unpackb(data, raw=False, strict_map_key=False, max_bin_len=MAX_PAYLOAD,
                               max_str_len=MAX_PAYLOAD, max_array_len=2 * MAX_OBSTACLES + 16,
@@ -299,7 +327,7 @@ def decode(data: bytes) -> Message:
         raise DecodeError("version", f"version {obj.get('v')!r}, expected {VERSION}")
     kind = obj.get("k")
     if kind == "pose":
-        return _pose(obj)
+        raise DecodeError("kind", f"a pose as a msgpack map (zswarm/{VERSION} sends poses as records)")
     if kind == "prey":
         return _prey(obj)
     return _other(obj, kind)
@@ -316,44 +344,42 @@ def _prey(obj: dict) -> Prey:
     return Prey(_int(obj, "seq"), _float(obj.get("t"), "t", 1e12), _int(obj, "s", -1), *_vec(obj, "p"))
 
 
-def _pose(obj: dict) -> Pose:
-    """A pose map: a well-formed one (every agent hears a few every tick) is checked in one pass;
-    anything else goes field by field, to say what is wrong."""
-    i, seq, t, s, p, u = obj.get("id"), obj.get("seq"), obj.get("t"), obj.get("s"), obj.get("p"), obj.get("u")
-    if (type(i) is int and type(seq) is int and type(s) is int and type(t) is float and type(p) is list
-            and type(u) is list and len(p) == 2 and len(u) == 2):
-        x, y = p
-        vx, vy = u
-        if (type(x) is float and type(y) is float and type(vx) is float and type(vy) is float
-                and 0 <= i <= MAX_ID and 0 <= seq <= 2**62 and -1 <= s <= 2**62 and -1e12 <= t <= 1e12
-                and -MAX_COORD <= x <= MAX_COORD and -MAX_COORD <= y <= MAX_COORD
+def _pose(data: bytes) -> Pose:
+    """A pose record (:data:`POSE_LAYOUT`): a well-formed one (every agent hears a few every tick) is
+    checked in one pass; anything else field by field, to say what is wrong."""
+    n = len(data)
+    layout = _POSE_LAYOUTS.get(n)
+    if layout is None:
+        raise DecodeError("malformed", f"a pose record of {n} bytes (expected {', '.join(map(str, POSE_SIZES))})")
+    _, v, flags, f, i, seq, t, s, *rest = layout.unpack(data)
+    if layout is _POSE_2D:
+        x, y, vx, vy = rest
+        if (v == VERSION and flags == 0 and f < 4 and i <= MAX_ID and 0 <= seq <= 2**62 and -1 <= s <= 2**62
+                and -1e12 <= t <= 1e12 and -MAX_COORD <= x <= MAX_COORD and -MAX_COORD <= y <= MAX_COORD
                 and -MAX_COORD <= vx <= MAX_COORD and -MAX_COORD <= vy <= MAX_COORD):  # NaN fails these
-            h, f = obj.get("h"), obj.get("f", 0)
-            if type(f) is int and 0 <= f < len(SAFETY_FLAGS):
-                if h is None:
-                    return Pose(i, seq, t, s, x, y, vx, vy, safety=f) if f else Pose(i, seq, t, s, x, y, vx, vy)
-                if type(h) is float and -MAX_HEADING <= h <= MAX_HEADING:
-                    return Pose(i, seq, t, s, x, y, vx, vy, h, safety=f)
-    elif (type(i) is int and type(seq) is int and type(s) is int and type(t) is float and type(p) is list
-            and type(u) is list and len(p) == 3 and len(u) == 3 and "h" not in obj):  # a 3-D one
-        x, y, z = p
-        vx, vy, vz = u
-        if (type(x) is float and type(y) is float and type(z) is float and type(vx) is float
-                and type(vy) is float and type(vz) is float
-                and 0 <= i <= MAX_ID and 0 <= seq <= 2**62 and -1 <= s <= 2**62 and -1e12 <= t <= 1e12
-                and -MAX_COORD <= x <= MAX_COORD and -MAX_COORD <= y <= MAX_COORD and -MAX_COORD <= z <= MAX_COORD
-                and -MAX_COORD <= vx <= MAX_COORD and -MAX_COORD <= vy <= MAX_COORD
-                and -MAX_COORD <= vz <= MAX_COORD):
-            f = obj.get("f", 0)
-            if type(f) is int and 0 <= f < len(SAFETY_FLAGS):
-                return Pose(i, seq, t, s, x, y, vx, vy, None, z, vz, f)
-    p = _vec(obj, "p")
-    u = _vec(obj, "u", (len(p),))
-    h = obj.get("h")
-    f = _int(obj, "f", 0, len(SAFETY_FLAGS) - 1) if "f" in obj else 0
-    return Pose(_int(obj, "id", 0, MAX_ID), _int(obj, "seq"), _float(obj.get("t"), "t", 1e12),
-                _int(obj, "s", -1), p[0], p[1], u[0], u[1], None if h is None else _float(h, "h", MAX_HEADING),
-                *(p[2:] or (None,)), *(u[2:] or (None,)), f)
+            return Pose(i, seq, t, s, x, y, vx, vy, safety=f) if f else Pose(i, seq, t, s, x, y, vx, vy)
+    elif (v == VERSION and f < 4 and i <= MAX_ID and 0 <= seq <= 2**62 and -1 <= s <= 2**62 and -1e12 <= t <= 1e12
+          and all(-MAX_COORD <= c <= MAX_COORD for c in rest)):
+        if layout is _POSE_3D and flags == POSE_3D:
+            x, y, z, vx, vy, vz = rest
+            return Pose(i, seq, t, s, x, y, vx, vy, None, z, vz, f)
+        if layout is _POSE_2DH and flags == POSE_HEADING and -MAX_HEADING <= rest[4] <= MAX_HEADING:
+            return Pose(i, seq, t, s, *rest, safety=f)
+    if v != VERSION:
+        raise DecodeError("version", f"version {v}, expected {VERSION}")
+    want = {_POSE_2D: 0, _POSE_2DH: POSE_HEADING, _POSE_3D: POSE_3D}[layout]
+    if flags != want:
+        raise DecodeError("schema", f"flags {flags} in a pose record of {n} bytes (expected {want})")
+    fields = {"id": i, "seq": seq, "s": s, "f": f}
+    bounds = {"id": (0, MAX_ID), "seq": (0, 2**62), "s": (-1, 2**62), "f": (0, len(SAFETY_FLAGS) - 1)}
+    for key, (lo, hi) in bounds.items():
+        _int(fields, key, lo, hi)
+    _float(t, "t", 1e12)
+    names = ("x", "y", "vx", "vy", "h") if layout is not _POSE_3D else ("x", "y", "z", "vx", "vy", "vz")
+    c = [_float(value, key, MAX_HEADING if key == "h" else MAX_COORD) for key, value in zip(names, rest)]
+    if layout is _POSE_3D:
+        return Pose(i, seq, t, s, c[0], c[1], c[3], c[4], None, c[2], c[5], f)
+    return Pose(i, seq, t, s, *c[:4], c[4] if len(c) == 5 else None, safety=f)
 
 
 def _other(obj: dict, kind: Any) -> Message:
