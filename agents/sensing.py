@@ -82,7 +82,8 @@ class Sensing:
         self.prey: tuple[float, ...] | None = None
         self.prey_stamp: float | None = None  # when the world sent the newest prey position heard
         self.ticks: asyncio.Queue[msg.Tick] = asyncio.Queue()
-        self.pose_arrived = asyncio.Event()
+        self.pose_arrived = asyncio.Event()  # lockstep waits on it; set per pose only then
+        self.wake_on_pose = spec.clock == "lockstep"
         self.final_tick = False
         self.obstacle_view = ObstacleView(self.keys, body, self.radius, self.counters)
         self.latency_probe = LatencyProbe(self.keys, body, self.subscription_radius, self.neighbours,
@@ -223,7 +224,8 @@ class Sensing:
             return
         if nb is None and who in c.departed:
             c.returned.setdefault(who, now)
-        self.pose_arrived.set()
+        if self.wake_on_pose:
+            self.pose_arrived.set()
 
     # --- what the agent senses -------------------------------------------------------------------------
 

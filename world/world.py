@@ -126,7 +126,8 @@ class World:
         self.network_received = 0
         self.stalled = False  # the free clock is more than STALL behind
         self.reach = Reach()
-        self.pose_arrived = asyncio.Event()
+        self.pose_arrived = asyncio.Event()  # lockstep waits on it; set per pose only then
+        self.wake_on_pose = spec.clock == "lockstep"
         self.stop = asyncio.Event()
         self.started_wall = time.time()
         self.resumed: Resumed | None = None
@@ -188,7 +189,8 @@ class World:
                 return
             if self.timed is not None:
                 self.timed.add(m.id, m.seq, m.stamp, m.position, received)
-            self.pose_arrived.set()
+            if self.wake_on_pose:
+                self.pose_arrived.set()
         else:
             self.rejected.add("kind")
 
