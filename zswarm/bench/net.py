@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from zswarm.bench.measure import CpuWindow, pss_mb, rss_mb
-from zswarm.launch.world_lines import follow_world
+from zswarm.launch.world_watch import WorldWatch
 from zswarm.model.faults import FaultModel
 from zswarm.net.procs import (
     Child,
@@ -47,14 +47,13 @@ def start_routers(kids: Children, k: int) -> list[str]:
     return endpoints
 
 
-def start_field(kids: Children, spec: RunSpec, summary_path: Path, world_stdout: int = subprocess.DEVNULL,
-                routers: int = 1) -> tuple[str, Child, list[Child]]:
+def start_field(kids: Children, spec: RunSpec, summary_path: Path, routers: int = 1) -> tuple[str, Child, list[Child]]:
     """Routers, the world (waiting up to 120 s for the agents) and the N agent processes of ``spec``,
     forked from one fleet as ``zswarm run`` starts them (agent i on router i mod K). Returns the first
     router's endpoint, the world and the agents."""
     endpoints = start_routers(kids, routers)
     world = kids.spawn("world", world_argv(spec, endpoints[0], "--summary", str(summary_path), "--progress", "0",
-                                           "--start-timeout", "120"), stdout=world_stdout)
+                                           "--start-timeout", "120"), stdout=subprocess.DEVNULL)
     fleet = Fleet(kids)
     agents = [fleet.spawn(f"agent-{i}", agent_argv(spec, i, endpoints[i % routers])[2:])
               for i in range(spec.scenario.n_agents)]
@@ -70,12 +69,13 @@ def run(n_agents: int, duration: float, scenario: str = "bench-field", routers: 
         summary_path = Path(tmp) / "bench.json"
         try:
             spec = field_spec(n_agents, f"bench{n_agents}", duration, scenario, safety=safety)
-            _, world, agents = start_field(kids, spec, summary_path, world_stdout=subprocess.PIPE, routers=routers)
-            started = follow_world(world)
+            endpoint, world, agents = start_field(kids, spec, summary_path, routers=routers)
+            with WorldWatch(spec.keys, endpoint) as watch:
+                started = watch.started.wait(180.0)
             names = {c.name: c.pid for c in kids.children}
             window = CpuWindow(names)
             memory: dict[str, list[float]] = {"rss": [], "pss": []}
-            if not started.wait(180.0):
+            if not started:
                 raise RuntimeError("the world's clock did not start within 180 s")
             t0 = time.monotonic()
             time.sleep(0.3 * duration)

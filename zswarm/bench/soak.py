@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import json
 import statistics
-import subprocess
 import tempfile
 import threading
 import time
@@ -76,7 +75,7 @@ def _watch(n_agents: int, dropout: float, duration: float, sample_every: float, 
     start of the world's clock. Returns the memory samples, the stats rows and the world's summary."""
     import zenoh
 
-    from zswarm.launch.world_lines import follow_world
+    from zswarm.launch.world_watch import WorldWatch
     from zswarm.net import messages as msg
     from zswarm.net.config import zenoh_config
     from zswarm.net.keys import Keys
@@ -91,9 +90,11 @@ def _watch(n_agents: int, dropout: float, duration: float, sample_every: float, 
         summary_path = Path(tmp) / "soak.json"
         try:
             spec = field_spec(n_agents, run, duration, faults=FaultModel(dropout=dropout, seed=seed), seed=seed)
-            endpoint, world, agents = start_field(kids, spec, summary_path, world_stdout=subprocess.PIPE)
+            endpoint, world, agents = start_field(kids, spec, summary_path)
             router = kids.named("router")[0]
-            follow_world(world).wait()  # the world's clock
+            with WorldWatch(keys, endpoint) as watch:
+                if not watch.started.wait(180.0):  # the world's clock
+                    raise RuntimeError("the world's clock did not start within 180 s")
             t0 = time.monotonic()
 
             def on_stats(sample) -> None:

@@ -20,7 +20,7 @@ from typing import Any
 
 from zswarm.bench.measure import CpuWindow
 from zswarm.bench.net import start_routers
-from zswarm.launch.world_lines import follow_world
+from zswarm.launch.world_watch import WorldWatch
 from zswarm.net.procs import Children, world_argv
 from zswarm.net.runspec import RunSpec
 
@@ -42,8 +42,7 @@ def measure(n_agents: int, duration: float, scenario: str = "large-swarm", time_
             endpoint = start_routers(kids, 1)[0]
             world = kids.spawn("world", world_argv(spec, endpoint, "--summary", str(summary_path), "--record",
                                                    str(record), "--progress", "0",
-                                                   "--start-timeout", "120"), stdout=subprocess.PIPE)
-            started = follow_world(world)
+                                                   "--start-timeout", "120"), stdout=subprocess.DEVNULL)
             share, first = -(-n_agents // crowds), 0
             while first < n_agents:
                 count = min(share, n_agents - first)
@@ -52,8 +51,9 @@ def measure(n_agents: int, duration: float, scenario: str = "large-swarm", time_
                 first += count
             names = {c.name: c.pid for c in kids.children}
             window = CpuWindow(names)
-            if not started.wait(180.0):
-                raise RuntimeError("the world's clock did not start within 180 s")
+            with WorldWatch(spec.keys, endpoint) as watch:
+                if not watch.started.wait(180.0):
+                    raise RuntimeError("the world's clock did not start within 180 s")
             wall = duration / time_scale
             t0 = time.monotonic()
             time.sleep(0.3 * wall)

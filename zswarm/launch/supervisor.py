@@ -21,7 +21,7 @@ from zswarm.launch.configs import agent_config_args, role_configs
 from zswarm.launch.ending import finish_recording
 from zswarm.launch.plan import Plan
 from zswarm.net.config import endpoint_host_port
-from zswarm.launch.world_lines import DONE, follow_world
+from zswarm.launch.world_lines import DONE, forward_lines
 from zswarm.launch.world_watch import WorldWatch
 from zswarm.net.procs import (
     Child,
@@ -51,14 +51,14 @@ class Launch:
         self.plan, self.spec = plan, plan.spec
         self.kids = Children()
         self.world: Child | None = None
-        self.world_started = threading.Event()  # the current world's clock is running
+        self.world_started = threading.Event()  # the world's clock is running (heard on Zenoh)
         self.world_down = False  # killed, and a replacement is scheduled
         self.started_at = time.time()
         self.endpoint = plan.connect  # the first router's: the world's, and agent i's on router i mod K
         self.endpoints: list[str] = []
         self.configs: dict[str, list[str]] = {}
         self.fleet: Fleet | None = None
-        self.watch: WorldWatch | None = None  # agents and no world here: the world's start, heard on Zenoh
+        self.watch: WorldWatch | None = None  # with chaos to time: the world's start, heard on Zenoh
         self.pending: list[Event] = schedule(plan.kill, plan.restart_after, plan.world_outage, plan.world_crash)
         self.rng = np.random.default_rng([self.spec.seed, 0xC0FFEE])
         self.killed: list[int] = []
@@ -109,7 +109,7 @@ class Launch:
                 raise UsageError(str(exc)) from None
         if "world" in plan.roles:
             self._spawn_world(resume=False)
-        if "agents" in plan.roles and self.world is None and self.pending:
+        if self.pending and ("world" in plan.roles or "agents" in plan.roles):
             self._watch_world()
         if "agents" in plan.roles:
             for k, i in enumerate(plan.ids):
@@ -126,13 +126,14 @@ class Launch:
                 _say(note, err=False)
 
     def _watch_world(self) -> None:
-        """Chaos on a machine without the world counts from the world's start, heard on Zenoh."""
-        args = self._agent_config(self.plan.ids[0])
+        """Chaos counts from the world's start, heard on Zenoh (beside the world as on another machine),
+        over the agents' identity where it runs agents, else the world's."""
+        args = self._agent_config(self.plan.ids[0]) if "agents" in self.plan.roles else self.configs.get("world", [])
         config = Path(args[args.index("--config") + 1]) if "--config" in args else None
         timeout = self.plan.connect_timeout if self.plan.connect_timeout is not None else 15.0
         self.watch = WorldWatch(self.spec.keys, self.endpoint, config, timeout)
         self.world_started = self.watch.started
-        if not self.plan.quiet:
+        if self.world is None and not self.plan.quiet:
             _say("faults are timed from the world's start, when this machine hears it", err=False)
 
     def _agent_config(self, agent: int) -> list[str]:
@@ -172,7 +173,7 @@ class Launch:
             extra.append("--resume")
         extra += self._viewer().to_argv()
         self.world = self.kids.spawn("world", world_argv(self.spec, self.endpoint, *extra), stdout=subprocess.PIPE)
-        self.world_started = follow_world(self.world, self._forward)
+        forward_lines(self.world, self._forward)
 
     def _forward(self, text: str) -> None:
         """Pass the world's lines through (quiet: only its last)."""
@@ -184,7 +185,7 @@ class Launch:
 
     def _supervise(self) -> int:
         """Wait for the world to finish (or, without a world, for the agents / for Ctrl-C)."""
-        t0: float | None = None if self.world is not None or self.watch is not None else time.monotonic()
+        t0: float | None = None if self.watch is not None else time.monotonic()
         while True:
             if t0 is None and self.world_started.is_set():
                 t0 = time.monotonic()  # chaos times count from the start of the world's clock

@@ -1,7 +1,7 @@
-"""What a world process prints, read by whoever started it: one reader, one rule for "started".
+"""What a world process prints, passed on by the launcher that started it.
 
-The world prints ``world: started ...`` when its clock starts (chaos times, benchmark windows and a
-soak's samples all count from there) and ``world: done ...`` at the end.
+The world prints ``world: started ...`` when its clock starts and ``world: done ...`` at the end, for
+the user; whoever needs the start itself hears it on Zenoh (:mod:`zswarm.launch.world_watch`).
 """
 
 from __future__ import annotations
@@ -11,21 +11,12 @@ from typing import Callable
 
 from zswarm.net.procs import Child
 
-STARTED = "world: started"
 DONE = "world: done"
 
 
-def follow_world(world: Child, on_line: Callable[[str], None] | None = None) -> threading.Event:
-    """Read ``world``'s standard output (a pipe) on a thread to its end, passing each line to
-    ``on_line``; the event returned is set when the world's clock starts."""
-    started = threading.Event()
-
+def forward_lines(world: Child, on_line: Callable[[str], None]) -> None:
+    """Read ``world``'s standard output (a pipe) on a thread to its end, passing each line to ``on_line``."""
     def read() -> None:
         for line in world.proc.stdout:
-            text = line.decode(errors="replace") if isinstance(line, bytes) else line
-            if text.startswith(STARTED):
-                started.set()
-            if on_line is not None:
-                on_line(text)
+            on_line(line.decode(errors="replace") if isinstance(line, bytes) else line)
     threading.Thread(target=read, daemon=True, name=f"{world.name}-lines").start()
-    return started

@@ -1,8 +1,8 @@
-"""The start of a world that another machine runs, heard on Zenoh.
+"""The start of a world's clock, heard on Zenoh: the one way anyone learns it.
 
 The world holds a liveliness token (:attr:`zswarm.net.keys.Keys.world_started`) from the start of its
-clock to its end. A machine that runs agents and no world times its chaos (``--kill K@T``, restarts)
-from that start, as the machine that runs the world does, instead of from its own.
+clock to its end. A launcher times its chaos (``--kill K@T``, restarts, outages) from it, whether the
+world runs beside it or on another machine, and the benchmarks open their measuring windows on it.
 """
 
 from __future__ import annotations
@@ -37,3 +37,9 @@ class WorldWatch:
             self.subscriber.undeclare()
         finally:
             self.session.close()
+
+    def __enter__(self) -> "WorldWatch":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
