@@ -47,6 +47,8 @@ def _child(argv: list[str]) -> None:
         signal.signal(signal.SIGINT, signal.SIG_DFL)
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
         code = agent_main(argv)
+    except SystemExit as exc:  # argparse's usage error (2), as the agent program alone exits with it
+        code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
     finally:
         sys.stderr.flush()
         os._exit(code)

@@ -171,10 +171,12 @@ def write_track(folder: Path, agent_id: int, track: array, dims: int) -> None:
 
 def run_free_agent(spec: RunSpec, args: argparse.Namespace, robots: RobotsFile | None = None) -> int:
     """The free clock, without an event loop (:mod:`agents.free`)."""
+    # signals stop the run once it has a session; until then (a router still starting: up to
+    # --connect-timeout) they end the process at once, as they would any other
+    proc = Process(spec, args, loop=None, robots=robots)
     stop: list[int] = []
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda signum, _frame: stop.append(signum))
-    proc = Process(spec, args, loop=None, robots=robots)
     done = False
     try:
         if not wait_for_world(proc.agent, proc.injector, args.start_timeout, lambda: bool(stop)):

@@ -37,3 +37,26 @@ def test_a_forked_agent_shares_the_fleets_session_in_a_process_group_of_its_own(
     finally:
         kids.stop_all(grace=2.0)
     assert not agent.alive() and not fleet.child.alive()
+
+
+def test_the_local_host_forks_every_agent_from_one_fleet_or_starts_each_alone():
+    """The host boundary (zswarm.launch.hosts): the supervisor asks a host for an agent and gets a
+    handle it can poll and signal; here, forked from one fleet, or each in an interpreter of its own."""
+    from zswarm.launch.hosts import LocalHost
+
+    bad = ["--run", "host-test", "--scenario", "static-goal", "--connect", "tcp/127.0.0.1:1", "--id"]
+    for fork in (True, False):
+        kids = Children()
+        try:
+            host = LocalHost(kids, fork)
+            agents = [host.spawn_agent(f"agent-{i}", [*bad, "nine" if i else "0", "--connect-timeout", "20"])
+                      for i in range(2)]
+            assert all(a in kids.children for a in agents)
+            assert len(kids.named("fleet")) == (1 if fork else 0)
+            assert agents[1].proc.wait(30) == 2  # a usage error ("--id nine") through the handle
+            assert agents[0].alive()
+            agents[0].proc.send_signal(15)
+            assert agents[0].proc.wait(10) is not None
+        finally:
+            kids.stop_all(grace=2.0)
+        assert not any(c.alive() for c in kids.children)

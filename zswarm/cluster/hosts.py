@@ -1,6 +1,7 @@
-"""The driver's side of each node: a pinned :class:`~zswarm.cluster.node.NodeHost` actor, and each agent
-it runs as a handle with ``subprocess.Popen``'s interface, so that the supervisor, the chaos and the
-ending code treat an agent on another machine as they treat one forked here.
+"""The driver's side of each node: a pinned :class:`~zswarm.cluster.node.NodeHost` actor, a host of the
+run (:class:`zswarm.launch.hosts.Host`) whose agents are handles with ``subprocess.Popen``'s
+interface, so that the supervisor, the chaos and the ending code treat an agent on another machine as
+they treat one forked here.
 
 A thread polls each node every 0.2 s for the agents that ended and the lines they wrote; a node that
 Ray reports lost (``RayActorError``) has its agents recorded as crashed (exit -9) in one line.
@@ -17,7 +18,7 @@ from typing import Any, Callable, Sequence
 from zswarm.cluster.node import NodeHost
 from zswarm.cluster.ray_cluster import import_ray
 from zswarm.launch.plan import id_ranges
-from zswarm.net.procs import ForkedProc
+from zswarm.net.procs import Child, ForkedProc
 
 POLL_S = 0.2
 CALL_TIMEOUT_S = 30.0
@@ -68,10 +69,13 @@ class NodeLink:
         self.info = self.call("info", timeout=120.0)  # the first call waits for the actor's worker to start
         return self.info
 
-    def spawn(self, name: str, args: Sequence[str]) -> RemoteProc:
+    def spawn_agent(self, name: str, args: Sequence[str]) -> Child:
+        """:meth:`zswarm.launch.hosts.Host.spawn_agent`: forked on the node by its actor (a restarted
+        agent's old entry there is dropped first)."""
+        self.call("restart", name)
         pid = self.call("spawn_agent", name, list(args))
         proc = self.procs[name] = RemoteProc(name, pid, self)
-        return proc
+        return Child(name, proc)
 
     def signal(self, name: str, sig: int) -> None:
         if not self.lost:

@@ -4,8 +4,9 @@
 Each node runs a Zenoh router (the first node's, on the driver's machine, is joined by every other, as
 ``--routers K`` does on one machine) and its share of agents, through its
 :class:`~zswarm.cluster.hosts.NodeLink`; the world runs here, on the driver's machine, and writes the
-recording and the summary here. Supervision, chaos and the ending are :class:`Launch`'s own: an agent
-on another machine is a handle with ``Popen``'s interface.
+recording and the summary here. Supervision, chaos and the ending are :class:`Launch`'s own: a node
+is a host (:mod:`zswarm.launch.hosts`), and an agent on another machine a handle with ``Popen``'s
+interface.
 """
 
 from __future__ import annotations
@@ -23,7 +24,6 @@ from zswarm.errors import UsageError
 from zswarm.files import write_json
 from zswarm.launch.plan import Plan, id_ranges
 from zswarm.launch.supervisor import Launch, _say
-from zswarm.net.procs import Child, agent_argv
 
 
 class ClusterLaunch(Launch):
@@ -99,21 +99,16 @@ class ClusterLaunch(Launch):
     def router_of(self, agent: int) -> int:
         return self.node_of[agent]
 
-    def _spawn_agent(self, agent: int) -> None:
-        link = self.links[self.node_of[agent]]
-        if link.lost:  # rejoin on the surviving node with the fewest agents
+    def host_of(self, agent: int) -> NodeLink | None:
+        """Its node; one whose node was lost rejoins on the surviving node with the fewest agents (and
+        that node's router: :meth:`router_of`)."""
+        if self.links[self.node_of[agent]].lost:
             alive = [k for k, other in enumerate(self.links) if not other.lost]
             if not alive:
-                _say(f"agent {agent}: no node left to run it on")
-                return
+                return None
             load = {k: sum(1 for n in self.node_of.values() if n == k) for k in alive}
             self.node_of[agent] = min(alive, key=lambda k: load[k])
-            link = self.links[self.node_of[agent]]
-        name = f"agent-{agent}"
-        self.kids.children = [c for c in self.kids.children if c.name != name or c.alive()]
-        link.call("restart", name)
-        argv = agent_argv(self.spec, agent, self.endpoints[self.node_of[agent]], *self._agent_config(agent))
-        self.kids.children.append(Child(name, link.spawn(name, argv[2:])))
+        return self.links[self.node_of[agent]]
 
     def _finish_recording(self) -> None:
         if self.world is None or self.world.alive():

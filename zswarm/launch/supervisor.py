@@ -19,6 +19,7 @@ from zswarm.errors import UsageError
 from zswarm.launch.chaos import Event, schedule
 from zswarm.launch.configs import agent_config_args, role_configs
 from zswarm.launch.ending import finish_recording
+from zswarm.launch.hosts import Host, LocalHost
 from zswarm.launch.plan import Plan
 from zswarm.net.config import endpoint_host_port
 from zswarm.launch.world_lines import DONE, forward_lines
@@ -26,7 +27,6 @@ from zswarm.launch.world_watch import WorldWatch
 from zswarm.net.procs import (
     Child,
     Children,
-    Fleet,
     agent_argv,
     free_port,
     local_host,
@@ -57,7 +57,7 @@ class Launch:
         self.endpoint = plan.connect  # the first router's: the world's, and agent i's on router i mod K
         self.endpoints: list[str] = []
         self.configs: dict[str, list[str]] = {}
-        self.fleet: Fleet | None = None
+        self.local = LocalHost(self.kids, plan.fork)  # where this machine's agents run
         self.watch: WorldWatch | None = None  # with chaos to time: the world's start, heard on Zenoh
         self.pending: list[Event] = schedule(plan.kill, plan.restart_after, plan.world_outage, plan.world_crash)
         self.rng = np.random.default_rng([self.spec.seed, 0xC0FFEE])
@@ -142,14 +142,22 @@ class Launch:
     def router_of(self, agent: int) -> int:
         return agent % len(self.endpoints)
 
+    def host_of(self, agent: int) -> Host | None:
+        """Where agent ``agent`` runs (None: nowhere left to run it)."""
+        return self.local
+
     def _spawn_agent(self, agent: int) -> None:
-        argv = agent_argv(self.spec, agent, self.endpoints[self.router_of(agent)], *self._agent_config(agent))
-        if not self.plan.fork:
-            self.kids.spawn(f"agent-{agent}", argv, stdout=subprocess.DEVNULL)
+        """Start (or restart: it replaces its dead self among the children) agent ``agent`` on its host."""
+        host = self.host_of(agent)
+        if host is None:
+            _say(f"agent {agent}: no host left to run it on")
             return
-        if self.fleet is None:
-            self.fleet = Fleet(self.kids)
-        self.fleet.spawn(f"agent-{agent}", argv[2:])  # without "-m agents"
+        name = f"agent-{agent}"
+        self.kids.children = [c for c in self.kids.children if c.name != name or c.alive()]
+        argv = agent_argv(self.spec, agent, self.endpoints[self.router_of(agent)], *self._agent_config(agent))
+        child = host.spawn_agent(name, argv[2:])  # without "-m agents"
+        if child not in self.kids.children:
+            self.kids.children.append(child)
 
     def _viewer(self):
         """The live viewer the world streams to; a --spawn'ed one is started here, once, so that a world
