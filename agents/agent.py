@@ -69,6 +69,7 @@ class Agent:
         self.pose_key = ""  # the key of its pose in that cell
         self.queryable: Any = None
         self.publisher: Any = None
+        self.member: Any = None  # its member token in the cell it is in (keys.member)
         self.latest_reply: tuple[str, bytes] | None = None
         self.replies_by_step: dict[int, tuple[str, bytes]] = {}
         self.prey_by_step: dict[int, tuple[float, ...]] = {}
@@ -179,7 +180,10 @@ class Agent:
             self.replies_by_step = {s: r for s, r in self.replies_by_step.items() if s > step - 3}
             self.replies_by_step[step] = (key, payload)
         if moved:
-            for old in (self.queryable, self.publisher):
+            # the new cell's token before the old one goes: a neighbour never sees it in no cell
+            old_member = self.member
+            self.member = self.bridge.session.liveliness().declare_token(self.keys.member(cell, self.id))
+            for old in (self.queryable, self.publisher, old_member):
                 if old is not None:
                     old.undeclare()
             self.queryable = self.bridge.queryable(key, self._answer)

@@ -39,7 +39,9 @@ class Reach:
     def follow_cells(self) -> None:
         """Listen to the cells the sensing disc overlaps; the new cells' agents are asked at once (the
         cells whose answers are not all in yet: :attr:`asking`)."""
-        for cell in self.cell_view.move():
+        new, left = self.cell_view.move()
+        self.sensing.forget_cells(left)
+        for cell in new:
             self.asking.add(cell)
             self.bridge.get_into_inbox(self.keys.cell_poses(cell), "pose", 1.0,
                                        done=lambda cell=cell: self.asking.discard(cell))
@@ -57,7 +59,9 @@ class Reach:
 
     async def update_cells(self) -> None:
         """Subscribe to the cells the sensing disc overlaps; ask new cells for their agents at once."""
-        for cell in self.cell_view.move():
+        new, left = self.cell_view.move()
+        self.sensing.forget_cells(left)
+        for cell in new:
             for key, payload in await self.bridge.get(self.keys.cell_poses(cell), timeout=1.0):
                 self.sensing.handle(("pose", key, payload, False, time.time()))
 

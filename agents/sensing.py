@@ -79,6 +79,7 @@ class Sensing:
         self.counters = Counters(Rejections(f"agent {agent_id}"))
         self.alive: set[int] = set()  # ids with a liveliness token
         self.last_seq: dict[int, int] = {}
+        self.members: dict[int, set[tuple[int, ...]]] = {}  # id -> the cells it listens to that hold its token
         self.prey: tuple[float, ...] | None = None
         self.prey_stamp: float | None = None  # when the world sent the newest prey position heard
         self.ticks: asyncio.Queue[msg.Tick] = asyncio.Queue()
@@ -131,6 +132,9 @@ class Sensing:
         if tag == "probe":
             self.latency_probe.heard(payload, received)
             return
+        if tag == "in":
+            self._member(key, deleted)
+            return
         self.counters.received += 1
         m = self._decoded(payload)
         if m is None:
@@ -144,6 +148,28 @@ class Sensing:
             self.obstacle_view.answered(m)
         else:
             self.counters.rejections.add("kind", f"{type(m).__name__} on {tag} key")
+
+    def _member(self, key: str, deleted: bool) -> None:
+        """A member token came into (or left) one of the cells it listens to."""
+        parsed = self.keys.member_of(key)
+        if parsed is None or parsed[1] == self.id:
+            return
+        cell, who = parsed
+        if not deleted:
+            self.members.setdefault(who, set()).add(cell)
+        elif who in self.members:
+            self.members[who].discard(cell)
+            if not self.members[who]:
+                del self.members[who]
+
+    def forget_cells(self, cells: list[tuple[int, ...]]) -> None:
+        """It no longer listens to ``cells``: what their tokens said no longer holds."""
+        if cells and self.members:
+            gone = set(cells)
+            for who in list(self.members):
+                self.members[who] -= gone
+                if not self.members[who]:
+                    del self.members[who]
 
     def _pose_sample(self, key: str, payload: bytes, received: float) -> None:
         """A sample of the cells it listens to, or an answer of one it asked: a neighbour's pose."""
@@ -264,7 +290,9 @@ class Sensing:
         :meth:`_held`) whose newest pose may be within the sensing radius by now (no farther beyond it
         than v_max times its age). One from which nothing came for
         ``staleness`` wall seconds longer than from the one heard last has gone *quiet*: it has left the
-        cells this agent listens to, or its poses are being lost. It is let go only if it can have left:
+        cells this agent listens to, or its poses are being lost. One whose member token is in one of
+        those cells is there (tokens travel on Zenoh's control plane, which pose loss does not touch):
+        its silence is loss, and it stays guarded against. Otherwise it is let go only if it can have left:
         if its newest pose plus what it can have moved while the others were still heard (its age beyond
         the freshest neighbour's: had it stayed, its poses would have come through the same delay as
         theirs) reaches past the subscription disc (the cells cover at least that disc about this
@@ -295,7 +323,8 @@ class Sensing:
         for pose, age, quiet, d, lag in heard:
             # its silence counts only beyond its own path's extra delay: a sender whose poses queue
             # (a router that reads it late) falls silent while it is still there
-            if step is None and quiet - max(lag - path, 0.0) > left and d + v * (age - fresh) > cells:
+            if (step is None and quiet - max(lag - path, 0.0) > left and d + v * (age - fresh) > cells
+                    and pose.id not in self.members):
                 continue
             point = pose.position
             if lookahead and pose.heading is not None:

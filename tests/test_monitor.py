@@ -16,8 +16,9 @@ from conftest import ROOT, free_port, run_cli, wait_for_port
 from zswarm.net.messages import ENCODING, POSE_ENCODING
 
 
-def _stock_subscriber(endpoint: str, run: str, until: float) -> dict[str, set[str]]:
-    """What a plain zenoh-python subscriber (z_sub) sees: the encoding of each kind of key."""
+def _stock_subscriber(endpoint: str, run: str, until: float) -> tuple[dict[str, set[str]], dict[int, int]]:
+    """What a plain zenoh-python subscriber (z_sub) sees: the encoding of each kind of key; and, asked
+    once the run is under way (z_liveliness), how many member tokens each agent holds."""
     conf = zenoh.Config.from_json5(json.dumps({"mode": "client", "connect": {"endpoints": [endpoint]},
                                                "scouting": {"multicast": {"enabled": False}}}))
     seen: dict[str, set[str]] = {}
@@ -36,7 +37,12 @@ def _stock_subscriber(endpoint: str, run: str, until: float) -> dict[str, set[st
                     break
             time.sleep(0.05)
         sub.undeclare()
-    return seen
+        tokens: dict[int, int] = {}
+        for reply in session.liveliness().get(f"zswarm/{run}/in/**", timeout=5.0):
+            if reply.ok is not None:
+                who = int(str(reply.ok.key_expr).rsplit("/", 1)[1])
+                tokens[who] = tokens.get(who, 0) + 1
+    return seen, tokens
 
 
 def test_monitor_matches_the_runs_summary_and_payloads_name_their_encoding(tmp_path):
@@ -49,7 +55,7 @@ def test_monitor_matches_the_runs_summary_and_payloads_name_their_encoding(tmp_p
                              start_new_session=True)
     try:
         wait_for_port(port)
-        seen = _stock_subscriber(endpoint, run, time.monotonic() + 20)
+        seen, tokens = _stock_subscriber(endpoint, run, time.monotonic() + 20)
         mon = run_cli("-m", "zswarm", "monitor", "--run", run, "--connect", endpoint, "--duration", "4", "--json",
                       timeout=60)
         nobody = run_cli("-m", "zswarm", "monitor", "--run", "nobody-here", "--connect", endpoint, "--wait", "1",
@@ -61,6 +67,7 @@ def test_monitor_matches_the_runs_summary_and_payloads_name_their_encoding(tmp_p
             os.killpg(swarm.pid, signal.SIGKILL)
             swarm.wait()
     assert {"pose", "prey", "stats"} <= seen.keys(), seen
+    assert tokens == {i: 1 for i in range(10)}, tokens  # each agent in one cell, by its member token
     assert seen.pop("pose") == {POSE_ENCODING}, seen  # a fixed record
     assert all(encodings == {ENCODING} for encodings in seen.values()), seen  # msgpack
 

@@ -336,10 +336,59 @@ def test_under_a_common_delay_a_quiet_neighbour_deep_inside_stays_guarded_in_age
     for who, ((x, y), age, _) in late.items():
         channel.belief_stamp[0, 0, who] = k - int(round(age / 0.05))
         channel.belief_pos[0, 0, who] = (x, y)
-    positions = np.array([[[0.0, 0.0], [0.5, 0.0], [0.0, -0.3], [-0.9, 0.0]]])
+    positions = np.array([[[0.0, 0.0], [0.5, 0.0], [0.0, -0.3], [-2.0, 0.0]]])  # 3 has left the cells
+    channel.history[0, k % channel.slots, :4] = positions[0]  # where the member tokens say they are
     mask, _, ages = channel.known(k, positions)
     assert mask[0, 0].tolist() == [False, True, True, False]
     assert ages[0, 0, 2] == pytest.approx(2.6)
+
+
+def test_a_quiet_neighbour_whose_member_token_is_in_the_cells_is_guarded_whatever_its_silence():
+    """Loss near the edge of the cells: every pose of a neighbour lost for seconds while the others
+    come through. By its silence and its distance it can have left; its member token (a liveliness
+    token in the cell it is in, which pose loss does not touch) says it is still in a cell the agent
+    listens to, so it stays guarded with its whole age, and is let go once the token leaves (or the
+    agent stops listening to that cell): agents and simulators alike."""
+    import time
+
+    from agents.sensing import Body, Sensing
+    from zswarm.model.faults import FaultModel
+    from zswarm.net import messages as msg
+    from zswarm.net.runspec import RunSpec
+    from zswarm.sim.batch_channel import BatchChannel
+
+    spec = RunSpec(scenario_name="moving-prey")  # R = 1, v_max = 1, dt = 0.05: cells reach 1.1
+    keys = spec.keys
+    sensing = Sensing(spec, 0, Body(0.0, 0.0), probe_latency=False)
+    now = time.time()
+    heard = {1: ((0.5, 0.0), 0.02, now - 0.01),   # heard all along
+             3: ((-0.9, 0.0), 2.0, now - 2.0)}    # quiet 2 s near the edge: can have left
+    for who, (p, age, received) in heard.items():
+        assert sensing.neighbours.accept(who, msg.Pose(who, 1, now - age, -1, *p, 0.0, 0.0), received) is None
+        sensing.alive.add(who)
+    guarded = lambda: dict(sensing.safety_neighbours(None, 1.0, 0.05, 0.5))  # noqa: E731
+    assert set(guarded()) == {(0.5, 0.0)}
+    cell = keys.cell(-0.9, 0.0)
+    sensing.handle(("in", keys.member(cell, 3), b"", False, now))
+    sensing.handle(("in", keys.member(keys.cell(0.0, 0.0), 0), b"", False, now))  # its own: ignored
+    assert set(guarded()) == {(0.5, 0.0), (-0.9, 0.0)} and 0 not in sensing.members
+    assert guarded()[(-0.9, 0.0)] == pytest.approx(2.05, abs=0.01)
+    sensing.handle(("in", keys.member(cell, 3), b"", True, now))  # it left that cell
+    assert set(guarded()) == {(0.5, 0.0)}
+    sensing.handle(("in", keys.member(cell, 3), b"", False, now))
+    sensing.forget_cells([cell])  # the agent stopped listening to it
+    assert set(guarded()) == {(0.5, 0.0)}
+
+    channel = BatchChannel(4, [FaultModel(latency=0.1)], 0.05, np.array([1.0]), np.array([1.0]))
+    k = 100
+    channel.belief_stamp[0, 0, 1], channel.belief_pos[0, 0, 1] = k, (0.5, 0.0)
+    channel.belief_stamp[0, 0, 3], channel.belief_pos[0, 0, 3] = k - 40, (-0.9, 0.0)  # quiet 2 s
+    positions = np.array([[[0.0, 0.0], [0.5, 0.0], [5.0, 5.0], [-0.9, 0.0]]])
+    for then, three in ((k - 2, (-0.9, 0.0)), (k, (-3.0, 0.0))):  # tokens lag by the latency (2 steps)
+        channel.history[0, then % channel.slots, :4] = [*positions[0, :3], three]
+    assert channel.known(k, positions)[0][0, 0].tolist() == [False, True, False, True]  # 0.1 s ago: in
+    channel.history[0, (k - 2) % channel.slots, 3] = (-3.0, 0.0)
+    assert channel.known(k, positions)[0][0, 0].tolist() == [False, True, False, False]
 
 
 def test_a_quiet_neighbour_whose_poses_came_through_a_slower_path_is_given_that_delay_before_it_is_let_go():

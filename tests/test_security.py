@@ -135,30 +135,35 @@ def test_no_certificate_or_a_foreign_ca_cannot_connect(certs, tmp_path):
 
 
 def test_an_agent_can_only_speak_for_itself(per_agent):
-    keys = Keys(RUN, 1.0)
-    heard, alive = [], []
+    keys, keys3 = Keys(RUN, 1.0), Keys(RUN, 1.0, dims=3)
+    heard, alive, members = [], [], []
     with processes() as kids:
         endpoint = start_secure_router(kids, per_agent)
         with (session(per_agent, "world", endpoint) as world, session(per_agent, "agent-1", endpoint) as one,
               session(per_agent, "agent", endpoint) as shared):
             sub = world.declare_subscriber(f"{keys.root}/**", lambda s: heard.append(str(s.key_expr)))
             watch = world.liveliness().declare_subscriber(keys.all_alive, lambda s: alive.append(str(s.key_expr)) if s.kind == zenoh.SampleKind.PUT else None)
+            cells = world.liveliness().declare_subscriber(keys.all_members, lambda s: members.append(str(s.key_expr)) if s.kind == zenoh.SampleKind.PUT else None)
             probe(world, keys.control, lambda: keys.control in heard)
             heard.clear()
-            tokens = [one.liveliness().declare_token(keys.alive(2)), one.liveliness().declare_token(keys.alive(1))]
+            tokens = [one.liveliness().declare_token(keys.alive(2)), one.liveliness().declare_token(keys.alive(1)),
+                      one.liveliness().declare_token(keys.member((-3, 4), 2)),
+                      one.liveliness().declare_token(keys.member((-3, 4), 1)),
+                      one.liveliness().declare_token(keys3.member((-3, 4, 1), 1))]
             for who, s in (("shared", shared), ("one", one)):
                 for agent in (2, 1):
                     s.put(keys.pose((-3, 4), agent), who.encode())
                     s.put(keys.pose((-3, 4, 1), agent), who.encode())  # a 3-D run's voxel key
                     s.put(keys.stats(agent), who.encode())
             # agent-1's own last words came after everything forbidden it sent
-            assert until(lambda: keys.stats(1) in heard and keys.alive(1) in alive, 20.0)
+            assert until(lambda: keys.stats(1) in heard and keys.alive(1) in alive and len(members) >= 2, 20.0)
             until(lambda: False, 0.3)  # and the shared identity's, sent before them, had as long
-            del sub, watch, tokens
+            del sub, watch, tokens, cells
     # agent-1's own pose, stats and token got through; nothing it said for agent 2, and nothing from
     # the shared identity (which has no rights once agents have their own)
     assert sorted(heard) == [keys.pose((-3, 4), 1), keys.pose((-3, 4, 1), 1), keys.stats(1)]
     assert alive == [keys.alive(1)]
+    assert sorted(members) == sorted([keys.member((-3, 4), 1), keys3.member((-3, 4, 1), 1)])  # its cell tokens
 
 
 def test_secure_swarm_never_sees_an_intruder(per_agent, tmp_path):

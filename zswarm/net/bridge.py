@@ -105,13 +105,15 @@ class Bridge:
         return n
 
     def unsubscribe(self, sub: Any) -> None:
-        """Undeclare ``sub``; what waits in its channel is delivered first."""
+        """Undeclare ``sub`` (a subscriber or a liveliness subscriber); what waits in its channel is
+        delivered first."""
         if self.channels is not None:
-            for i, (tag, s) in enumerate(self.channels):
-                if s is sub:
-                    del self.channels[i]
-                    self._empty(tag, s, time.time())
-                    break
+            for held in (self.channels, self.tokens):
+                for i, (tag, s) in enumerate(held):
+                    if s is sub:
+                        del held[i]
+                        self._empty(tag, s, time.time())
+                        break
         sub.undeclare()
 
     def _handler(self, tag: str, stamped: bool = False, capacity: int | None = None) -> Any:
@@ -131,9 +133,11 @@ class Bridge:
         return self._declared(tag, self.session.declare_subscriber(key, self._handler(tag, stamped),
                                                                    allowed_origin=origin), stamped)
 
-    def subscribe_liveliness(self, key: str, tag: str) -> Any:
+    def subscribe_liveliness(self, key: str, tag: str, history: bool = True) -> Any:
+        """``history``: also the tokens already there (their answers can arrive after a later change of
+        the same token: a token then seems present that is gone)."""
         return self._declared(tag, self.session.liveliness().declare_subscriber(
-            key, self._handler(tag, capacity=WIDE_CAPACITY), history=True),
+            key, self._handler(tag, capacity=WIDE_CAPACITY), history=history),
                               token=True)
 
     def queryable(self, key: str, answer: Callable[[dict[str, str]], list[tuple[str, bytes]]]) -> Any:

@@ -6,6 +6,8 @@ Key space of a run (``RUN`` is the run id, cells are ``floor(x/size)``, ``floor(
     zswarm/RUN/pose/CX/CY/ID   agent ID's pose, published into the cell it is in; each agent also
                                answers a queryable there with its latest pose (3-D: pose/CX/CY/CZ/ID)
     zswarm/RUN/alive/ID        liveliness token of agent ID
+    zswarm/RUN/in/CX/CY/ID     liveliness token of agent ID in the cell it is in (moved with it): who
+                               is in a cell, known without its poses (3-D: in/CX/CY/CZ/ID)
     zswarm/RUN/prey            the prey's position (published by the world)
     zswarm/RUN/tick            lockstep ticks (published by the world)
     zswarm/RUN/obstacles       the world's queryable: ``?x=..;y=..;r=..`` (3-D: ``;z=..``) answers
@@ -69,6 +71,31 @@ class Keys:
     @property
     def all_poses(self) -> str:
         return f"{self.root}/pose/**"
+
+    def member(self, cell: tuple[int, ...], agent: int) -> str:
+        """Agent ``agent``'s token in the cell it is in."""
+        return f"{self.root}/in/{'/'.join(map(str, cell))}/{agent}"
+
+    def cell_members(self, cell: tuple[int, ...]) -> str:
+        return f"{self.root}/in/{'/'.join(map(str, cell))}/*"
+
+    def any_cell_member(self, agent: int) -> str:
+        """Agent ``agent``'s token in whichever cell it is (a pattern)."""
+        return f"{self.root}/in/{'*/' * self.dims}{agent}"
+
+    @property
+    def all_members(self) -> str:
+        return f"{self.root}/in/**"
+
+    def member_of(self, key: str) -> tuple[tuple[int, ...], int] | None:
+        """(cell, agent) of a member token's key (None if it is not one of this run's dimension)."""
+        parts = key.split("/")
+        if len(parts) != 4 + self.dims or parts[2] != "in":
+            return None
+        try:
+            return tuple(int(c) for c in parts[3:-1]), int(parts[-1])
+        except ValueError:
+            return None
 
     def alive(self, agent: int) -> str:
         return f"{self.root}/alive/{agent}"

@@ -64,7 +64,7 @@ def access_control(agents: int = 0) -> dict:
     policies = [{"rules": ["world-send", "world-started"], "subjects": ["world"]}]
     if agents == 0:
         rules.append({"id": "agent-send", "permission": "allow", "flows": ["ingress"], "messages": AGENT_SEND,
-                      "key_exprs": [ANY_RUN.all_poses, ANY_RUN.all_stats, ANY_RUN.all_alive]})
+                      "key_exprs": [ANY_RUN.all_poses, ANY_RUN.all_stats, ANY_RUN.all_alive, ANY_RUN.all_members]})
         subjects.append({"id": "agents", "cert_common_names": ["agent"]})
         policies.append({"rules": ["agent-send"], "subjects": ["agents"]})
         readers = ["agents", "world"]
@@ -74,7 +74,8 @@ def access_control(agents: int = 0) -> dict:
             name = agent_name(i)
             rules.append({"id": f"{name}-send", "permission": "allow", "flows": ["ingress"], "messages": AGENT_SEND,
                           "key_exprs": [ANY_RUN.any_cell_pose(i), ANY_RUN_3D.any_cell_pose(i), ANY_RUN.stats(i),
-                                        ANY_RUN.alive(i)]})
+                                        ANY_RUN.alive(i), ANY_RUN.any_cell_member(i),
+                                        ANY_RUN_3D.any_cell_member(i)]})
             subjects.append({"id": name, "cert_common_names": [name]})
             policies.append({"rules": [f"{name}-send"], "subjects": [name]})
             readers.append(name)

@@ -104,8 +104,9 @@ class BatchChannel:
         beyond it), unless that is older than the staleness limit beyond its freshest neighbour's and
         it can have left the agent's cells (its newest position plus what it can have moved while the
         freshest was still heard, v_max times its age beyond the freshest's, reaches past the
-        subscription disc); as (mask (B, N, N), believed positions (B, N, N, D), ages in seconds
-        (B, N, N))."""
+        subscription disc) and its member token does not say it is in the agent's cells (tokens are
+        not lost: where it was ``latency`` ago, within the subscription disc); as (mask (B, N, N),
+        believed positions (B, N, N, D), ages in seconds (B, N, N))."""
         stamp = self.belief_stamp[:, :, : self.n]
         believed = self.belief_pos[:, :, : self.n]
         age = (k - stamp) * self.dt
@@ -113,5 +114,15 @@ class BatchChannel:
         heard = (stamp >= 0) & (d - self.v_max * age <= self.radius)
         newest = np.where(heard, stamp, -1).max(axis=-1, keepdims=True)
         beyond = (newest - stamp) * self.dt  # its age beyond the freshest neighbour's
-        heard &= (stamp >= newest - self.stale_steps) | (d + self.v_max * beyond <= self.cells)
+        can_have_left = d + self.v_max * beyond > self.cells
+        heard &= (stamp >= newest - self.stale_steps) | ~can_have_left | self._members(k, positions)
         return heard, believed, age
+
+    def _members(self, k: int, positions: np.ndarray) -> np.ndarray:
+        """(B, N, N): j's member token, ``latency`` old, in the cells agent i listens to (approximated by
+        its subscription disc, which its cells cover)."""
+        lag = np.rint(self.latency[:, 0, 0] / self.dt).astype(np.int64)  # (B,): tokens have no jitter
+        then = k - lag
+        where = self.history[np.arange(len(lag)), then % self.slots, : self.n]  # (B, N, D)
+        gap = np.linalg.norm(positions[:, :, None, :] - where[:, None, :, :], axis=-1)
+        return (then >= 0)[:, None, None] & (gap <= self.cells)
