@@ -40,8 +40,10 @@ class Reach:
         """Listen to the cells the sensing disc overlaps; the new cells' agents are asked at once (the
         cells whose answers are not all in yet: :attr:`asking`)."""
         new, left = self.cell_view.move()
-        self.sensing.forget_cells(left)
+        self.sensing.listen_to(new, left)
         for cell in new:
+            # who sits in it already (its live member tokens were subscribed first: Sensing._member)
+            self.bridge.tokens_into_inbox(self.keys.cell_members(cell), "in-now", 1.0)
             self.asking.add(cell)
             self.bridge.get_into_inbox(self.keys.cell_poses(cell), "pose", 1.0,
                                        done=lambda cell=cell: self.asking.discard(cell))
@@ -60,7 +62,7 @@ class Reach:
     async def update_cells(self) -> None:
         """Subscribe to the cells the sensing disc overlaps; ask new cells for their agents at once."""
         new, left = self.cell_view.move()
-        self.sensing.forget_cells(left)
+        self.sensing.listen_to(new, left)
         for cell in new:
             for key, payload in await self.bridge.get(self.keys.cell_poses(cell), timeout=1.0):
                 self.sensing.handle(("pose", key, payload, False, time.time()))

@@ -80,6 +80,8 @@ class Sensing:
         self.alive: set[int] = set()  # ids with a liveliness token
         self.last_seq: dict[int, int] = {}
         self.members: dict[int, set[tuple[int, ...]]] = {}  # id -> the cells it listens to that hold its token
+        self.member_news: set[tuple[int, tuple[int, ...]]] = set()  # (id, cell) that changed live since subscribed
+        self.listening: set[tuple[int, ...]] = set()  # the cells it listens to (agents.cell_view)
         self.prey: tuple[float, ...] | None = None
         self.prey_stamp: float | None = None  # when the world sent the newest prey position heard
         self.ticks: asyncio.Queue[msg.Tick] = asyncio.Queue()
@@ -132,8 +134,8 @@ class Sensing:
         if tag == "probe":
             self.latency_probe.heard(payload, received)
             return
-        if tag == "in":
-            self._member(key, deleted)
+        if tag in ("in", "in-now"):
+            self._member(key, deleted, live=tag == "in")
             return
         self.counters.received += 1
         m = self._decoded(payload)
@@ -149,12 +151,20 @@ class Sensing:
         else:
             self.counters.rejections.add("kind", f"{type(m).__name__} on {tag} key")
 
-    def _member(self, key: str, deleted: bool) -> None:
-        """A member token came into (or left) one of the cells it listens to."""
+    def _member(self, key: str, deleted: bool, live: bool = True) -> None:
+        """A member token came into (or left) one of the cells it listens to (``live``), or was there
+        when it asked (an answer that can come after a live change of the same token: it counts only
+        if none came)."""
         parsed = self.keys.member_of(key)
         if parsed is None or parsed[1] == self.id:
             return
         cell, who = parsed
+        if cell not in self.listening:
+            return  # an answer about a cell it has left since it asked
+        if live:
+            self.member_news.add((who, cell))
+        elif (who, cell) in self.member_news:
+            return
         if not deleted:
             self.members.setdefault(who, set()).add(cell)
         elif who in self.members:
@@ -162,14 +172,19 @@ class Sensing:
             if not self.members[who]:
                 del self.members[who]
 
-    def forget_cells(self, cells: list[tuple[int, ...]]) -> None:
-        """It no longer listens to ``cells``: what their tokens said no longer holds."""
-        if cells and self.members:
-            gone = set(cells)
-            for who in list(self.members):
-                self.members[who] -= gone
-                if not self.members[who]:
-                    del self.members[who]
+    def listen_to(self, new: list[tuple[int, ...]], left: list[tuple[int, ...]]) -> None:
+        """It listens to the cells ``new`` now, and no longer to ``left``: what their tokens said no
+        longer holds."""
+        self.listening.update(new)
+        if not left:
+            return
+        gone = set(left)
+        self.listening -= gone
+        self.member_news = {(who, cell) for who, cell in self.member_news if cell not in gone}
+        for who in list(self.members):
+            self.members[who] -= gone
+            if not self.members[who]:
+                del self.members[who]
 
     def _pose_sample(self, key: str, payload: bytes, received: float) -> None:
         """A sample of the cells it listens to, or an answer of one it asked: a neighbour's pose."""

@@ -348,7 +348,8 @@ def test_a_quiet_neighbour_whose_member_token_is_in_the_cells_is_guarded_whateve
     come through. By its silence and its distance it can have left; its member token (a liveliness
     token in the cell it is in, which pose loss does not touch) says it is still in a cell the agent
     listens to, so it stays guarded with its whole age, and is let go once the token leaves (or the
-    agent stops listening to that cell): agents and simulators alike."""
+    agent stops listening to that cell): agents and simulators alike. Tokens already in a cell the
+    agent starts to listen to come as answers to a question, which can be older than a live change."""
     import time
 
     from agents.sensing import Body, Sensing
@@ -369,6 +370,9 @@ def test_a_quiet_neighbour_whose_member_token_is_in_the_cells_is_guarded_whateve
     guarded = lambda: dict(sensing.safety_neighbours(None, 1.0, 0.05, 0.5))  # noqa: E731
     assert set(guarded()) == {(0.5, 0.0)}
     cell = keys.cell(-0.9, 0.0)
+    sensing.handle(("in", keys.member(cell, 3), b"", False, now))  # a cell it does not listen to
+    assert set(guarded()) == {(0.5, 0.0)}
+    sensing.listen_to([cell, keys.cell(0.0, 0.0)], [])
     sensing.handle(("in", keys.member(cell, 3), b"", False, now))
     sensing.handle(("in", keys.member(keys.cell(0.0, 0.0), 0), b"", False, now))  # its own: ignored
     assert set(guarded()) == {(0.5, 0.0), (-0.9, 0.0)} and 0 not in sensing.members
@@ -376,8 +380,18 @@ def test_a_quiet_neighbour_whose_member_token_is_in_the_cells_is_guarded_whateve
     sensing.handle(("in", keys.member(cell, 3), b"", True, now))  # it left that cell
     assert set(guarded()) == {(0.5, 0.0)}
     sensing.handle(("in", keys.member(cell, 3), b"", False, now))
-    sensing.forget_cells([cell])  # the agent stopped listening to it
+    sensing.listen_to([], [cell])  # the agent stopped listening to it
     assert set(guarded()) == {(0.5, 0.0)}
+    # a cell it starts to listen to: who sits there already comes as an answer, which counts only where
+    # no live change of the same token came first (an answer can be older than a live removal)
+    sensing.listen_to([cell], [])
+    sensing.handle(("in", keys.member(cell, 3), b"", True, now))  # live: it left
+    sensing.handle(("in-now", keys.member(cell, 3), b"", False, now))  # the older answer: ignored
+    assert set(guarded()) == {(0.5, 0.0)}
+    sensing.listen_to([], [cell])
+    sensing.listen_to([cell], [])
+    sensing.handle(("in-now", keys.member(cell, 3), b"", False, now))  # nothing live since: it is there
+    assert set(guarded()) == {(0.5, 0.0), (-0.9, 0.0)}
 
     channel = BatchChannel(4, [FaultModel(latency=0.1)], 0.05, np.array([1.0]), np.array([1.0]))
     k = 100

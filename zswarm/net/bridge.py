@@ -175,6 +175,16 @@ class Bridge:
         self.session.get(selector, on_reply if done is None else zenoh.handlers.Callback(on_reply, done),
                          timeout=timeout)
 
+    def tokens_into_inbox(self, key: str, tag: str, timeout: float) -> None:
+        """Ask which liveliness tokens match ``key`` now and return at once; each one joins the inbox
+        as a ``tag`` sample (batch mode)."""
+        append, now = self.inbox.append, time.time
+
+        def on_reply(reply: Any) -> None:
+            if not self.closed and reply.ok is not None:
+                append((tag, str(reply.ok.key_expr), b"", False, now()))
+        self.session.liveliness().get(key, on_reply, timeout=timeout)
+
     def close(self) -> None:
         self.closed = True
 
