@@ -202,6 +202,7 @@ POSE_SIZES = tuple(_POSE_LAYOUTS)
 
 #: A pose's ``f``: the safety filter (zswarm.model.safety) passed the command, changed it, stalled it, braked.
 SAFETY_FLAGS = ("passed", "acted", "stalled", "braked")
+N_FLAGS = len(SAFETY_FLAGS)
 
 
 def encode_pose(agent: int, seq: int, stamp: float, step: int, x: float, y: float, vx: float, vy: float,
@@ -354,11 +355,11 @@ def _pose(data: bytes) -> Pose:
     _, v, flags, f, i, seq, t, s, *rest = layout.unpack(data)
     if layout is _POSE_2D:
         x, y, vx, vy = rest
-        if (v == VERSION and flags == 0 and f < 4 and i <= MAX_ID and 0 <= seq <= 2**62 and -1 <= s <= 2**62
+        if (v == VERSION and flags == 0 and f < N_FLAGS and i <= MAX_ID and 0 <= seq <= 2**62 and -1 <= s <= 2**62
                 and -1e12 <= t <= 1e12 and -MAX_COORD <= x <= MAX_COORD and -MAX_COORD <= y <= MAX_COORD
                 and -MAX_COORD <= vx <= MAX_COORD and -MAX_COORD <= vy <= MAX_COORD):  # NaN fails these
             return Pose(i, seq, t, s, x, y, vx, vy, safety=f) if f else Pose(i, seq, t, s, x, y, vx, vy)
-    elif (v == VERSION and f < 4 and i <= MAX_ID and 0 <= seq <= 2**62 and -1 <= s <= 2**62 and -1e12 <= t <= 1e12
+    elif (v == VERSION and f < N_FLAGS and i <= MAX_ID and 0 <= seq <= 2**62 and -1 <= s <= 2**62 and -1e12 <= t <= 1e12
           and all(-MAX_COORD <= c <= MAX_COORD for c in rest)):
         if layout is _POSE_3D and flags == POSE_3D:
             x, y, z, vx, vy, vz = rest
