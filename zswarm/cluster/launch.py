@@ -62,6 +62,8 @@ class ClusterLaunch(Launch):
             _say(", ".join(f"{link.label}: {c} agents, router {e}" for link, c, e in
                            zip(self.links, counts, self.endpoints)), err=False)
         self._spawn_world(resume=False)
+        if self.pending:  # chaos counts from the world's start, heard on Zenoh
+            self._watch_world()
         for k, i in enumerate(plan.ids):
             if self.world is not None and not self.world.alive():
                 _say(f"the world ended before every agent started ({k} of {len(plan.ids)} started)")
