@@ -60,3 +60,20 @@ def test_the_local_host_forks_every_agent_from_one_fleet_or_starts_each_alone():
         finally:
             kids.stop_all(grace=2.0)
         assert not any(c.alive() for c in kids.children)
+
+
+def test_a_restarted_child_takes_its_dead_selfs_place():
+    """Children.add: a restarted agent takes its dead self's place (the supervisor and a cluster node
+    add a thousand agents through it, so it must not scan the list), the same child added twice is
+    held once, and a live process is never dropped."""
+    from zswarm.net.procs import Child, ForkedProc
+
+    kids = Children()
+    first = kids.add(Child("agent-3", ForkedProc(10**6)))  # a pid no process has: nothing is signalled
+    assert kids.add(first) is first and kids.children == [first]
+    first.proc.exited(-9)
+    second = kids.add(Child("agent-3", ForkedProc(10**6 + 2)))
+    other = kids.add(Child("agent-4", ForkedProc(10**6 + 3)))
+    assert kids.children == [second, other] and kids.get("agent-3") is second
+    beside = kids.add(Child("agent-3", ForkedProc(10**6 + 4)))  # second is alive: both are kept
+    assert kids.children == [second, other, beside] and kids.get("agent-3") is beside

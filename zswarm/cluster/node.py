@@ -89,14 +89,14 @@ class NodeHost:
         return {"ended": ended, "lines": lines, "router": router}
 
     def signal(self, name: str, sig: int) -> None:
-        for c in self.kids.children:
-            if c.name == name and c.alive():
-                c.proc.send_signal(sig)
+        c = self.kids.get(name)
+        if c is not None and c.alive():
+            c.proc.send_signal(sig)
 
     def restart(self, name: str) -> None:
-        """Forget that ``name`` ended (it is about to be spawned again)."""
+        """Forget that ``name`` ended (it is about to be spawned again: the new process takes the dead
+        one's place among the children)."""
         self.reported.discard(name)
-        self.kids.children = [c for c in self.kids.children if c.name != name or c.alive()]
 
     def stop(self, grace: float = 5.0) -> None:
         """Agents, then the router; every child reaped."""

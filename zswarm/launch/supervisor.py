@@ -152,12 +152,8 @@ class Launch:
         if host is None:
             _say(f"agent {agent}: no host left to run it on")
             return
-        name = f"agent-{agent}"
-        self.kids.children = [c for c in self.kids.children if c.name != name or c.alive()]
         argv = agent_argv(self.spec, agent, self.endpoints[self.router_of(agent)], *self._agent_config(agent))
-        child = host.spawn_agent(name, argv[2:])  # without "-m agents"
-        if child not in self.kids.children:
-            self.kids.children.append(child)
+        self.kids.add(host.spawn_agent(f"agent-{agent}", argv[2:]))  # without "-m agents"
 
     def _viewer(self):
         """The live viewer the world streams to; a --spawn'ed one is started here, once, so that a world

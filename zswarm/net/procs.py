@@ -70,9 +70,27 @@ class Child:
 
 @dataclass
 class Children:
-    """A set of named child processes, stopped and reaped together."""
+    """A set of named child processes, stopped and reaped together. A child added under the name of a
+    dead one takes its place (a restart); beside a live one of its name (two routers a test starts,
+    say) both are kept, and :meth:`get` finds the newer."""
 
     children: list[Child] = field(default_factory=list)
+    _by_name: dict[str, Child] = field(default_factory=dict, repr=False)
+
+    def add(self, child: Child) -> Child:
+        """Take ``child`` in (again: a no-op), in place of a dead child of its name, in constant time
+        (a launcher adds a thousand agents)."""
+        held = self._by_name.get(child.name)
+        if held is child:
+            return child
+        if held is not None and not held.alive():
+            self.children.remove(held)  # a restart: rare, and only then a pass over the list
+        self._by_name[child.name] = child
+        self.children.append(child)
+        return child
+
+    def get(self, name: str) -> Child | None:
+        return self._by_name.get(name)
 
     def spawn(self, name: str, args: Sequence[str], stdout: int | IO | None = None,
               stderr: int | IO | None = None, stdin: int | IO | None = subprocess.DEVNULL,
@@ -83,9 +101,7 @@ class Children:
         proc = subprocess.Popen([sys.executable, *args], env=python_env(),
                                 stdout=stdout, stderr=stderr, stdin=stdin,
                                 preexec_fn=die_with_parent, start_new_session=new_session)
-        child = Child(name, proc)
-        self.children.append(child)
-        return child
+        return self.add(Child(name, proc))
 
     def named(self, prefix: str) -> list[Child]:
         return [c for c in self.children if c.name.startswith(prefix)]
@@ -195,9 +211,7 @@ class Fleet:
         self.child.proc.stdin.flush()
         if not event.wait(timeout) or name not in self.procs:
             raise RuntimeError(f"the agent fleet did not start {name} (it exited with {self.child.proc.poll()})")
-        child = Child(name, self.procs[name])
-        self.kids.children.append(child)
-        return child
+        return self.kids.add(Child(name, self.procs[name]))
 
 
 def port_in_use(host: str, port: int) -> bool:
