@@ -58,10 +58,10 @@ def test_formation_force_is_gradient_eq_28(x, k, p):
     assert_grad(formation_terms((x - k)[None], p)[1][0], u, x)
 
 
-def _total(p, comb, obstacles, neighbours, goal):
+def _total(p, comb, obstacles, neighbours, goal, force=True):
     def evaluate(x):
         return field((x - goal)[None], np.zeros(len(obstacles), dtype=np.intp), x - obstacles,
-                     np.zeros(len(neighbours), dtype=np.intp), x - neighbours, p, comb, 0.1)
+                     np.zeros(len(neighbours), dtype=np.intp), x - neighbours, p, comb, 0.1, force=force)
     return evaluate
 
 
@@ -72,6 +72,8 @@ def test_total_force_is_gradient_eqs_13_15_36(x, g, p, comb, obs, nbrs):
     obstacles, neighbours = np.array(obs).reshape(-1, 2), np.array(nbrs).reshape(-1, 2)
     evaluate = _total(p, comb, obstacles, neighbours, g)
     assert_grad(evaluate(x)[1][0], lambda y: evaluate(y)[0][0], x)
+    u, f = _total(p, comb, obstacles, neighbours, g, force=False)(x)  # the energy alone (an observer's)
+    assert f is None and u[0] == evaluate(x)[0][0]
 
 
 def test_multiplicative_matches_printed_eq_15_term_by_term():

@@ -51,7 +51,7 @@ _NO_PAIRS = np.zeros(0, dtype=np.intp)
 def field(psi_g: np.ndarray, obstacles: np.ndarray | Pairs, psi_o: np.ndarray, neighbours: np.ndarray | Pairs,
           psi_f: np.ndarray, p: PotentialParams, combination: Combination | np.ndarray = "multiplicative",
           c_f: float = 0.0, law: NeighbourLaw | None = None, *, p_pairs=None,
-          energy: bool = True) -> tuple[np.ndarray | None, np.ndarray]:
+          energy: bool = True, force: bool = True) -> tuple[np.ndarray | None, np.ndarray | None]:
     """Total potential U_i (...) and force F_i = -grad_i U_i (..., D) of every agent (see the module doc).
 
     ``psi_g``: (..., D) goal offsets P_i - P_goal (eq 6); ``obstacles``, ``psi_o``: the sensed obstacle
@@ -61,7 +61,8 @@ def field(psi_g: np.ndarray, obstacles: np.ndarray | Pairs, psi_o: np.ndarray, n
     ``combination``: a name, or a boolean array (True: multiplicative) that broadcasts against (...),
     one per run of a batch. ``p``: one parameter set, or columns that broadcast against (...);
     ``p_pairs``: the same columns shaped for the pairs (default ``p``). ``law``: an interaction other
-    than the paper's. ``energy=False`` skips U (returned as None).
+    than the paper's. ``energy=False`` skips U, ``force=False`` skips F (each then returned as None: an
+    observer that only wants the swarm's energy does not pay for the neighbour forces).
     """
     n = psi_g.shape[0]
     obstacles = obstacles if not isinstance(obstacles, np.ndarray) else PairList(obstacles, n)
@@ -70,6 +71,8 @@ def field(psi_g: np.ndarray, obstacles: np.ndarray | Pairs, psi_o: np.ndarray, n
     u_g, f_g = goal_terms(psi_g, p)
     e_o, f_o = obstacle_terms(psi_o, pp)
     u_o, f_o = obstacles.total(e_o), obstacles.total(f_o)
+    if not force:
+        return _energy(combination, u_o, u_g, neighbours, psi_f, pp, c_f, p), None
     goal_weight, f_f = 1.0, None
     if neighbours.count:
         f_f, weight = neighbour_force(neighbours, psi_f, unit_toward(psi_g), pp, law)
@@ -88,10 +91,22 @@ def field(psi_g: np.ndarray, obstacles: np.ndarray | Pairs, psi_o: np.ndarray, n
         f = f + f_f
     if not energy:
         return None, f
+    return _energy(combination, u_o, u_g, neighbours, psi_f, pp, c_f, p), f
+
+
+def _energy(combination: Combination | np.ndarray, u_o: np.ndarray, u_g: np.ndarray, neighbours: Pairs,
+            psi_f: np.ndarray, pp, c_f: float, p: PotentialParams) -> np.ndarray:
+    """U_i: U^o and U^g combined as eq 13 (additive) or eq 15 (multiplicative), plus the formation terms."""
+    if isinstance(combination, str):
+        if combination not in COMBINATIONS:
+            raise ValueError(f"unknown combination {combination!r}; use one of {COMBINATIONS}")
+        mult = combination == "multiplicative"
+    else:
+        mult = np.asarray(combination, dtype=bool)
     u = np.where(mult, u_o * u_g / p.c_g + u_g, u_o + u_g)
     if neighbours.count:
         u = u + neighbours.total(formation_terms(psi_f, pp, c_f)[0])
-    return u, f
+    return u
 
 
 def _combined(multiplicative: bool, f_o: np.ndarray, f_g: np.ndarray, u_o: np.ndarray, u_g: np.ndarray,
@@ -103,13 +118,14 @@ def _combined(multiplicative: bool, f_o: np.ndarray, f_g: np.ndarray, u_o: np.nd
 
 
 def swarm_field(law: "Law", obstacles: ObstacleIndex, positions: np.ndarray, goal: np.ndarray,
-                pairs: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
+                pairs: tuple[np.ndarray, np.ndarray] | None = None,
+                force: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
     """Every agent's U_i and F_i from what it senses: the reference simulator's batch of one.
 
     Obstacles are the ones within the sensing radius of ``obstacles``; ``pairs`` is ``(i, psi_f)``,
     the neighbour terms each agent i uses with psi^f = P_i - P_j as it believes it (default: every
     pair within the sensing radius, at the true positions, from the cell grid). ``goal`` is (D,) or
-    one per agent (N, D).
+    one per agent (N, D). ``force=False``: U_i alone (F_i None).
     """
     if not law.formation:
         i, psi_f = _NO_PAIRS, np.zeros((0, positions.shape[1]))
@@ -120,7 +136,8 @@ def swarm_field(law: "Law", obstacles: ObstacleIndex, positions: np.ndarray, goa
         i, psi_f = pairs
     a, m = obstacles.sensed(positions)
     psi_o = obstacle_offsets(positions[a], obstacles.centers[m], obstacles.radii[m])
-    return field(positions - goal, a, psi_o, i, psi_f, law.p, law.combination, law.c_f, law.neighbours)
+    return field(positions - goal, a, psi_o, i, psi_f, law.p, law.combination, law.c_f, law.neighbours,
+                 force=force)
 
 
 @dataclass(frozen=True)

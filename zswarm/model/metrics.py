@@ -149,7 +149,7 @@ def step_metrics(positions: np.ndarray, velocities: np.ndarray, prey: np.ndarray
     out = {
         "mean_goal_distance": float(to_goal.mean()),
         "centroid_goal_distance": float(centroid_goal_distance(positions, prey)),
-        "min_pair_distance": _min_pair_distance(positions, i, j),
+        "min_pair_distance": float(d_ij.min()) if len(i) else _min_pair_distance(positions, i, j),
         "colliding_pairs": float(len(colliding)),
         "min_obstacle_clearance": float(clearance.min()) if len(clearance) else math.inf,
         "obstacle_contacts": float(len(contacts)),

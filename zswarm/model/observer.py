@@ -47,7 +47,7 @@ class SwarmObserver:
         """Sum of the agents' potentials U_i (eq 35), each from what it senses at ``positions``;
         ``pairs``: every pair within the sensing radius there, when the caller has them already."""
         sensed = None if pairs is None else (pairs[0], positions[pairs[0]] - positions[pairs[1]])
-        u, _ = swarm_field(self.law, self.obstacles, positions, goal, sensed)
+        u, _ = swarm_field(self.law, self.obstacles, positions, goal, sensed, force=False)
         return float(u.sum())
 
     def observe(self, t: float, ids: np.ndarray, positions: np.ndarray, velocities: np.ndarray,
