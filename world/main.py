@@ -67,6 +67,8 @@ async def run_world(args: argparse.Namespace, spec: RunSpec, viewer: Viewer | No
     declared = []
     try:
         world.open(args.resume)
+        if world.resumed is None:  # a world that resumes a run joins a swarm under way: it judges at the end
+            world.judge_design()
         declared.append(bridge.queryable(keys.obstacles, world.obstacles.answer))
         declared.append(bridge.subscribe_liveliness(keys.all_alive, "alive"))  # drained first: who is alive
         declared.append(bridge.subscribe(keys.all_poses, "pose"))

@@ -16,6 +16,7 @@ from __future__ import annotations
 import asyncio
 import math
 import sys
+import threading
 import time
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
@@ -136,6 +137,17 @@ class World:
         self.timed = (TimedContacts(2.0 * self.scenario.params.swarm.robot_radius)
                       if spec.clock == "free" else None)
         self.judged_wall = 0.0  # when the judge last ran (wall time)
+        self.design: dict[str, Any] | None = None  # the set's design verdict (:meth:`judge_design`)
+        self.design_judge: threading.Thread | None = None
+
+    def judge_design(self) -> None:
+        """Judge the run's set against the guidelines (its summary's ``design``) on a thread of its own,
+        while the world waits for its agents: at N >= 300 the swarm check takes seconds, which the end of
+        the run no longer waits for."""
+        def judge() -> None:
+            self.design = verdict(self.scenario.params, self.scenario.dt)
+        self.design_judge = threading.Thread(target=judge, name="design", daemon=True)
+        self.design_judge.start()
 
     # --- start ----------------------------------------------------------------------------------------
 
@@ -407,6 +419,12 @@ class World:
         self.judge_contacts(force=True)
         return self.timed.result()
 
+    def _design(self) -> dict[str, Any]:
+        """The verdict :meth:`judge_design` reached (judged here if it was not asked, or failed)."""
+        if self.design_judge is not None:
+            self.design_judge.join()
+        return self.design if self.design is not None else verdict(self.scenario.params, self.scenario.dt)
+
     def finish(self) -> dict[str, Any]:
         """The run's summary: outcome (the observer's), transport (the agents' stats) and the world's
         own figures; stored in the recording and written beside it."""
@@ -430,6 +448,6 @@ class World:
                        "snapshot_spread_max_s": self.snapshot_spread if s.clock == "free" else None,
                        **self._timed_result(),
                        "resumed_from": None if self.resumed is None else self.resumed.to_dict(),
-                       "design": verdict(self.scenario.params, self.scenario.dt)})
+                       "design": self._design()})
         self.recorder.close(result)
         return result
