@@ -19,10 +19,11 @@ def test_bench_world_measures_a_world_fed_by_crowds_and_a_crowd_refuses_ids_beyo
     in for agents the run does not have refuses in one line."""
     import json
 
-    res = cli("-m", "zswarm", "bench", "world", "--agents", "12", "--duration", "2", "--json", timeout=120)
+    res = cli("-m", "zswarm", "bench", "world", "--agents", "12", "--duration", "2", "--intake", "batch", "--json",
+              timeout=120)  # a tick's poses at once (--intake auto does so from N = 100)
     assert res.returncode == 0, res.stderr
     (r,) = json.loads(res.stdout)["runs"]
-    assert r["n_agents"] == 12 and r["rate_hz"] == 40.0 and r["poses_per_s_sent"] == 480.0
+    assert r["n_agents"] == 12 and r["rate_hz"] == 40.0 and r["poses_per_s_sent"] == 480.0 and r["intake"] == "batch"
     assert 0.8 * 480 < r["poses_per_s_taken_in"] < 1.3 * 480, r  # every agent's poses reached the world
     assert r["world_ticks"] >= 40 and 0.0 < r["world_cpu_share"] < 2.0 and r["recording_mb"] > 0
     bad = cli("-m", "zswarm.bench.crowd", "--first", "10", "--count", "5", "--scenario", "large-swarm",

@@ -97,11 +97,14 @@ def test_lockstep_swarm_reproduces_the_reference_and_catches_the_prey(tmp_path, 
 
 
 def test_free_running_swarm_agrees_with_the_reference_on_the_outcome(tmp_path):
-    """30 simulated seconds at twice the wall clock (40 control ticks a second), as the router tests run."""
+    """30 simulated seconds at twice the wall clock (40 control ticks a second), as the router tests run;
+    the world takes each tick's poses in at once (``--intake batch``, a large swarm's way: the other
+    free-running tests take them one at a time)."""
     fast = ("--duration", "30", "--time-scale", "2")
     with processes() as kids:
         endpoint = start_router(kids)
-        world, summary_path, record, _ = start_world(kids, endpoint, "free", "moving-prey", tmp_path, *fast)
+        world, summary_path, record, _ = start_world(kids, endpoint, "free", "moving-prey", tmp_path, *fast,
+                                                     "--intake", "batch")
         for i in range(10):
             start_agent(kids, endpoint, "free", "moving-prey", i, *fast)
         assert wait_exit(world, 120) == 0

@@ -99,6 +99,65 @@ def test_mutated_pose_records_are_rejected_or_valid(m, at, byte, cut):
             assert 0 <= out.safety < len(msg.SAFETY_FLAGS)
 
 
+@settings(max_examples=300, deadline=None)
+@given(ms=st.lists(poses, min_size=1, max_size=8), hits=st.lists(st.tuples(st.integers(0, 79), st.integers(0, 255)),
+                                                              max_size=8))
+def test_a_batch_of_records_decodes_as_each_record_alone(ms, hits):
+    """decode_pose_records (the world's tick of poses in one call) takes exactly the records decode
+    takes, with the same fields; mutated bytes included (each size in a batch of its own)."""
+    data = [bytearray(msg.encode(m)) for m in ms]
+    for k, (at, byte) in enumerate(hits):
+        d = data[k % len(data)]
+        d[at % len(d)] = byte
+    for size in {len(d) for d in data}:
+        same = [bytes(d) for d in data if len(d) == size]
+        rows, ok = msg.decode_pose_records(same)
+        for payload, row, took in zip(same, rows, ok):
+            try:
+                alone = msg.decode(payload)
+            except msg.DecodeError:
+                alone = None
+            assert took == isinstance(alone, msg.Pose), (payload, row)
+            if took:
+                z = alone.z is not None
+                assert (int(row["id"]), int(row["seq"]), float(row["t"]), int(row["s"]), int(row["f"])) == (
+                    alone.id, alone.seq, alone.stamp, alone.step, alone.safety)
+                assert (float(row["x"]), float(row["y"]), float(row["vx"]), float(row["vy"])) == (
+                    alone.x, alone.y, alone.vx, alone.vy)
+                assert (float(row["z"]), float(row["vz"])) == (alone.z, alone.vz) if z else alone.z is None
+                if "h" in row.dtype.names:
+                    assert float(row["h"]) == alone.heading
+
+
+#: Each field of a pose record with values at and beyond its bounds (the first is a valid one).
+EDGES = {"magic": [0xC1, 0xC0], "v": [msg.VERSION, msg.VERSION + 1, msg.VERSION - 1], "flags": [None, 0, 1, 2, 3],
+         "f": [0, 3, 4, 5], "i": [7, 0, msg.MAX_ID, msg.MAX_ID + 1], "seq": [9, 0, -1, 2**62, 2**62 + 1],
+         "s": [-1, -2, 0, 2**62, 2**62 + 1], "t": [0.0, 1e12, -1e12, 1.1e12, -1.1e12, math.nan, math.inf],
+         **{f"c{k}": [0.5, msg.MAX_COORD, -msg.MAX_COORD, 1.1e6, -1.1e6, math.nan, -math.inf, 7.0, -7.0, 7.5, -7.5]
+            for k in range(6)}}
+
+
+@settings(max_examples=600, deadline=None)
+@given(size=st.sampled_from(sorted(msg.POSE_ROWS)), field=st.sampled_from(sorted(EDGES)), pick=st.integers(0, 10))
+def test_every_bound_of_a_batch_of_records_as_decode_has_it(size, field, pick):
+    """The same, a valid record with one field at or beyond a bound (a random byte seldom lands on one)."""
+    n = (size - 32) // 8
+    values = {k: v[0] for k, v in EDGES.items()}
+    values["flags"] = {64: 0, 72: msg.POSE_HEADING, 80: msg.POSE_3D}[size]
+    if field != "flags":
+        values[field] = EDGES[field][pick % len(EDGES[field])]
+    else:
+        values["flags"] = EDGES["flags"][1 + pick % 4]
+    payload = struct.pack(msg.POSE_LAYOUT + "d" * n, values["magic"], values["v"], values["flags"], values["f"],
+                          values["i"], values["seq"], values["t"], values["s"], *(values[f"c{k}"] for k in range(n)))
+    rows, ok = msg.decode_pose_records([payload])
+    try:
+        alone = msg.decode(payload)
+    except msg.DecodeError:
+        alone = None
+    assert bool(ok[0]) == isinstance(alone, msg.Pose), (field, values)
+
+
 V = msg.VERSION
 
 

@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Sequence
 
 from world.recorder import WorldRecorder
-from world.world import World
+from world.world import BATCH_FROM, World
 from zswarm.args import Parser, UsageError, run_main
 from zswarm.files import check_run_files
 from zswarm.net import messages as msg
@@ -47,6 +47,9 @@ def build_parser() -> Parser:
     parser.add_argument("--progress", type=float, default=2.0, help="seconds between progress lines (0: none)")
     parser.add_argument("--sensing-graph", choices=("auto", "on", "off"), default="auto",
                         help="draw who senses whom in the recording's map (auto: for N <= 100)")
+    parser.add_argument("--intake", choices=("auto", "batch", "pose"), default="auto",
+                        help="free clock: take a tick's poses in at once, as arrays (batch), or one at a time "
+                             f"(pose); auto: batch from N = {BATCH_FROM} (below it, one at a time costs less)")
     add_viewer_args(parser, zenoh_connect="connect")
     add_zenoh_args(parser, viewer=True)
     return parser
@@ -57,10 +60,13 @@ async def run_world(args: argparse.Namespace, spec: RunSpec, viewer: Viewer | No
     session = open_session(config_from_args(args), what="world", retry_for=args.connect_timeout)
     recorder = WorldRecorder(args.record, args.summary, args.trajectory, spec.scenario.n_agents, spec.scenario.dt,
                              viewer, {"auto": None, "on": True, "off": False}[args.sensing_graph])
-    world = World(spec, session, recorder, list(sys.argv))
+    batched = spec.clock == "free" and (args.intake == "batch" or
+                                        (args.intake == "auto" and spec.scenario.n_agents >= BATCH_FROM))
+    world = World(spec, session, recorder, list(sys.argv), batched=batched)
     # free clock: what arrived waits in channels taken out at each world tick; lockstep: each pose wakes
     # the loop (the world waits for the poses of a step)
-    bridge = Bridge(session, loop, world.handle, channels=spec.clock == "free")
+    bridge = Bridge(session, loop, world.handle, channels=spec.clock == "free",
+                    batches={"pose": world.take_poses} if batched else None)
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, world.stop.set)
     keys = spec.keys

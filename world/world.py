@@ -35,6 +35,7 @@ from zswarm.net import histogram
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Bridge, Inbound
 from zswarm.net.keys import in_reach_counts
+from zswarm.net.pose_batch import REASON, PoseArrays
 from zswarm.net.poses import PoseTable, Rejections
 from zswarm.net.runspec import RunSpec
 from zswarm.net.watch import how_gone
@@ -104,18 +105,36 @@ class Clock:
     missed_poses: int = 0  # lockstep: poses still missing when a step timed out
 
 
+#: From this many agents a free-running world takes a tick's poses in at once (``--intake auto``):
+#: ``zswarm bench world``, this 2-core machine, one at a time against at once: N = 10 (``moving-prey-3d``,
+#: 20 Hz) 8.5-9.0 % of a core against 10.5-11.2 %; N = 100 24.3 % against 24.1 %; N = 300 48.8 % against
+#: 43.7 %; N = 1000 71.2-77.2 % against 59.2-60.7 % (docs/cluster.md).
+BATCH_FROM = 100
+
+
 class World:
     """The world's state and clocks. It publishes on ``session``; what it hears reaches :meth:`handle`
     through the bridge built after it (:mod:`world.main`), which the free clock drains once per tick."""
 
-    def __init__(self, spec: RunSpec, session: zenoh.Session, recorder: WorldRecorder, argv: list[str]) -> None:
+    def __init__(self, spec: RunSpec, session: zenoh.Session, recorder: WorldRecorder, argv: list[str],
+                 batched: bool = False) -> None:
+        """``batched``: free clock only: the bridge hands it a tick's poses at once (:meth:`take_poses`),
+        kept as arrays (:class:`~zswarm.net.pose_batch.PoseArrays`); otherwise one at a time
+        (:meth:`handle`) into the per-pose table."""
         self.spec, self.session, self.keys, self.recorder = spec, session, spec.keys, recorder
         self.scenario = spec.scenario
         self.argv = argv
         self.observer = SwarmObserver(self.scenario, spec.combination)
         self.dims = self.scenario.dimensions
         self.obstacles = ObstacleService(*self.scenario.obstacle_arrays(), self.keys.obstacles, self.dims)
-        self.poses = PoseTable(3.0 * self.scenario.params.swarm.v_max * self.scenario.dt, spec.period)
+        max_step = 3.0 * self.scenario.params.swarm.v_max * self.scenario.dt
+        # lockstep keeps every agent's poses by step; a batched free clock only the latest, as arrays
+        # that take a tick's records at once (zswarm.net.pose_batch: the same rules)
+        self.poses = PoseTable(max_step, spec.period)
+        self.batched = batched and spec.clock == "free"
+        self.latest = PoseArrays(max_step, spec.period, self.dims)
+        # the record sizes of this run's dimension (2-D: with and without a heading)
+        self.record_sizes = (80,) if self.dims == 3 else (64, 72)
         self.rejected = Rejections("world", self._event)
         self.census = Census()
         self.ending = False  # set when the world announces the final tick: agents going now are not departures
@@ -195,6 +214,11 @@ class World:
                 self.rejected.add("dimensions", f"agent {m.id} sends {m.dims}-D poses into this {self.dims}-D run "
                                   "(start every process of a run with the same --scenario)")
                 return
+            if self.batched:  # one record outside a batch (of a stray size)
+                who = self.keys.agent_of(key)
+                self._take_rows(np.array([-1 if who is None else who]),
+                                np.frombuffer(payload, dtype=msg.POSE_ROWS[len(payload)]), received)
+                return
             reason = self.poses.accept(self.keys.agent_of(key), m, received)
             if reason is not None:
                 self.rejected.add(reason)
@@ -206,6 +230,47 @@ class World:
         else:
             self.rejected.add("kind")
 
+    def take_poses(self, keys: list[str], payloads: list[bytes], received: float) -> None:
+        """Free clock: a tick's pose samples at once (the bridge's batch for the ``pose`` channel). Runs
+        of records of this run's sizes are decoded and accepted as arrays; a record they would refuse,
+        and anything else, goes through :meth:`handle`, which says why."""
+        start = 0
+        for end in range(1, len(payloads) + 1):  # runs of one size, in arrival order
+            if end < len(payloads) and len(payloads[end]) == len(payloads[start]):
+                continue
+            if len(payloads[start]) in self.record_sizes:
+                self._take_batch(keys[start:end], payloads[start:end], received)
+            else:
+                for key, payload in zip(keys[start:end], payloads[start:end]):
+                    self.handle(("pose", key, payload, False, received))
+            start = end
+
+    def _take_batch(self, keys: list[str], payloads: list[bytes], received: float) -> None:
+        rows, ok = msg.decode_pose_records(payloads)
+        agent_of = self.keys.agent_of
+        if not ok.all():
+            for k in np.flatnonzero(~ok).tolist():
+                self.handle(("pose", keys[k], payloads[k], False, received))
+            rows = rows[ok]
+            keys = [key for key, good in zip(keys, ok.tolist()) if good]
+        self.received += len(rows)
+        ids = np.array([-1 if (who := agent_of(key)) is None else who for key in keys], dtype=np.int64)
+        self._take_rows(ids, rows, received)
+
+    def _take_rows(self, key_ids: np.ndarray, rows: np.ndarray, received: float) -> None:
+        """Accepted records into the table and the judge's record; the refused counted by reason."""
+        reasons = self.latest.accept(key_ids, rows, received)
+        taken = reasons == 0
+        if not taken.all():
+            for code in reasons[~taken].tolist():
+                self.rejected.add(REASON[code])
+        if self.timed is not None and taken.any():
+            took = rows[taken]
+            names = ("x", "y", "z")[:self.dims]
+            points = zip(*(took[n].tolist() for n in names))
+            for who, seq, stamp, point in zip(took["id"].tolist(), took["seq"].tolist(), took["t"].tolist(), points):
+                self.timed.add(who, seq, stamp, point, received)
+
     def _on_liveliness(self, who: int | None, deleted: bool) -> None:
         if who is None:
             return
@@ -214,6 +279,7 @@ class World:
         if deleted:
             c.alive.discard(who)
             self.poses.forget(who)
+            self.latest.forget(who)
             if self.timed is not None:
                 self.timed.leave(who)
             if self.ending:  # the run is over and the agents stop: not a departure
@@ -267,6 +333,13 @@ class World:
                    if any(p.heading is not None for p in rows) else None)
         return Snapshot(np.array(order, dtype=np.int64), pos, vel, heading, table[:, 5].astype(np.int64),
                         table[:, 4].copy())
+
+    def snapshot_latest(self, held: tuple[np.ndarray, np.ndarray]) -> Snapshot:
+        """Free clock: the latest poses from the table's arrays (``held``: ids ascending, their rows)."""
+        t, (ids, rows) = self.latest, held
+        heading = t.heading[rows]
+        return Snapshot(ids, t.position[rows], t.velocity[rows], heading if (~np.isnan(heading)).any() else None,
+                        t.safety[rows], t.stamp[rows])
 
     def observe(self, snap: Snapshot) -> dict[str, float] | None:
         """Measure and record the swarm as it is now (the live agents' poses)."""
@@ -351,7 +424,10 @@ class World:
         last_print = -math.inf
         while not self.stop.is_set():
             bridge.drain()  # every sample that arrived since the last tick
-            live = self.snapshot(self.poses.latest(self.census.alive))
+            if self.batched:
+                live = self.snapshot_latest(self.latest.latest(self.census.alive))
+            else:
+                live = self.snapshot(self.poses.latest(self.census.alive))
             self.publish(self.keys.prey, msg.Prey(clock.step, time.time(), -1, *map(float, self.prey)))
             last_print = self._progress(self.observe(live), steps, progress, last_print)
             self.judge_contacts()

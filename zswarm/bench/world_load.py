@@ -31,8 +31,8 @@ def world_spec(n_agents: int, duration: float, scenario: str, time_scale: float)
 
 
 def measure(n_agents: int, duration: float, scenario: str = "large-swarm", time_scale: float = 1.0,
-            crowds: int = 2) -> dict[str, Any]:
-    """One run of the world at N (``crowds`` processes carry the agents' traffic)."""
+            crowds: int = 2, intake: str = "auto") -> dict[str, Any]:
+    """One run of the world at N (``crowds`` processes carry the agents' traffic; ``intake``: the world's)."""
     spec = world_spec(n_agents, duration, scenario, time_scale)
     crowds = max(1, min(crowds, n_agents))
     kids = Children()
@@ -41,7 +41,7 @@ def measure(n_agents: int, duration: float, scenario: str = "large-swarm", time_
         try:
             endpoint = start_routers(kids, 1)[0]
             world = kids.spawn("world", world_argv(spec, endpoint, "--summary", str(summary_path), "--record",
-                                                   str(record), "--progress", "0",
+                                                   str(record), "--progress", "0", "--intake", intake,
                                                    "--start-timeout", "120"), stdout=subprocess.DEVNULL)
             share, first = -(-n_agents // crowds), 0
             while first < n_agents:
@@ -71,7 +71,7 @@ def measure(n_agents: int, duration: float, scenario: str = "large-swarm", time_
     world_share = window.share(["world"])[0]
     rate = n_agents / spec.period  # poses a second the agents send
     return {
-        "n_agents": n_agents, "scenario": scenario, "time_scale": time_scale, "duration_s": duration,
+        "n_agents": n_agents, "scenario": scenario, "time_scale": time_scale, "duration_s": duration, "intake": intake,
         "rate_hz": round(1.0 / spec.period, 3), "poses_per_s_sent": rate,
         "poses_per_s_taken_in": s["messages_received"] / wall,
         "world_cpu_share": world_share, "world_us_per_pose": 1e6 * world_share / rate,

@@ -26,6 +26,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="simulated seconds per wall second (default 1: the scenario's own rate)")
     p.add_argument("--crowds", type=positive_int, default=2,
                    help="processes that carry the agents' traffic (default 2)")
+    p.add_argument("--intake", choices=("auto", "batch", "pose"), default="auto",
+                   help="the world's --intake: a tick's poses at once, one at a time, or by N (default auto)")
     p.add_argument("--json", action="store_true")
 
 
@@ -35,12 +37,13 @@ def run(args: argparse.Namespace) -> int:
     from zswarm.provenance import machine
 
     get_scenario(args.scenario)  # an unknown scenario: one line, before anything starts
-    results = [measure(n, args.duration, args.scenario, args.time_scale, args.crowds) for n in args.agents]
+    results = [measure(n, args.duration, args.scenario, args.time_scale, args.crowds, args.intake) for n in args.agents]
     if args.json:
         print(json.dumps({"runs": results, "machine": machine()}))
         return 0
     for r in results:
-        print(f"N={r['n_agents']:>5}  {r['scenario']} at {r['rate_hz']:g} Hz (time scale {r['time_scale']:g}): "
+        print(f"N={r['n_agents']:>5}  {r['scenario']} at {r['rate_hz']:g} Hz (time scale {r['time_scale']:g}, "
+              f"intake {r['intake']}): "
               f"world {figure(r['world_cpu_share'], '.1%')} of a core, {figure(r['world_us_per_pose'], '.1f')} us a "
               f"pose; took in {r['poses_per_s_taken_in']:.0f} of {r['poses_per_s_sent']:.0f} poses/s; late ticks "
               f"{r['world_late_ticks']}/{r['world_ticks']}; router {figure(r['router_cpu_share'], '.1%')}, "

@@ -20,6 +20,7 @@ from zswarm.net.rings import WIDE_CAPACITY
 
 Inbound = tuple[str, str, bytes, bool, float]  # (tag, key, payload, is_delete, local wall time of receipt)
 Deliver = Callable[[Inbound], None]
+Batch = Callable[[list[str], list[bytes], float], None]  # (keys, payloads, when taken out of the channel)
 
 
 class Bridge:
@@ -41,14 +42,18 @@ class Bridge:
     the bridge (e.g. fault injector -> sensing) and fixed for its life; ``reply_filter`` passes query
     replies through the same faults. ``capacity``: how many samples a subscription's channel holds
     between two drains before the oldest go (liveliness channels always hold ``WIDE_CAPACITY``).
+    ``batches``: with channels, tags whose samples are handed over a channel at a time instead (the
+    free-running world takes a tick's poses in one call: :meth:`world.world.World.take_poses`).
     """
 
     def __init__(self, session: zenoh.Session, loop: asyncio.AbstractEventLoop | None, deliver: Deliver,
                  batch: bool = False, channels: bool = False, capacity: int = WIDE_CAPACITY,
-                 reply_filter: Callable[[list[tuple[str, bytes]]], Any] | None = None) -> None:
+                 reply_filter: Callable[[list[tuple[str, bytes]]], Any] | None = None,
+                 batches: dict[str, Batch] | None = None) -> None:
         self.session = session
         self.loop = loop
         self.deliver: Deliver = deliver
+        self.batches: dict[str, Batch] = batches or {}
         self.batch = batch
         self.inbox: deque[Inbound] = deque()
         self.channels: list[tuple[str, Any]] | None = [] if channels else None  # (tag, subscriber)
@@ -98,6 +103,15 @@ class Bridge:
         return n
 
     def _empty(self, tag: str, sub: Any, now: float) -> int:
+        batch = self.batches.get(tag)
+        if batch is not None:
+            keys, payloads = [], []
+            while (sample := sub.try_recv()) is not None:
+                keys.append(str(sample.key_expr))
+                payloads.append(sample.payload.to_bytes())
+            if keys:
+                batch(keys, payloads, now)
+            return len(keys)
         n, deliver, delete = 0, self.deliver, zenoh.SampleKind.DELETE
         while (sample := sub.try_recv()) is not None:
             deliver((tag, str(sample.key_expr), sample.payload.to_bytes(), sample.kind == delete, now))

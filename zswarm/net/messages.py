@@ -18,9 +18,10 @@ import dataclasses
 import math
 import struct
 from dataclasses import dataclass
-from typing import Any, NamedTuple, Union
+from typing import Any, NamedTuple, Sequence, Union
 
 import msgpack
+import numpy as np
 
 VERSION = 2  # 2: poses are fixed binary records (1: msgpack maps)
 #: The Zenoh encoding every zswarm payload but a pose is published with: generic Zenoh tools (z_sub,
@@ -217,6 +218,33 @@ def encode_pose(agent: int, seq: int, stamp: float, step: int, x: float, y: floa
     if heading is not None:
         raise ValueError("a 3-D pose has no heading")
     return _POSE_3D.pack(0xC1, VERSION, POSE_3D, safety, agent, seq, stamp, step, x, y, z, vx, vy, vz)
+
+
+#: Each record layout as a numpy row (the same bytes, no padding), by size: a receiver of many poses
+#: reads a batch of records of one size in one call (:func:`decode_pose_records`).
+POSE_ROWS = {size: np.dtype([("magic", "u1"), ("v", "u1"), ("flags", "u1"), ("f", "u1"), ("id", "<u4"),
+                             ("seq", "<i8"), ("t", "<f8"), ("s", "<i8"), *((name, "<f8") for name in names)])
+             for size, names in ((_POSE_2D.size, ("x", "y", "vx", "vy")),
+                                 (_POSE_2DH.size, ("x", "y", "vx", "vy", "h")),
+                                 (_POSE_3D.size, ("x", "y", "z", "vx", "vy", "vz")))}
+_ROW_FLAGS = {_POSE_2D.size: 0, _POSE_2DH.size: POSE_HEADING, _POSE_3D.size: POSE_3D}
+
+
+def decode_pose_records(payloads: Sequence[bytes]) -> tuple[np.ndarray, np.ndarray]:
+    """Pose records of one size (a key of :data:`POSE_ROWS`) at once: the rows, and which of them
+    :func:`decode` takes as they are. The checks are :func:`_pose`'s (``tests/test_messages.py`` holds
+    the two equal); a row that fails them goes to :func:`decode`, which says what is wrong."""
+    size = len(payloads[0]) if payloads else _POSE_2D.size
+    rows = np.frombuffer(b"".join(payloads), dtype=POSE_ROWS[size])
+    if len(rows) != len(payloads):
+        raise ValueError("pose records of one size only")
+    ok = ((rows["magic"] == POSE_MAGIC[0]) & (rows["v"] == VERSION) & (rows["flags"] == _ROW_FLAGS[size])
+          & (rows["f"] < N_FLAGS) & (rows["id"] <= MAX_ID) & (rows["seq"] >= 0) & (rows["seq"] <= 2**62)
+          & (rows["s"] >= -1) & (rows["s"] <= 2**62) & (rows["t"] >= -1e12) & (rows["t"] <= 1e12))
+    for name in POSE_ROWS[size].names[8:]:  # NaN fails these, as it fails _pose's
+        bound = MAX_HEADING if name == "h" else MAX_COORD
+        ok &= (rows[name] >= -bound) & (rows[name] <= bound)
+    return rows, ok
 
 
 def encode(msg: Message) -> bytes:
