@@ -129,7 +129,8 @@ class WorldRecorder:
         from zswarm.record import swarm_log
 
         swarm_log.set_time(self.rec, step, t, self.series)
-        self.trail.append(prey.copy())
+        if not self.trail or not np.array_equal(prey, self.trail[-1]):  # a goal that stays draws no trail
+            self.trail.append(prey.copy())
         swarm_log.log_swarm(self.rec, t, ids, pos, vel, headings=heading, stamps=stamps, labels=self.labels)
         if safety is not None:
             swarm_log.log_safety(self.rec, pos, *safety, self.series)
