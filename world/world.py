@@ -132,7 +132,7 @@ class World:
         # that take a tick's records at once (zswarm.net.pose_batch: the same rules)
         self.poses = PoseTable(max_step, spec.period)
         self.batched = batched and spec.clock == "free"
-        self.latest = PoseArrays(max_step, spec.period, self.dims)
+        self.pose_arrays = PoseArrays(max_step, spec.period, self.dims)
         # the record sizes of this run's dimension (2-D: with and without a heading)
         self.record_sizes = (80,) if self.dims == 3 else (64, 72)
         self.rejected = Rejections("world", self._event)
@@ -259,7 +259,7 @@ class World:
 
     def _take_rows(self, key_ids: np.ndarray, rows: np.ndarray, received: float) -> None:
         """Accepted records into the table and the judge's record; the refused counted by reason."""
-        reasons = self.latest.accept(key_ids, rows, received)
+        reasons = self.pose_arrays.accept(key_ids, rows, received)
         taken = reasons == 0
         if not taken.all():
             for code in reasons[~taken].tolist():
@@ -279,7 +279,7 @@ class World:
         if deleted:
             c.alive.discard(who)
             self.poses.forget(who)
-            self.latest.forget(who)
+            self.pose_arrays.forget(who)
             if self.timed is not None:
                 self.timed.leave(who)
             if self.ending:  # the run is over and the agents stop: not a departure
@@ -336,7 +336,7 @@ class World:
 
     def snapshot_latest(self, held: tuple[np.ndarray, np.ndarray]) -> Snapshot:
         """Free clock: the latest poses from the table's arrays (``held``: ids ascending, their rows)."""
-        t, (ids, rows) = self.latest, held
+        t, (ids, rows) = self.pose_arrays, held
         heading = t.heading[rows]
         return Snapshot(ids, t.position[rows], t.velocity[rows], heading if (~np.isnan(heading)).any() else None,
                         t.safety[rows], t.stamp[rows])
@@ -425,7 +425,7 @@ class World:
         while not self.stop.is_set():
             bridge.drain()  # every sample that arrived since the last tick
             if self.batched:
-                live = self.snapshot_latest(self.latest.latest(self.census.alive))
+                live = self.snapshot_latest(self.pose_arrays.latest(self.census.alive))
             else:
                 live = self.snapshot(self.poses.latest(self.census.alive))
             self.publish(self.keys.prey, msg.Prey(clock.step, time.time(), -1, *map(float, self.prey)))
