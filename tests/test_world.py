@@ -32,10 +32,10 @@ def test_a_batched_world_takes_good_records_and_refuses_bad_ones_by_reason():
                pose(3, 2, 0.0, z=1.0, vz=0.0)]                              # 3-D in a 2-D run
         world.take_poses(*map(list, zip(*good, *bad)), 10.0)
         world.take_poses(*map(list, zip(pose(0, 2, 5.0), pose(1, 2, 0.51))), 10.05)  # agent 0 jumps
-        ids, rows = world.pose_arrays.latest()
+        ids, rows = world.intake.arrays.latest()
         assert ids.tolist() == [0, 1, 2]
-        assert world.pose_arrays.position[rows, 0].tolist() == [0.0, 0.51, 1.0]
-        assert np.isnan(world.pose_arrays.heading[rows[0]]) and world.pose_arrays.heading[rows[2]] == 0.25
+        assert world.intake.arrays.position[rows, 0].tolist() == [0.0, 0.51, 1.0]
+        assert np.isnan(world.intake.arrays.heading[rows[0]]) and world.intake.arrays.heading[rows[2]] == 0.25
         assert world.rejected.counts == {"schema": 1, "version": 1, "dimensions": 1, "jump": 1}
         assert world.received == 8
         assert sorted(world.timed.tracks) == [0, 1, 2] and len(world.timed.tracks[1].stamps) == 2

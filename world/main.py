@@ -12,7 +12,8 @@ from pathlib import Path
 from typing import Sequence
 
 from world.recorder import WorldRecorder
-from world.world import BATCH_FROM, World
+from world.intake import BATCH_FROM
+from world.world import World
 from zswarm.args import Parser, UsageError, run_main
 from zswarm.files import check_run_files
 from zswarm.net import messages as msg

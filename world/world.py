@@ -19,11 +19,12 @@ import sys
 import threading
 import time
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 import zenoh
 
+from world.intake import PoseIntake, Snapshot
 from world.obstacles import ObstacleService
 from world.recorder import Resumed, WorldRecorder
 from world.report import StatsBook, transport_summary
@@ -35,8 +36,7 @@ from zswarm.net import histogram
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Bridge, Inbound
 from zswarm.net.keys import in_reach_counts
-from zswarm.net.pose_batch import REASON, PoseArrays
-from zswarm.net.poses import PoseTable, Rejections
+from zswarm.net.poses import Rejections
 from zswarm.net.runspec import RunSpec
 from zswarm.net.watch import how_gone
 
@@ -45,18 +45,6 @@ STALL = 1.0  # seconds behind its clock at which the world logs a stall event
 
 TICK_QOS = {"congestion_control": zenoh.CongestionControl.BLOCK, "priority": zenoh.Priority.INTERACTIVE_HIGH,
             "express": True}
-
-
-class Snapshot(NamedTuple):
-    """The live agents' poses as arrays, in id order: ids (N,), positions and velocities (N, D), headings
-    (N,; NaN where a body has none; None when none has), safety flags (N,) and send stamps (N,)."""
-
-    ids: np.ndarray
-    pos: np.ndarray
-    vel: np.ndarray
-    heading: np.ndarray | None
-    safety: np.ndarray
-    stamps: np.ndarray
 
 
 @dataclass
@@ -105,36 +93,20 @@ class Clock:
     missed_poses: int = 0  # lockstep: poses still missing when a step timed out
 
 
-#: From this many agents a free-running world takes a tick's poses in at once (``--intake auto``):
-#: ``zswarm bench world``, this 2-core machine, one at a time against at once: N = 10 (``moving-prey-3d``,
-#: 20 Hz) 8.5-9.0 % of a core against 10.5-11.2 %; N = 100 24.3 % against 24.1 %; N = 300 48.8 % against
-#: 43.7 %; N = 1000 71.2-77.2 % against 59.2-60.7 % (docs/cluster.md).
-BATCH_FROM = 100
-
-
 class World:
     """The world's state and clocks. It publishes on ``session``; what it hears reaches :meth:`handle`
     through the bridge built after it (:mod:`world.main`), which the free clock drains once per tick."""
 
     def __init__(self, spec: RunSpec, session: zenoh.Session, recorder: WorldRecorder, argv: list[str],
                  batched: bool = False) -> None:
-        """``batched``: free clock only: the bridge hands it a tick's poses at once (:meth:`take_poses`),
-        kept as arrays (:class:`~zswarm.net.pose_batch.PoseArrays`); otherwise one at a time
-        (:meth:`handle`) into the per-pose table."""
+        """``batched``: free clock only: the bridge hands it a tick's poses at once (:meth:`take_poses`;
+        :mod:`world.intake`); otherwise one at a time (:meth:`handle`)."""
         self.spec, self.session, self.keys, self.recorder = spec, session, spec.keys, recorder
         self.scenario = spec.scenario
         self.argv = argv
         self.observer = SwarmObserver(self.scenario, spec.combination)
         self.dims = self.scenario.dimensions
         self.obstacles = ObstacleService(*self.scenario.obstacle_arrays(), self.keys.obstacles, self.dims)
-        max_step = 3.0 * self.scenario.params.swarm.v_max * self.scenario.dt
-        # lockstep keeps every agent's poses by step; a batched free clock only the latest, as arrays
-        # that take a tick's records at once (zswarm.net.pose_batch: the same rules)
-        self.poses = PoseTable(max_step, spec.period)
-        self.batched = batched and spec.clock == "free"
-        self.pose_arrays = PoseArrays(max_step, spec.period, self.dims)
-        # the record sizes of this run's dimension (2-D: with and without a heading)
-        self.record_sizes = (80,) if self.dims == 3 else (64, 72)
         self.rejected = Rejections("world", self._event)
         self.census = Census()
         self.ending = False  # set when the world announces the final tick: agents going now are not departures
@@ -156,6 +128,7 @@ class World:
         self.timed = (TimedContacts(2.0 * self.scenario.params.swarm.robot_radius)
                       if spec.clock == "free" else None)
         self.judged_wall = 0.0  # when the judge last ran (wall time)
+        self.intake = PoseIntake(spec, self.rejected, self.timed, batched)
         self.design: dict[str, Any] | None = None  # the set's design verdict (:meth:`judge_design`)
         self.design_judge: threading.Thread | None = None
 
@@ -214,62 +187,17 @@ class World:
                 self.rejected.add("dimensions", f"agent {m.id} sends {m.dims}-D poses into this {self.dims}-D run "
                                   "(start every process of a run with the same --scenario)")
                 return
-            if self.batched:  # one record outside a batch (of a stray size)
-                who = self.keys.agent_of(key)
-                self._take_rows(np.array([-1 if who is None else who]),
-                                np.frombuffer(payload, dtype=msg.POSE_ROWS[len(payload)]), received)
-                return
-            reason = self.poses.accept(self.keys.agent_of(key), m, received)
-            if reason is not None:
-                self.rejected.add(reason)
-                return
-            if self.timed is not None:
-                self.timed.add(m.id, m.seq, m.stamp, m.position, received)
-            if self.wake_on_pose:
+            if self.intake.one(key, m, payload, received) and self.wake_on_pose:
                 self.pose_arrived.set()
         else:
             self.rejected.add("kind")
 
     def take_poses(self, keys: list[str], payloads: list[bytes], received: float) -> None:
-        """Free clock: a tick's pose samples at once (the bridge's batch for the ``pose`` channel). Runs
-        of records of this run's sizes are decoded and accepted as arrays; a record they would refuse,
-        and anything else, goes through :meth:`handle`, which says why."""
-        start = 0
-        for end in range(1, len(payloads) + 1):  # runs of one size, in arrival order
-            if end < len(payloads) and len(payloads[end]) == len(payloads[start]):
-                continue
-            if len(payloads[start]) in self.record_sizes:
-                self._take_batch(keys[start:end], payloads[start:end], received)
-            else:
-                for key, payload in zip(keys[start:end], payloads[start:end]):
-                    self.handle(("pose", key, payload, False, received))
-            start = end
-
-    def _take_batch(self, keys: list[str], payloads: list[bytes], received: float) -> None:
-        rows, ok = msg.decode_pose_records(payloads)
-        agent_of = self.keys.agent_of
-        if not ok.all():
-            for k in np.flatnonzero(~ok).tolist():
-                self.handle(("pose", keys[k], payloads[k], False, received))
-            rows = rows[ok]
-            keys = [key for key, good in zip(keys, ok.tolist()) if good]
-        self.received += len(rows)
-        ids = np.array([-1 if (who := agent_of(key)) is None else who for key in keys], dtype=np.int64)
-        self._take_rows(ids, rows, received)
-
-    def _take_rows(self, key_ids: np.ndarray, rows: np.ndarray, received: float) -> None:
-        """Accepted records into the table and the judge's record; the refused counted by reason."""
-        reasons = self.pose_arrays.accept(key_ids, rows, received)
-        taken = reasons == 0
-        if not taken.all():
-            for code in reasons[~taken].tolist():
-                self.rejected.add(REASON[code])
-        if self.timed is not None and taken.any():
-            took = rows[taken]
-            names = ("x", "y", "z")[:self.dims]
-            points = zip(*(took[n].tolist() for n in names))
-            for who, seq, stamp, point in zip(took["id"].tolist(), took["seq"].tolist(), took["t"].tolist(), points):
-                self.timed.add(who, seq, stamp, point, received)
+        """Free clock: a tick's pose samples at once (the bridge's batch for the ``pose`` channel;
+        :meth:`world.intake.PoseIntake.batch`); what the batch would refuse goes through :meth:`handle`."""
+        taken = self.intake.batch(keys, payloads, received,
+                                  lambda key, payload: self.handle(("pose", key, payload, False, received)))
+        self.received += taken  # (not "+=" of the call: handle counts what it is given as the call runs)
 
     def _on_liveliness(self, who: int | None, deleted: bool) -> None:
         if who is None:
@@ -278,8 +206,7 @@ class World:
         event = {"id": who, "t": round(self.clock.t, 6), "wall": round(time.time() - self.started_wall, 3)}
         if deleted:
             c.alive.discard(who)
-            self.poses.forget(who)
-            self.pose_arrays.forget(who)
+            self.intake.forget(who)
             if self.timed is not None:
                 self.timed.leave(who)
             if self.ending:  # the run is over and the agents stop: not a departure
@@ -317,29 +244,6 @@ class World:
         self.recorder.log_event(self.clock.step, self.clock.t, text)
 
     # --- one observed step ----------------------------------------------------------------------------
-
-    def snapshot(self, poses: dict[int, msg.Pose]) -> Snapshot:
-        """The poses of the live agents as arrays, in id order, in one pass (at N = 1000 the world does
-        this 20-40 times a second: indexing the table once per field by numpy ids cost milliseconds)."""
-        order = sorted(poses)
-        rows = [poses[i] for i in order]
-        table = np.array([(p.x, p.y, p.vx, p.vy, p.stamp, p.safety) for p in rows], dtype=float).reshape(-1, 6)
-        if self.dims == 3:
-            zs = np.array([(p.z, p.vz) for p in rows], dtype=float).reshape(-1, 2)
-            pos, vel = np.column_stack([table[:, :2], zs[:, 0]]), np.column_stack([table[:, 2:4], zs[:, 1]])
-        else:
-            pos, vel = np.ascontiguousarray(table[:, :2]), np.ascontiguousarray(table[:, 2:4])
-        heading = (np.array([np.nan if p.heading is None else p.heading for p in rows])
-                   if any(p.heading is not None for p in rows) else None)
-        return Snapshot(np.array(order, dtype=np.int64), pos, vel, heading, table[:, 5].astype(np.int64),
-                        table[:, 4].copy())
-
-    def snapshot_latest(self, held: tuple[np.ndarray, np.ndarray]) -> Snapshot:
-        """Free clock: the latest poses from the table's arrays (``held``: ids ascending, their rows)."""
-        t, (ids, rows) = self.pose_arrays, held
-        heading = t.heading[rows]
-        return Snapshot(ids, t.position[rows], t.velocity[rows], heading if (~np.isnan(heading)).any() else None,
-                        t.safety[rows], t.stamp[rows])
 
     def observe(self, snap: Snapshot) -> dict[str, float] | None:
         """Measure and record the swarm as it is now (the live agents' poses)."""
@@ -424,10 +328,7 @@ class World:
         last_print = -math.inf
         while not self.stop.is_set():
             bridge.drain()  # every sample that arrived since the last tick
-            if self.batched:
-                live = self.snapshot_latest(self.pose_arrays.latest(self.census.alive))
-            else:
-                live = self.snapshot(self.poses.latest(self.census.alive))
+            live = self.intake.latest(self.census.alive)
             self.publish(self.keys.prey, msg.Prey(clock.step, time.time(), -1, *map(float, self.prey)))
             last_print = self._progress(self.observe(live), steps, progress, last_print)
             self.judge_contacts()
@@ -458,7 +359,7 @@ class World:
             self.publish(self.keys.tick, msg.Tick(k, time.time(), *map(float, self.prey)))
             deadline = loop.time() + step_timeout
             while not self.stop.is_set():
-                missing = self.census.alive - set(self.poses.at_step(k))
+                missing = self.intake.missing(k, self.census.alive)
                 if not missing or loop.time() > deadline:
                     clock.missed_poses += len(missing)
                     break
@@ -467,7 +368,7 @@ class World:
                     await asyncio.wait_for(self.pose_arrived.wait(), deadline - loop.time())
                 except asyncio.TimeoutError:
                     pass
-            poses = self.snapshot(self.poses.at_step(k, self.census.alive))
+            poses = self.intake.at_step(k, self.census.alive)
             last_print = self._progress(self.observe(poses), steps, progress, last_print)
             if k == steps:
                 break
