@@ -1,7 +1,8 @@
-"""The world's own parts with real objects (a Zenoh session, a recording): its batched intake and its
-recorder's prey trail."""
+"""The world's own parts with real objects (a Zenoh session, a recording): its batched intake (against
+the one-at-a-time one) and its recorder's prey trail."""
 
 import numpy as np
+import pytest
 
 from zswarm.net import messages as msg
 
@@ -57,3 +58,55 @@ def test_a_prey_that_stays_draws_no_trail_and_one_that_moves_draws_its_path(tmp_
     assert len(rec.trail) == 6
     rec.close({})
     assert (tmp_path / "r.rrd").stat().st_size > 0
+
+
+def _worlds(scenario):
+    """A batched and a one-at-a-time world of the same run, on one peer session (nothing connects)."""
+    import asyncio
+
+    from world.recorder import WorldRecorder
+    from world.world import World
+    from zswarm.net.config import open_session, zenoh_config
+    from zswarm.net.runspec import RunSpec
+
+    spec = RunSpec(run="both", scenario_name=scenario, overrides=(("n_agents", 6),))
+    asyncio.set_event_loop(asyncio.new_event_loop())
+    session = open_session(zenoh_config("peer", scout=False), "t")
+    recorder = lambda: WorldRecorder(None, None, None, 6, spec.scenario.dt)  # noqa: E731
+    return spec, session, World(spec, session, recorder(), [], batched=True), World(spec, session, recorder(), [])
+
+
+@pytest.mark.parametrize("scenario", ["moving-prey", "moving-prey-3d"])
+def test_the_two_intakes_end_a_tick_with_the_same_swarm(scenario):
+    """The same samples into a batched world (a tick at once) and a one-at-a-time world: the same
+    counts by reason and the same snapshot the observed step reads, in 2-D and 3-D."""
+    spec, session, batched, single = _worlds(scenario)
+    keys, dims = spec.keys, spec.scenario.dimensions
+    rng = np.random.default_rng(5)
+    try:
+        for tick in range(1, 30):
+            samples = []
+            for who in rng.permutation(6).tolist() + rng.integers(0, 6, 2).tolist():  # some twice a tick
+                seq = tick + int(rng.integers(0, 2))
+                x, y = 0.3 * who + 0.01 * tick + (3.0 if rng.random() < 0.05 else 0.0), float(rng.normal(0, 0.1))
+                extra = dict(z=float(rng.normal(0, 0.1)), vz=0.1) if dims == 3 else dict(
+                    heading=float(rng.uniform(-3, 3)) if who == 5 else None)
+                if rng.random() < 0.05:  # now and then a pose of the other dimension
+                    extra = dict(z=0.0, vz=0.0) if dims == 2 else {}
+                p = msg.Pose(who, seq, 100.0 + 0.05 * tick, -1, x, y, 0.2, -0.1, safety=int(rng.integers(0, 4)), **extra)
+                key_of = who if rng.random() > 0.05 else (who + 1) % 6
+                samples.append((keys.pose(keys.cell(x, y), key_of), msg.encode(p)))
+            samples.append((keys.pose((0, 0), 1), b"\xc1" + bytes(63)))
+            now = 100.0 + 0.05 * tick + 0.01
+            batched.take_poses([k for k, _ in samples], [p for _, p in samples], now)
+            for key, payload in samples:
+                single.handle(("pose", key, payload, False, now))
+            a, b = batched.intake.latest(set(range(6))), single.intake.latest(set(range(6)))
+            assert a.ids.tolist() == b.ids.tolist()
+            for x, y in zip(a[1:], b[1:]):
+                assert (x is None and y is None) or np.array_equal(x, y, equal_nan=True)
+        assert batched.rejected.counts == single.rejected.counts and batched.received == single.received
+        assert {"jump", "schema", "dimensions", "version"} <= set(single.rejected.counts)
+        assert {w: t.stamps for w, t in batched.timed.tracks.items()} == {w: t.stamps for w, t in single.timed.tracks.items()}
+    finally:
+        session.close()
