@@ -11,8 +11,6 @@ def test_a_batched_world_takes_good_records_and_refuses_bad_ones_by_reason():
     """World.take_poses (a tick's poses at once): good records join the arrays and the judge's record;
     a record of another version, one of the other dimension, one under another agent's key and an impossible
     jump are refused, each counted by the reason the per-pose path gives."""
-    import asyncio
-
     from world.recorder import WorldRecorder
     from world.world import World
     from zswarm.net.config import open_session, zenoh_config
@@ -20,7 +18,6 @@ def test_a_batched_world_takes_good_records_and_refuses_bad_ones_by_reason():
 
     spec = RunSpec(run="batched", scenario_name="moving-prey", overrides=(("n_agents", 4),))
     keys = spec.keys
-    asyncio.set_event_loop(asyncio.new_event_loop())  # the world makes its events on one
     with open_session(zenoh_config("peer", scout=False), "t") as session:
         world = World(spec, session, WorldRecorder(None, None, None, 4, spec.scenario.dt), [], batched=True)
 
@@ -62,15 +59,12 @@ def test_a_prey_that_stays_draws_no_trail_and_one_that_moves_draws_its_path(tmp_
 
 def _worlds(scenario):
     """A batched and a one-at-a-time world of the same run, on one peer session (nothing connects)."""
-    import asyncio
-
     from world.recorder import WorldRecorder
     from world.world import World
     from zswarm.net.config import open_session, zenoh_config
     from zswarm.net.runspec import RunSpec
 
     spec = RunSpec(run="both", scenario_name=scenario, overrides=(("n_agents", 6),))
-    asyncio.set_event_loop(asyncio.new_event_loop())
     session = open_session(zenoh_config("peer", scout=False), "t")
     recorder = lambda: WorldRecorder(None, None, None, 6, spec.scenario.dt)  # noqa: E731
     return spec, session, World(spec, session, recorder(), [], batched=True), World(spec, session, recorder(), [])
