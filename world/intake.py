@@ -69,7 +69,7 @@ class PoseIntake:
         self.batched = batched and spec.clock == "free"
         self.table = PoseTable(max_step, spec.period)
         self.arrays = PoseArrays(max_step, spec.period, self.dims)
-        self.record_sizes = (80,) if self.dims == 3 else (64, 72)  # this run's records (2-D: with a heading, too)
+        self.record_sizes = msg.POSE_SIZES_BY_DIMS[self.dims]  # this run's records
 
     def one(self, key: str, pose: msg.Pose, payload: bytes, received: float) -> bool:
         """A decoded pose of this run's dimension (``payload``: its record); True if accepted."""

@@ -228,6 +228,8 @@ POSE_ROWS = {size: np.dtype([("magic", "u1"), ("v", "u1"), ("flags", "u1"), ("f"
                                  (_POSE_2DH.size, ("x", "y", "vx", "vy", "h")),
                                  (_POSE_3D.size, ("x", "y", "z", "vx", "vy", "vz")))}
 _ROW_FLAGS = {_POSE_2D.size: 0, _POSE_2DH.size: POSE_HEADING, _POSE_3D.size: POSE_3D}
+#: The record sizes of a run of each dimension (2-D: without and with a heading).
+POSE_SIZES_BY_DIMS = {2: (_POSE_2D.size, _POSE_2DH.size), 3: (_POSE_3D.size,)}
 
 
 def decode_pose_records(payloads: Sequence[bytes]) -> tuple[np.ndarray, np.ndarray]:
