@@ -75,7 +75,7 @@ def _watch(n_agents: int, dropout: float, duration: float, sample_every: float, 
     start of the world's clock. Returns the memory samples, the stats rows and the world's summary."""
     import zenoh
 
-    from zswarm.launch.world_watch import WorldWatch
+    from zswarm.launch.world_watch import wait_for_start
     from zswarm.net import messages as msg
     from zswarm.net.config import zenoh_config
     from zswarm.net.keys import Keys
@@ -92,9 +92,7 @@ def _watch(n_agents: int, dropout: float, duration: float, sample_every: float, 
             spec = field_spec(n_agents, run, duration, faults=FaultModel(dropout=dropout, seed=seed), seed=seed)
             endpoint, world, agents = start_field(kids, spec, summary_path)
             router = kids.named("router")[0]
-            with WorldWatch(keys, endpoint) as watch:
-                if not watch.started.wait(180.0):  # the world's clock
-                    raise RuntimeError("the world's clock did not start within 180 s")
+            wait_for_start(keys, endpoint)  # the world's clock
             t0 = time.monotonic()
 
             def on_stats(sample) -> None:

@@ -20,7 +20,7 @@ from typing import Any
 
 from zswarm.bench.measure import CpuWindow
 from zswarm.bench.net import start_routers
-from zswarm.launch.world_watch import WorldWatch
+from zswarm.launch.world_watch import wait_for_start
 from zswarm.net.procs import Children, world_argv
 from zswarm.net.runspec import RunSpec
 
@@ -51,9 +51,7 @@ def measure(n_agents: int, duration: float, scenario: str = "large-swarm", time_
                 first += count
             names = {c.name: c.pid for c in kids.children}
             window = CpuWindow(names)
-            with WorldWatch(spec.keys, endpoint) as watch:
-                if not watch.started.wait(180.0):
-                    raise RuntimeError("the world's clock did not start within 180 s")
+            wait_for_start(spec.keys, endpoint)
             wall = duration / time_scale
             t0 = time.monotonic()
             time.sleep(0.3 * wall)

@@ -43,3 +43,11 @@ class WorldWatch:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def wait_for_start(keys: Keys, endpoint: str, timeout: float = 180.0) -> None:
+    """Return once the world's clock has started (heard on Zenoh through ``endpoint``); a
+    :class:`RuntimeError` if it did not within ``timeout`` seconds (the benchmarks' measuring windows)."""
+    with WorldWatch(keys, endpoint) as watch:
+        if not watch.started.wait(timeout):
+            raise RuntimeError(f"the world's clock did not start within {timeout:g} s")
