@@ -167,10 +167,8 @@ class Sensing:
             return
         if not deleted:
             self.members.setdefault(who, set()).add(cell)
-        elif who in self.members:
-            self.members[who].discard(cell)
-            if not self.members[who]:
-                del self.members[who]
+        else:
+            self._not_in(who, {cell})
 
     def listen_to(self, new: list[tuple[int, ...]], left: list[tuple[int, ...]]) -> None:
         """It listens to the cells ``new`` now, and no longer to ``left``: what their tokens said no
@@ -182,8 +180,14 @@ class Sensing:
         self.listening -= gone
         self.member_news = {(who, cell) for who, cell in self.member_news if cell not in gone}
         for who in list(self.members):
-            self.members[who] -= gone
-            if not self.members[who]:
+            self._not_in(who, gone)
+
+    def _not_in(self, who: int, cells: set[tuple[int, ...]]) -> None:
+        """Agent ``who``'s token is in none of ``cells`` (it is forgotten when it is in no cell it listens to)."""
+        held = self.members.get(who)
+        if held is not None:
+            held -= cells
+            if not held:
                 del self.members[who]
 
     def _pose_sample(self, key: str, payload: bytes, received: float) -> None:
