@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from conftest import ROOT
-from swarm_procs import interrupt_when_exists
+from swarm_procs import interrupt_when_exists, our_processes
 
 
 def launch(*args: str, cwd, timeout: float = 180) -> subprocess.CompletedProcess:
@@ -89,7 +89,12 @@ def test_interrupted_distributed_sweep_resumes(tmp_path):
             "--dropout", "0,0.3", "--repeats", "1", "--agents", "3", "--duration", "3", "--out", str(out)]
     proc = subprocess.Popen(args, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     first = out / "cells" / "lat0ms_drop0_rep0_barrier" / "run.json"
-    assert interrupt_when_exists(proc, first)
+    second = out / "cells" / "lat0ms_drop0.3_rep0_barrier" / "run.rrd"
+    assert interrupt_when_exists(proc, second)  # interrupted while the second cell's world records
+    assert first.exists()
+    # the interrupted sweep stopped that world and its agents before it exited: none of them is left
+    # writing the cell's recording while the resumed sweep runs the cell again (a corrupt run.rrd)
+    assert our_processes(str(out)) == []
     mtime = first.stat().st_mtime_ns
     res = subprocess.run(args, cwd=tmp_path, capture_output=True, text=True, timeout=180)
     assert res.returncode == 0, res.stderr
