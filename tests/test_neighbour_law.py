@@ -119,9 +119,39 @@ def test_the_gate_takes_the_goal_pull_away_only_with_a_neighbour_close_ahead():
     np.testing.assert_allclose(part, 0.5 * goal_alone, rtol=1e-9)
 
 
-@pytest.mark.parametrize("name", ["mean", "cutoff", "gate", "nearest", "mean+gate", "mean+cutoff+gate+nearest"])
+def test_the_swirl_turns_the_goal_pull_a_quarter_turn_within_its_radius_and_only_there():
+    params, law = _law("mean+gate+swirl", swirl=1.5, swirl_radius=2.0)
+    plain_params, plain = _law("mean+gate")
+    p = params.potential
+    none = np.zeros(0, np.intp)
+    neighbour = np.array([[0.4, 0.3]])  # one neighbour: the swirl is added whatever the gate makes of it
+    for dims in (2, 3):
+        no_obstacle = np.zeros((0, dims))
+        for x, inside in (([1.0, 0.0], True), ([0.0, -1.9], True), ([2.1, 0.0], False), ([-1.5, 1.5], False)):
+            x = np.array([x + [0.3] * (dims - 2)])
+            goal = np.zeros((1, dims))
+            psi_f = x - np.pad(neighbour, ((0, 0), (0, dims - 2)))
+            u, f = field(x - goal, none, no_obstacle, np.zeros(1, np.intp), psi_f, p,
+                         "multiplicative", 0.0, law)
+            u0, f0 = field(x - goal, none, no_obstacle, np.zeros(1, np.intp), psi_f, p,
+                           "multiplicative", 0.0, plain)
+            f_g = field(x - goal, none, no_obstacle, none, no_obstacle,
+                        p)[1][0]  # the goal pull alone, toward the goal
+            np.testing.assert_array_equal(u, u0)  # no potential: the energy is the law's without it
+            turned = np.array([-f_g[1], f_g[0]] + [0.0] * (dims - 2))
+            np.testing.assert_allclose(f[0] - f0[0], 1.5 * turned if inside else 0.0, rtol=1e-12, atol=1e-15)
+            if inside:  # clockwise about the goal seen from above (the pull, toward the goal, turned left)
+                (rx, ry), (tx, ty) = x[0, :2] - goal[0, :2], (f[0] - f0[0])[:2]
+                assert rx * ty - ry * tx < 0
+    with pytest.raises(ParamError, match="swirl_radius"):
+        neighbour_law(DEFAULT_PARAMS.with_values({"interaction": "scalable+swirl"}))  # no radius given
+    assert plain_params.interaction.spec.swirl is False
+
+
+@pytest.mark.parametrize("name", ["mean", "cutoff", "gate", "nearest", "mean+gate", "mean+gate+swirl",
+                                  "mean+cutoff+gate+nearest"])
 def test_the_agents_floats_are_the_vectorized_law(name):
-    params, law = _law(name, k_nearest=3)
+    params, law = _law(name, k_nearest=3, swirl_radius=2.5)
     p = params.potential
     rng = np.random.default_rng(11)
     for combination in ("additive", "multiplicative"):
@@ -139,6 +169,7 @@ def test_the_agents_floats_are_the_vectorized_law(name):
 
 def test_interaction_names_parse_and_fail_in_one_line():
     assert parse_interaction("scalable").name == "mean+gate"
+    assert parse_interaction("swirl+scalable").name == "mean+gate+swirl"
     assert parse_interaction(" gate + mean ").name == "mean+gate"
     assert parse_interaction("paper").is_paper
     for bad in ("", "swarm", "paper+mean", "mean+"):

@@ -23,7 +23,8 @@ from zswarm.model.prey import PreyMotion
 from zswarm.model.scenarios import get_scenario
 from zswarm.sim.batch import BatchSimulator, Member
 
-INTERACTIONS = ["paper", "mean", "cutoff", "gate", "nearest", "mean+gate", "mean+cutoff+gate+nearest"]
+INTERACTIONS = ["paper", "mean", "cutoff", "gate", "nearest", "swirl", "mean+gate", "mean+gate+swirl",
+                "mean+cutoff+gate+nearest"]
 CASES = [(scenario, interaction, combination)
          for scenario in ("moving-prey", "moving-prey-3d")
          for interaction in INTERACTIONS
@@ -32,9 +33,10 @@ CASES = [(scenario, interaction, combination)
 
 def _members(name: str, interaction: str, combination: str, n: int) -> list[Member]:
     """Runs that differ in their set (one without formation), so the batch steps several laws at once."""
-    base = {"interaction": interaction, "k_nearest": 3, "n_agents": n}
+    base = {"interaction": interaction, "k_nearest": 3, "n_agents": n, "swirl_radius": 1.5}  # some agents inside
     return [Member(get_scenario(name, base), 0, combination=combination),
-            Member(get_scenario(name, {**base, "c_o": 5.0, "l_a": 1.7}), 1, combination=combination),
+            Member(get_scenario(name, {**base, "c_o": 5.0, "l_a": 1.7, "swirl": 0.7, "swirl_radius": 2.5}), 1,
+                   combination=combination),
             Member(dataclasses.replace(get_scenario(name, base), formation=False), 2, combination=combination),
             Member(get_scenario(name, {**base, "interaction": "paper"}), 3, combination="multiplicative")]
 

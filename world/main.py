@@ -23,8 +23,8 @@ from zswarm.net.runspec import RunSpec, add_run_args, spec_from_args
 from zswarm.record.live import Viewer, add_viewer_args, viewer_from_args
 
 
-#: Until every agent has sent its final stats (FINAL_STATS_WAIT after the last came), the final tick is
-#: published again this often.
+#: Until every agent has sent its final stats (while one that has not is alive, else FINAL_STATS_WAIT
+#: after the last came), the final tick is published again this often.
 FINAL_TICK_REPEAT = 0.25
 FINAL_STATS_WAIT = 3.0  # seconds the world waits for the next agent's final stats at the end of a run
 FINAL_STATS_MAX = 15.0  # and at most, in all
@@ -95,12 +95,17 @@ async def run_world(args: argparse.Namespace, spec: RunSpec, viewer: Viewer | No
         world.ending = True
         final = msg.Tick(world.clock.step + 1, time.time(), *map(float, world.prey), final=True)
         world.publish(keys.tick, final)
-        # let the agents' final stats arrive: FINAL_STATS_WAIT after the last one came (on a loaded
-        # machine they trickle in over seconds), FINAL_STATS_MAX in all
+        # let the agents' final stats arrive: while an agent that has not reported is still alive (it
+        # has yet to send them: on a loaded machine they trickle in over seconds), else FINAL_STATS_WAIT
+        # after the last one came; FINAL_STATS_MAX in all
         began = heard_at = loop.time()
         again = began + FINAL_TICK_REPEAT
         reported = sum(world.stats.final(i) for i in expected)
-        while (reported < len(expected) and loop.time() < heard_at + FINAL_STATS_WAIT
+
+        def still_to_come() -> bool:
+            return any(i in world.census.alive and not world.stats.final(i) for i in expected)
+
+        while (reported < len(expected) and (still_to_come() or loop.time() < heard_at + FINAL_STATS_WAIT)
                and loop.time() < began + FINAL_STATS_MAX):
             await asyncio.sleep(0.05)
             bridge.drain()

@@ -15,7 +15,8 @@ test checks whole runs against the reference simulator.
   F = (U^g/c_g) F^o + (1 + U^o/c_g) F^g;
 - formation (eqs 26-28): F^f = -sum g(|psi_f|^2) psi_f, g as in :func:`zswarm.model.formation.pair_gain`;
   or, with ``law``, the interaction of :func:`zswarm.model.neighbour_law.neighbour_force` (its goal gate
-  weighs the goal term of the combination).
+  weighs the goal term of the combination);
+- swirl (:func:`zswarm.model.neighbour_law.swirl_force`): kappa (-F^g_y, F^g_x) within rho of the goal.
 """
 
 from __future__ import annotations
@@ -91,6 +92,8 @@ def agent_velocity(x: float, y: float, goal: Point, obstacles: Iterable[Circle],
             ffx += -g * px
             ffy += -g * py
         fx, fy = fx + ffx, fy + ffy
+    if law is not None and law.interaction.swirl and gx * gx + gy * gy < law.swirl_radius * law.swirl_radius:
+        fx, fy = fx + law.swirl * -fgy, fy + law.swirl * fgx
 
     speed = math.sqrt(fx * fx + fy * fy)
     if speed > v_max:

@@ -15,6 +15,10 @@ can be combined with ``+`` (``mean+gate``):
   as a fraction of the pair spacing d^f).
 - ``nearest``: a topological cap: only the ``k_nearest`` nearest sensed neighbours count (SwarmLab's
   max_neig, Ballerini et al. 2008).
+- ``swirl``: a circulation about the goal. Within ``swirl_radius`` of the goal an agent adds ``swirl``
+  times its goal pull turned a quarter turn (about the vertical in 3-D), whatever the gate says: the
+  part of a gathered swarm near the goal turns about it, making room for the agents the gate holds
+  back, so a swarm too wide to press onto the goal still centres on it (docs/scaling.md).
 
 ``paper`` is none of them. ``scalable`` names the combination chosen by measurement (docs/scaling.md).
 """
@@ -25,7 +29,7 @@ from dataclasses import dataclass
 
 from zswarm.errors import ParamError
 
-MODIFIERS: tuple[str, ...] = ("mean", "cutoff", "gate", "nearest")
+MODIFIERS: tuple[str, ...] = ("mean", "cutoff", "gate", "nearest", "swirl")
 #: The combination the measurements of docs/scaling.md chose for large swarms.
 SCALABLE: tuple[str, ...] = ("mean", "gate")
 NAMES: tuple[str, ...] = ("paper", *MODIFIERS, "scalable")
@@ -39,6 +43,7 @@ class Interaction:
     cutoff: bool = False
     gate: bool = False
     nearest: bool = False
+    swirl: bool = False
 
     @property
     def name(self) -> str:

@@ -6,7 +6,8 @@
     multiplicative (eqs 14-15):  U = U^o U^g / c_g + U^g,       F = (U^g/c_g) F^o + w_i (1 + U^o/c_g) F^g
 
 plus the formation term U^f, F^f of eqs 26-28 (or an interaction of :mod:`zswarm.model.neighbour_law`,
-whose gate sets the goal weight w_i; w_i = 1 otherwise). The multiplicative F is eq 15 regrouped:
+whose gate sets the goal weight w_i; w_i = 1 otherwise) and, with ``swirl``, the circulation about the
+goal (:func:`zswarm.model.neighbour_law.swirl_force`, which U does not hold: it is no gradient). The multiplicative F is eq 15 regrouped:
 -grad(U^g/c_g) = F^g/c_g. U stays eq 35's (with the paper's eq 26 sum), the energy the metrics report.
 
 :func:`field` is the one implementation, over any leading batch axes (agents, or runs x agents, each
@@ -32,7 +33,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from zswarm.model.formation import equilibria, formation_offset
-from zswarm.model.neighbour_law import NeighbourLaw, PairList, Pairs, neighbour_force, neighbour_law, unit_toward
+from zswarm.model.neighbour_law import (
+    NeighbourLaw,
+    PairList,
+    Pairs,
+    neighbour_force,
+    neighbour_law,
+    swirl_force,
+    unit_toward,
+)
 from zswarm.model.neighbours import ObstacleIndex, pairs_within
 from zswarm.model.params import Params, PotentialParams
 from zswarm.model.potentials import (
@@ -89,6 +98,8 @@ def field(psi_g: np.ndarray, obstacles: np.ndarray | Pairs, psi_o: np.ndarray, n
                      _combined(False, f_o, f_g, u_o, u_g, goal_weight, p))
     if f_f is not None:
         f = f + f_f
+    if law is not None and law.interaction.swirl:
+        f = f + swirl_force(psi_g, f_g, law)
     if not energy:
         return None, f
     return _energy(combination, u_o, u_g, neighbours, psi_f, pp, c_f, p), f

@@ -52,6 +52,8 @@ class NeighbourLaw:
     sensing_radius: float
     gate_out: float = math.inf  # g_out = gate d^f
     k_nearest: int = 0
+    swirl: float = 0.0  # kappa: the circulation as a multiple of the goal pull ((B, 1, 1) in a batch)
+    swirl_radius: float = 0.0  # rho: agents within it of the goal circulate ((B, 1) in a batch)
 
     @property
     def gate_in(self) -> float:
@@ -68,7 +70,12 @@ def neighbour_law(params: Params) -> NeighbourLaw:
             raise ParamError(f"interaction {spec.name} needs a pair spacing d^f (the gate is gate x d^f), and "
                              "this potential has none (zswarm design says why); drop gate or fix the potential")
         gate_out = params.interaction.gate * spacing
-    return NeighbourLaw(spec, params.swarm.sensing_radius, gate_out, params.interaction.k_nearest)
+    swirl = params.interaction.swirl if spec.swirl else 0.0
+    if spec.swirl and params.interaction.swirl_radius <= 0.0:
+        raise ParamError(f"interaction {spec.name} needs swirl_radius > 0 (how far from the goal agents circulate; "
+                         "large-swarm uses 0.7 times the radius of the gathered swarm): --set swirl_radius=R")
+    return NeighbourLaw(spec, params.swarm.sensing_radius, gate_out, params.interaction.k_nearest, swirl,
+                        params.interaction.swirl_radius if spec.swirl else 0.0)
 
 
 def cutoff_weight(r: np.ndarray, radius: float) -> np.ndarray:
@@ -197,6 +204,18 @@ def neighbour_force(pairs: Pairs, psi: np.ndarray, to_goal: np.ndarray, p: Poten
         cos = cos / np.where(r > 0.0, r, 1.0)
         weight = 1.0 - pairs.largest(np.where(use, gate_block(r, cos, law), 0.0))
     return rep + att, weight
+
+
+def swirl_force(psi_g: np.ndarray, f_g: np.ndarray, law: NeighbourLaw) -> np.ndarray:
+    """``swirl``: kappa times the goal pull F^g turned a quarter turn, (-F^g_y, F^g_x[, 0]), for an agent
+    within rho of the goal (|psi_g| < rho), 0 beyond. In 3-D it turns about the vertical through the
+    goal. F^g points at the goal, so this is a rotation about it, clockwise seen from above;
+    with the Gaussian goal of eq 7 near its centre, F^g ~ -2 c_g/l_g^2 psi_g, a rigid rotation at
+    2 kappa c_g/l_g^2 rad/s. Not the gradient of a potential (its curl is not zero), as the gate is not."""
+    turned = np.zeros_like(f_g)
+    turned[..., 0], turned[..., 1] = -f_g[..., 1], f_g[..., 0]
+    inside = np.einsum("...j,...j->...", psi_g, psi_g) < np.square(law.swirl_radius)  # a number or (B, 1)
+    return law.swirl * inside[..., None] * turned  # swirl: a number or (B, 1, 1)
 
 
 def unit_toward(psi_g: np.ndarray) -> np.ndarray:

@@ -9,7 +9,8 @@ Symbols follow Kim, Wang & Shin (2006):
 - ``d_m_go``: radius of the permissible goal region around an obstacle (Prop 1);
   ``d_m_ro``: the closest an agent may come to an obstacle (Prop 2).
 - ``interaction``: how an agent uses its neighbours (:mod:`zswarm.model.interaction`): ``paper``
-  (eqs 26-28) or a variant that scales; ``gate`` and ``k_nearest`` set two of the variants.
+  (eqs 26-28) or a variant that scales; ``gate``, ``k_nearest``, ``swirl`` and ``swirl_radius`` set
+  the variants.
 - ``body``: what a commanded velocity does (:mod:`zswarm.model.body`): ``point`` (the paper's),
   ``unicycle`` (``turn_rate``, ``lookahead``) or ``double-integrator`` (``accel``).
 
@@ -69,11 +70,15 @@ FIELDS: dict[str, FieldSpec] = {
     "d_m_go": FieldSpec("margins", float, 0.0, False, "permissible goal-region radius d_m^go (Prop 1)"),
     "d_m_ro": FieldSpec("margins", float, 0.0, True, "minimum robot-obstacle distance d_m^ro (Prop 2)"),
     "interaction": FieldSpec("interaction", str, 0.0, False,
-                             "paper (eqs 26-28), or modifiers joined by +: mean, cutoff, gate, nearest; "
+                             "paper (eqs 26-28), or modifiers joined by +: mean, cutoff, gate, nearest, swirl; "
                              "scalable = mean+gate"),
     "gate": FieldSpec("interaction", float, 0.0, True,
                       "gate: no goal pull with a neighbour ahead closer than gate x d^f", hi=10.0),
     "k_nearest": FieldSpec("interaction", int, 1, False, "nearest: how many nearest neighbours count"),
+    "swirl": FieldSpec("interaction", float, 0.0, False,
+                       "swirl: the circulation about the goal, as a multiple of the goal pull"),
+    "swirl_radius": FieldSpec("interaction", float, 0.0, False,
+                              "swirl: how far from the goal agents circulate (0: swirl cannot be used)"),
     "body": FieldSpec("body", str, 0.0, False, "what a command does: point (the paper's), unicycle, "
                       "double-integrator"),
     "turn_rate": FieldSpec("body", float, 0.0, True, "unicycle: the largest turn rate (rad/s)"),
@@ -163,11 +168,13 @@ class DesignMargins:
 
 @dataclass(frozen=True)
 class InteractionParams:
-    """How an agent uses its neighbours: the interaction and the settings of two of its variants."""
+    """How an agent uses its neighbours: the interaction and the settings of its variants."""
 
     interaction: str = "paper"
     gate: float = 0.85
     k_nearest: int = 10
+    swirl: float = 1.5
+    swirl_radius: float = 0.0
 
     def __post_init__(self) -> None:
         _check(self)

@@ -37,6 +37,7 @@ from zswarm.model import metrics
 from zswarm.model import prey as prey_motion
 from zswarm.model import safety as sf
 from zswarm.model.faults import FaultModel
+from zswarm.model.interaction import Interaction
 from zswarm.model.law import field
 from zswarm.model.neighbour_law import DensePairs, NeighbourLaw, neighbour_law
 from zswarm.model.params import PotentialParams
@@ -118,15 +119,17 @@ def _law_groups(scen: list[Scenario], combinations: list[Combination]) -> list[_
     groups: dict[tuple[str, int], list[int]] = {}
     laws = [neighbour_law(s.params) for s in scen]
     for r, law in enumerate(laws):
-        key = (law.interaction.name, law.k_nearest) if scen[r].formation and not law.interaction.is_paper \
-            else ("paper", 0)
+        if not scen[r].formation:  # no neighbour terms: only a swirl about the goal is left of the interaction
+            laws[r] = law = dataclasses.replace(law, interaction=Interaction(swirl=law.interaction.swirl))
+        key = ("paper", 0) if law.interaction.is_paper else (law.interaction.name, law.k_nearest)
         groups.setdefault(key, []).append(r)
     out = []
     for key, rows in groups.items():
         first = laws[rows[0]]
         law = None if key[0] == "paper" else NeighbourLaw(
             first.interaction, _column([laws[r].sensing_radius for r in rows], 3),
-            _column([laws[r].gate_out for r in rows], 3), first.k_nearest)
+            _column([laws[r].gate_out for r in rows], 3), first.k_nearest,
+            _column([laws[r].swirl for r in rows], 3), _column([laws[r].swirl_radius for r in rows], 2))
         pots = [scen[r].params.potential for r in rows]
         index = slice(None) if len(rows) == len(scen) else np.array(rows)
         out.append(_LawGroup(index, law, _Potentials(pots, 2), _Potentials(pots, 3),
