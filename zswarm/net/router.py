@@ -5,6 +5,7 @@ No router binary installs from the package registries; a router-mode session rou
 
 from __future__ import annotations
 
+import os
 import signal
 import sys
 import threading
@@ -32,8 +33,26 @@ def _main(argv: Sequence[str] | None) -> int:
         print(f"router: listening on {', '.join(args.listen) or 'the config file endpoints'}", flush=True)
         stop.wait()
     finally:
-        session.close()
+        close_within(session, CLOSE_WAIT_S)
     return 0
+
+
+#: How long a stopping router waits for its session to close before it leaves without it.
+CLOSE_WAIT_S = 2.0
+
+
+def close_within(session, wait: float) -> None:
+    """Close the session, but never wait more than ``wait`` seconds for it: closing waits on clients
+    that read late, and on a loaded machine that took over 10 s, during which the router went on
+    routing, so a stopped router was not stopped. A router keeps nothing worth the wait: past it, the
+    process ends at once (the kernel closes its connections and every client sees the router gone)."""
+    closer = threading.Thread(target=session.close, name="router-close", daemon=True)
+    closer.start()
+    closer.join(wait)
+    if closer.is_alive():
+        print(f"router: closing took over {wait:g} s; leaving without it", file=sys.stderr, flush=True)
+        sys.stdout.flush()
+        os._exit(0)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
