@@ -63,6 +63,11 @@ class Body:
         return math.hypot(pose.x - self.x, pose.y - self.y, (pose.z or 0.0) - self.z)
 
 
+#: How long the safety filter waits for the liveliness token of a sender whose poses it hears (tokens
+#: can come seconds after the poses on a loaded machine) before a silent one stops counting.
+TOKEN_GRACE = 5.0
+
+
 class Sensing:
     """``probe_latency``: poses come from ring channels, which carry no arrival time, so the transport
     latency is timed on one neighbour's poses heard a second time through a subscription stamped on
@@ -274,14 +279,18 @@ class Sensing:
 
     # --- what the agent senses -------------------------------------------------------------------------
 
-    def _held(self, step: int | None, guard: bool = False):
+    def _held(self, step: int | None, guard: bool = False, quiet: float = math.inf):
         """(entry, pose) of every neighbour holding a liveliness token: its step-k pose (lockstep) or its
         newest (free, ``step`` None), where it has one. ``guard`` (the safety filter): also one whose
         token has not come yet (its poses prove it is there; under load a token can come seconds after
-        them); only one seen departing is not guarded against."""
-        departed = self.counters.departed
+        them); not one seen departing, nor one whose token has not come in :data:`TOKEN_GRACE` seconds
+        since its first pose and from which nothing came for ``quiet`` seconds: a sender that never
+        announced itself and fell silent is no member of the swarm (a hostile peer's made-up agent
+        once held an agent braking beside it for the rest of a run)."""
+        departed, now = self.counters.departed, time.time()
         for who, nb in self.neighbours.entries.items():
-            if who in self.alive or (guard and who not in departed):
+            if who in self.alive or (guard and who not in departed
+                                     and (now - nb.first <= TOKEN_GRACE or now - nb.received <= quiet)):
                 pose = nb.by_step.get(step) if step is not None else nb.latest
                 if pose is not None:
                     yield nb, pose
@@ -328,7 +337,7 @@ class Sensing:
         together). ``lookahead``: a unicycle's tracked point ahead of its axle, from the heading."""
         now, v, cells = time.time(), self.v_max, self.subscription_radius
         heard = []
-        for nb, pose in self._held(step, guard=True):
+        for nb, pose in self._held(step, guard=True, quiet=staleness):
             age = 0.0 if step is not None else max(now - pose.stamp, 0.0) * time_scale + period
             d = self.body.distance(pose)
             if d - v * age <= self.radius:

@@ -343,6 +343,40 @@ def test_under_a_common_delay_a_quiet_neighbour_deep_inside_stays_guarded_in_age
     assert ages[0, 0, 2] == pytest.approx(2.6)
 
 
+def test_a_sender_that_never_announced_itself_and_fell_silent_is_not_guarded_for_ever():
+    """A hostile peer published poses of an agent nobody announced (id 999, no liveliness token) amid
+    the swarm for 10 s; an agent that later came near the last of them braked beside it for the rest
+    of the run (27 s, a loaded CI): with no one else in reach, nothing told its silence apart from
+    loss. A token can come seconds after the poses, so a token-less sender is guarded while it keeps
+    publishing or for TOKEN_GRACE seconds after its first pose, and not once it has been silent
+    beyond both."""
+    import time
+
+    from agents.sensing import TOKEN_GRACE, Body, Sensing
+    from zswarm.net import messages as msg
+    from zswarm.net.runspec import RunSpec
+
+    spec = RunSpec(scenario_name="moving-prey")  # R = 1, v_max = 1
+    sensing = Sensing(spec, 0, Body(0.0, 0.0), probe_latency=False)
+    now = time.time()
+    long_ago = now - TOKEN_GRACE - 1.0
+
+    def hear(who, p, first, last):
+        assert sensing.neighbours.accept(who, msg.Pose(who, 1, first, -1, *p, 0.0, 0.0), first) is None
+        if last != first:
+            assert sensing.neighbours.accept(who, msg.Pose(who, 2, last, -1, *p, 0.0, 0.0), last) is None
+
+    guarded = lambda: set(dict(sensing.safety_neighbours(None, 1.0, 0.05, 0.5)))  # noqa: E731
+    hear(999, (0.4, 0.0), long_ago, long_ago + 0.2)  # made up long ago, silent since, no one else heard
+    assert guarded() == set()
+    sensing.alive.add(999)  # had its token come: alone, its silence cannot be told from loss: guarded
+    assert guarded() == {(0.4, 0.0)}
+    sensing.alive.discard(999)
+    hear(7, (0.0, 0.4), long_ago, now - 0.01)  # its token late for seconds, but it keeps publishing
+    hear(8, (-0.4, 0.0), now - 0.3, now - 0.3)  # first heard 0.3 s ago: its token may still come
+    assert guarded() == {(0.0, 0.4), (-0.4, 0.0)}
+
+
 def test_a_quiet_neighbour_whose_member_token_is_in_the_cells_is_guarded_whatever_its_silence():
     """Loss near the edge of the cells: every pose of a neighbour lost for seconds while the others
     come through. By its silence and its distance it can have left; its member token (a liveliness

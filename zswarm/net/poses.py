@@ -51,11 +51,13 @@ def supersedes(old: msg.Pose, new: msg.Pose) -> bool:
 
 @dataclass
 class Entry:
-    """The latest accepted pose of one agent, when it arrived (local wall time), and its step poses."""
+    """The latest accepted pose of one agent, when it arrived (local wall time), its step poses, and
+    when the first arrived."""
 
     latest: msg.Pose
     received: float
     by_step: dict[int, msg.Pose] = field(default_factory=dict)
+    first: float = 0.0  # when its first pose arrived
 
 
 @dataclass
@@ -101,7 +103,7 @@ class PoseTable:
             return "schema"
         old = self.entries.get(pose.id)
         if old is None:
-            old = self.entries[pose.id] = Entry(pose, now)
+            old = self.entries[pose.id] = Entry(pose, now, first=now)
         else:
             # the receiver's clock since the old pose was sent (or taken in, if its stamp claims a time
             # after that): a pose that waited in a queue does not make the next one an impossible jump
