@@ -35,7 +35,8 @@ from swarm_procs import (
 
 @pytest.mark.parametrize("scenario,duration,interaction,body,safety", [
     ("moving-prey", 30.0, "paper", "point", "barrier"), ("static-goal", 15.0, "paper", "point", "off"),
-    ("moving-prey", 10.0, "mean+gate", "point", "barrier"), ("moving-prey", 5.0, "paper", "unicycle", "barrier"),
+    ("moving-prey", 10.0, "mean+gate", "point", "barrier"), ("moving-prey", 6.0, "mean+gate+swirl", "point", "barrier"),
+    ("moving-prey", 5.0, "paper", "unicycle", "barrier"),
     ("moving-prey", 5.0, "paper", "double-integrator", "off"), ("moving-prey-3d", 5.0, "paper", "point", "barrier"),
     ("goal-near-obstacle", 8.0, "paper", "point", "barrier")])
 def test_lockstep_swarm_reproduces_the_reference_and_catches_the_prey(tmp_path, scenario, duration, interaction,
@@ -43,11 +44,14 @@ def test_lockstep_swarm_reproduces_the_reference_and_catches_the_prey(tmp_path, 
     """The paper's law catches the prey within the run on moving-prey; the other cases are held to the
     reference for the first part of theirs, which is what this test is about: static-goal through its
     split at the large obstacle (15 s; tests/test_sim.py runs it to the goal), mean+gate (slower: 34.9 s)
-    for 10 s, the other bodies for 5 s (zswarm.model.body; tests/test_body.py runs them to the capture),
+    for 10 s, mean+gate+swirl for 6 s (agents within 3.5 of the prey circulate about it: some from the
+    start), the other bodies for 5 s (zswarm.model.body; tests/test_body.py runs them to the capture),
     3-D for 5 s (tests/test_space_procs.py runs it to the capture as processes). Both safety modes:
     goal-near-obstacle is the case where the filter acts (the paper's law would crush its 8 agents
     into 28 collisions; tests/test_safety_runs.py)."""
-    sets = ["--set", f"interaction={interaction}", "--set", f"body={body}", "--safety", safety]
+    # swirl_radius counts only with swirl: within 3.5 of the prey (some agents from the start) they circulate
+    sets = ["--set", f"interaction={interaction}", "--set", f"body={body}", "--set", "swirl_radius=3.5",
+            "--safety", safety]
     n = get_scenario(scenario).n_agents
     catches = duration >= 30.0
     with processes() as kids:
@@ -60,7 +64,8 @@ def test_lockstep_swarm_reproduces_the_reference_and_catches_the_prey(tmp_path, 
         for a in agents:
             assert wait_exit(a, 20) == 0
     summary = load_summary(summary_path)
-    ref = simulate(get_scenario(scenario, {"interaction": interaction, "body": body}), 0, duration=duration,
+    ref = simulate(get_scenario(scenario, {"interaction": interaction, "body": body, "swirl_radius": 3.5}), 0,
+                   duration=duration,
                    keep_trajectory=True, safety=safety)
     assert summary["safety"] == safety
     assert (summary["capture_time"] is not None) == (ref.summary["capture_time"] is not None)
