@@ -287,7 +287,7 @@ class Sensing:
         since its first pose and from which nothing came for ``quiet`` seconds: a sender that never
         announced itself and fell silent is no member of the swarm (a hostile peer's made-up agent
         once held an agent braking beside it for the rest of a run)."""
-        departed, now = self.counters.departed, time.time()
+        departed, now = self.counters.departed, (time.time() if guard else 0.0)
         for who, nb in self.neighbours.entries.items():
             if who in self.alive or (guard and who not in departed
                                      and (now - nb.first <= TOKEN_GRACE or now - nb.received <= quiet)):

@@ -7,8 +7,9 @@
 
 plus the formation term U^f, F^f of eqs 26-28 (or an interaction of :mod:`zswarm.model.neighbour_law`,
 whose gate sets the goal weight w_i; w_i = 1 otherwise) and, with ``swirl``, the circulation about the
-goal (:func:`zswarm.model.neighbour_law.swirl_force`, which U does not hold: it is no gradient). The multiplicative F is eq 15 regrouped:
--grad(U^g/c_g) = F^g/c_g. U stays eq 35's (with the paper's eq 26 sum), the energy the metrics report.
+goal (:func:`zswarm.model.neighbour_law.swirl_force`, which U does not hold: it is no gradient). The
+multiplicative F is eq 15 regrouped: -grad(U^g/c_g) = F^g/c_g. U stays eq 35's (with the paper's eq 26
+sum), the energy the metrics report.
 
 :func:`field` is the one implementation, over any leading batch axes (agents, or runs x agents, each
 with D = 2 or 3 coordinates). What each agent sensed comes as pairs, in one of two layouts
