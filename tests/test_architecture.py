@@ -11,7 +11,8 @@ through others (a circle).
     sim | net      the engines: reference simulator | runtime     model, record (sim only), base
     record         Rerun recordings: write, read back, repair     model, base
     model          the paper's math, scenarios, metrics, faults   base
-    base           zswarm.errors, args, files, provenance         nothing of zswarm
+    base           zswarm.errors, args, files, provenance, ports,  nothing of zswarm
+                   stopping
 """
 
 from __future__ import annotations
@@ -24,7 +25,8 @@ import pytest
 
 from conftest import ROOT
 
-BASE = {"zswarm", "zswarm.errors", "zswarm.args", "zswarm.files", "zswarm.provenance", "zswarm.ports"}
+BASE = {"zswarm", "zswarm.errors", "zswarm.args", "zswarm.files", "zswarm.provenance", "zswarm.ports",
+        "zswarm.stopping"}
 ALLOWED: dict[str, set[str]] = {
     "base": {"base"},
     "model": {"base", "model"},

@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import argparse
-import signal
-import threading
 from pathlib import Path
 
 import numpy as np
 
 from zswarm.args import UsageError, add_param_args, seed_arg
+from zswarm.stopping import stop_on_signals
 
 DESCRIPTION = ("Stand-in ROS 2 robots for rehearsing a deployment: differential-drive robots at the scenario's "
                "spawn positions that publish nav_msgs/Odometry and obey geometry_msgs/Twist on the wire of the "
@@ -62,9 +61,7 @@ def run(args: argparse.Namespace) -> int:
         start = robot_sim.start_pose(r, (float(spawn[r.id, 0]), float(spawn[r.id, 1])), facing)
         robots.append(robot_sim.SimRobot(r, robots_file.route, start, args.cmd_timeout))
     session = open_session(config_from_args(args), what="robot-sim", retry_for=args.connect_timeout)
-    stop = threading.Event()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: stop.set())
+    stop = stop_on_signals()
     route = robots_file.route
     print(f"robot-sim: {len(robots)} robots on {route.route} ({route.distro}, domain {route.domain_id}), "
           f"odometry at {args.rate:g} Hz, stopping {args.cmd_timeout:g} s after the last command", flush=True)

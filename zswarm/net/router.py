@@ -6,13 +6,13 @@ No router binary installs from the package registries; a router-mode session rou
 from __future__ import annotations
 
 import os
-import signal
 import sys
 import threading
 from typing import Sequence
 
 from zswarm.args import Parser, run_main
 from zswarm.net.config import add_zenoh_args, config_from_args, open_session
+from zswarm.stopping import stop_on_signals
 
 ROUTER_RUNTIME: str | None = None  # Zenoh's default pools
 
@@ -23,9 +23,7 @@ def _main(argv: Sequence[str] | None) -> int:
     args = parser.parse_args(argv)
     if not args.listen and args.config is None:
         args.listen = ["tcp/127.0.0.1:7447"]
-    stop = threading.Event()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: stop.set())
+    stop = stop_on_signals()
     # the router is no agent: it carries every message of the swarm, so it keeps Zenoh's own
     # multi-threaded runtime rather than the agents' single worker (measured: docs/benchmarks.md)
     session = open_session(config_from_args(args), what="router", runtime=ROUTER_RUNTIME)

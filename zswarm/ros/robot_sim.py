@@ -21,6 +21,7 @@ from zswarm.model.body import wrap
 from zswarm.ros.motion import Odom, odometry, read_twist
 from zswarm.ros.robots import ODOMETRY, TWIST, Robot
 from zswarm.ros.wire import Attachment, Route, WireError
+from zswarm.stopping import StopSignal
 
 WHEEL_BASE = 0.16  # m, a TurtleBot 3 Burger's
 
@@ -93,7 +94,7 @@ def start_pose(robot: Robot, world: tuple[float, float], facing: tuple[float, fl
     return Odom(x, y, yaw, stamp=time.time())
 
 
-def run(session, route: Route, robots: list[SimRobot], rate: float, stop: threading.Event,
+def run(session, route: Route, robots: list[SimRobot], rate: float, stop: StopSignal | threading.Event,
         duration: float | None = None, idle_exit: float | None = None) -> str:
     """Drive ``robots`` on ``session`` at ``rate`` Hz until ``stop`` is set, ``duration`` passes, or (with
     ``idle_exit``) the robots were commanded and then no command came for ``idle_exit`` seconds (the run
