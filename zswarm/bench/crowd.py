@@ -12,7 +12,6 @@ on the world's final tick, or on SIGINT/SIGTERM.
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 import time
 from typing import Sequence
@@ -24,6 +23,7 @@ from zswarm.net import messages as msg
 from zswarm.net.config import add_zenoh_args, config_from_args, open_session
 from zswarm.net.rings import CELL_CAPACITY
 from zswarm.net.runspec import add_run_args, spec_from_args
+from zswarm.stopping import stop_on_signals
 
 
 def build_parser() -> Parser:
@@ -44,9 +44,7 @@ def run_crowd(args: argparse.Namespace) -> int:
     if args.first < 0 or ids[-1] >= n:
         raise UsageError(f"--first {args.first} --count {args.count} reaches beyond the run's {n} agents")
     spawn = spec.scenario.initial_positions(np.random.default_rng(spec.seed))
-    stop: list[bool] = []
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: stop.append(True))
+    stop = stop_on_signals()
     session = open_session(config_from_args(args), what=f"crowd {args.first}", retry_for=args.connect_timeout)
     declared: list = []
     try:
@@ -62,7 +60,7 @@ def run_crowd(args: argparse.Namespace) -> int:
         z = len(spawn[0]) == 3
         seq, final = 0, False
         next_tick = time.monotonic()
-        while not stop and not final:
+        while not stop.is_set() and not final:
             while (sample := ticks.try_recv()) is not None:
                 try:
                     tick = msg.decode(sample.payload.to_bytes())

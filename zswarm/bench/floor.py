@@ -13,7 +13,6 @@ nothing, runs no control law and no event loop: samples wait in a ring channel e
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 import time
 from typing import Sequence
@@ -26,6 +25,7 @@ from zswarm.net.config import add_zenoh_args, config_from_args, open_session
 from zswarm.net.keys import cells_in_disc
 from zswarm.net.rings import CELL_CAPACITY
 from zswarm.net.runspec import add_run_args, spec_from_args
+from zswarm.stopping import stop_on_signals
 
 
 def build_parser() -> Parser:
@@ -46,9 +46,7 @@ def run_floor(args: argparse.Namespace) -> int:
     scenario, keys = spec.scenario, spec.keys
     x, y = map(float, scenario.initial_positions(np.random.default_rng(spec.seed))[args.id])
     reach = spec.subscription_radius
-    stop = []
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: stop.append(True))
+    stop = stop_on_signals()
     session = open_session(config_from_args(args), what=f"floor {args.id}", retry_for=args.connect_timeout)
     inbox: list = []
 
@@ -73,7 +71,7 @@ def run_floor(args: argparse.Namespace) -> int:
         publisher = declared[-1] if not args.prey else declared[0]
         seq, received = 0, 0
         next_tick = time.monotonic()
-        while not stop:
+        while not stop.is_set():
             for sub in subs:
                 while sub.try_recv() is not None:
                     received += 1
