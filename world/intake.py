@@ -67,8 +67,9 @@ class PoseIntake:
         self.keys, self.dims, self.rejected, self.timed = spec.keys, scenario.dimensions, rejected, timed
         max_step = 3.0 * scenario.params.swarm.v_max * scenario.dt
         self.batched = batched and spec.clock == "free"
-        self.table = PoseTable(max_step, spec.period)
-        self.arrays = PoseArrays(max_step, spec.period, self.dims)
+        # one of the two holds the poses: the arrays (batched) or the per-pose table (lockstep's steps too)
+        self.table = None if self.batched else PoseTable(max_step, spec.period)
+        self.arrays = PoseArrays(max_step, spec.period, self.dims) if self.batched else None
         self.record_sizes = msg.POSE_SIZES_BY_DIMS[self.dims]  # this run's records
 
     def one(self, key: str, pose: msg.Pose, payload: bytes, received: float) -> bool:
@@ -123,8 +124,7 @@ class PoseIntake:
         return int(taken.sum())
 
     def forget(self, who: int) -> None:
-        self.table.forget(who)
-        self.arrays.forget(who)
+        (self.arrays if self.batched else self.table).forget(who)
 
     def latest(self, alive: set[int]) -> Snapshot:
         """Free clock: the latest pose of every live agent it holds one of."""
