@@ -172,7 +172,7 @@ class Agent:
         self.seq += 1
         stamp = time.time()
         payload = msg.encode_pose(self.id, self.seq, stamp, step, b.x, b.y, b.vx, b.vy, b.heading, b.z, b.vz,
-                                  self.safety_flag)
+                                  self.safety_flag, self.sensing.node)
         if self.track is not None:
             self.track.extend((stamp, b.x, b.y) if b.z is None else (stamp, b.x, b.y, b.z))
         self.latest_reply = (key, payload)

@@ -15,6 +15,7 @@ class Counters:
     sent: int = 0
     received: int = 0
     poses: int = 0  # other agents' poses taken in
+    crossed: int = 0  # ... sent from another router
     ticks: int = 0
     late_ticks: int = 0
     interventions: int = 0  # the safety filter: ticks it changed the command
@@ -44,7 +45,7 @@ class Counters:
         health = msg.Health(obstacle_queries_failed=self.obstacle_queries_failed, seq_received=self.seq_received,
                             seq_lost=self.seq_lost, injected_drops=injected[0], injected_passed=injected[1],
                             queue_max=self.window_queue_max, tick_lag_max_ms=float(self.window_lag_ms),
-                            poses=self.poses, interventions=self.interventions,
+                            poses=self.poses, crossed=self.crossed, interventions=self.interventions,
                             stalled_ticks=self.stalled_ticks, braked_ticks=self.braked_ticks,
                             stalled_long=int(self.stalled_long))
         heard, heard_poses = self.heard_lists()

@@ -18,6 +18,7 @@ import time
 from typing import Callable
 
 from agents.agent import STATS_PERIOD, Agent
+from agents.handoff import Desk
 from zswarm.net.injector import FaultInjector
 
 
@@ -62,7 +63,10 @@ def hear_cells(agent: Agent, injector: FaultInjector | None, wait: float, stoppe
     take_in(agent, injector)
 
 
-def run_free(agent: Agent, injector: FaultInjector | None, stopped: Callable[[], bool]) -> None:
+def run_free(agent: Agent, injector: FaultInjector | None, stopped: Callable[[], bool],
+             desk: Desk | None = None) -> bool:
+    """Tick until the run ends (False) or, after a tick, a process asks to take this agent over
+    (``desk``, :mod:`agents.handoff`; True: the caller hands its state over and leaves)."""
     period = agent.spec.period
     s, c = agent.sensing, agent.counters
     stats_every = max(int(round(STATS_PERIOD / period)), 1)
@@ -84,5 +88,8 @@ def run_free(agent: Agent, injector: FaultInjector | None, stopped: Callable[[],
         agent.publish_pose(-1)
         if c.ticks % stats_every == 0:
             agent.publish_stats_now()
+        if desk is not None and desk.due:
+            return True
         next_tick += period
         time.sleep(max(next_tick - time.monotonic(), 0.0))
+    return False

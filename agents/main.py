@@ -15,7 +15,8 @@ from typing import TYPE_CHECKING, Sequence
 import numpy as np
 
 from agents.agent import Agent, starting_body
-from agents.free import run_free, wait_for_world
+from agents.free import run_free, take_in, wait_for_world
+from agents.handoff import Desk, HandoffError, apply_state, encode_state, take_over
 from agents.reach import Reach
 from agents.sensing import Sensing
 from zswarm.args import Parser, UsageError, run_main
@@ -39,6 +40,14 @@ def build_parser() -> Parser:
     parser.add_argument("--id", type=int, required=True, help="this agent's id (0 .. N-1 for spawn)")
     parser.add_argument("--start", metavar="X,Y[,Z]", help="start position (X,Y,Z in a 3-D scenario; default: "
                         "the scenario's spawn for this id and seed)")
+    parser.add_argument("--node", type=int, default=0,
+                        help="the index of the router (the cluster node) it connects to: its poses carry it, and "
+                             "it counts the poses it takes in from another router (default 0)")
+    parser.add_argument("--movable", action="store_true",
+                        help="answer a process that takes this agent over (zswarm run --migrate-every; free clock)")
+    parser.add_argument("--takeover", action="store_true",
+                        help="take over the running process of this agent: start from its state (--start: "
+                             "about where it is, to enter its cells early), then it leaves (implies --movable)")
     parser.add_argument("--staleness", type=float, default=0.5,
                         help="free clock: ignore neighbour data older than this many seconds (default 0.5)")
     parser.add_argument("--lockstep-wait", type=float, default=0.25,
@@ -112,7 +121,7 @@ class Process:
         # free clock: samples wait in ring channels (in an inbox, stamped on arrival, when a delay is
         # injected from the arrival time) and are taken in once per tick; lockstep: each one wakes the loop
         rings = loop is None and not (spec.faults.latency or spec.faults.jitter)
-        sensing = Sensing(spec, args.id, body, probe_latency=rings)
+        sensing = Sensing(spec, args.id, body, probe_latency=rings, node=args.node)
         robot = robots.robot(args.id) if robots is not None else None
         link = None
         if robot is not None:
@@ -174,21 +183,50 @@ def run_free_agent(spec: RunSpec, args: argparse.Namespace, robots: RobotsFile |
     # signals stop the run once it has a session; until then (a router still starting: up to
     # --connect-timeout) they end the process at once, as they would any other
     proc = Process(spec, args, loop=None, robots=robots)
+    agent = proc.agent
     stop: list[int] = []
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda signum, _frame: stop.append(signum))
-    done = False
+    done = moved = False
+    desk = None
     try:
-        if not wait_for_world(proc.agent, proc.injector, args.start_timeout, lambda: bool(stop)):
+        if not wait_for_world(agent, proc.injector, args.start_timeout, lambda: bool(stop)):
             if stop:
                 return 0
             raise proc.no_world(args.start_timeout)
-        proc.announce()
-        run_free(proc.agent, proc.injector, lambda: bool(stop))
+        proc.announce()  # a taker-over's token beside the running process's: nobody sees the agent leave
+        if args.takeover and not take_over_agent(proc, args, lambda: bool(stop)):
+            return 0
+        if args.movable or args.takeover:
+            desk = Desk(proc.session, spec.keys.handoff(args.id))
+        moved = run_free(agent, proc.injector, lambda: bool(stop), desk)
+        if moved:
+            desk.answer(encode_state(agent.body, agent.seq, agent.counters))
         done = True
         return 0
     finally:
-        proc.close(final_stats=done or bool(stop))
+        if desk is not None:
+            desk.undeclare()
+        proc.close(final_stats=(done or bool(stop)) and not moved)  # a moved agent's counts went with it
+
+
+def take_over_agent(proc: Process, args: argparse.Namespace, stopped) -> bool:
+    """``--takeover``: the running process's state, then the cells around where it really is (False:
+    stopped while asking)."""
+    agent = proc.agent
+    state = take_over(proc.session, proc.spec.keys.handoff(args.id), args.start_timeout, stopped,
+                      idle=lambda: take_in(agent, proc.injector))
+    if state is None:
+        if stopped():
+            return False
+        raise UsageError(f"agent {args.id}: no running process of it answered for {args.start_timeout:g} s "
+                         "(--takeover takes over a running agent of the run)")
+    try:
+        agent.seq = apply_state(state, agent.body, agent.counters)
+    except HandoffError as exc:
+        raise UsageError(f"agent {args.id}: {exc}") from None
+    agent.reach.follow_cells()
+    return True
 
 
 async def run_lockstep_agent(spec: RunSpec, args: argparse.Namespace) -> int:
@@ -233,7 +271,12 @@ def _main(argv: Sequence[str] | None) -> int:
     robots = robots_file(args, spec)  # a bad robots file stops here, before a session is opened
     if args.id < 0:
         raise UsageError(f"--id must be >= 0 (got {args.id})")
+    if not 0 <= args.node <= 0xFFFF:
+        raise UsageError(f"--node must be in 0..65535 (got {args.node})")
     if spec.clock == "lockstep":
+        if args.movable or args.takeover:
+            raise UsageError("--movable/--takeover run on the free clock only (a lockstep step waits for every "
+                             "agent's pose of the step)")
         return asyncio.run(run_lockstep_agent(spec, args))
     return run_free_agent(spec, args, robots)  # robots run on the free clock only (robots_file)
 

@@ -73,8 +73,9 @@ class Sensing:
     latency is timed on one neighbour's poses heard a second time through a subscription stamped on
     arrival (:mod:`agents.probe`); otherwise on every pose."""
 
-    def __init__(self, spec: RunSpec, agent_id: int, body: Body, probe_latency: bool) -> None:
-        self.spec, self.id, self.body = spec, agent_id, body
+    def __init__(self, spec: RunSpec, agent_id: int, body: Body, probe_latency: bool, node: int = 0) -> None:
+        """``node``: the index of the router it is connected to (a pose sent from another counts as crossed)."""
+        self.spec, self.id, self.body, self.node = spec, agent_id, body, node
         self.latency_from_probe = probe_latency
         self.keys = spec.keys
         p = spec.scenario.params.swarm
@@ -266,6 +267,8 @@ class Sensing:
         self._count_sequence(pose, nb)
         c.heard[who] = c.heard.get(who, 0) + 1
         c.poses += 1
+        if pose.node != self.node:
+            c.crossed += 1
         if not self.latency_from_probe:
             c.add(c.latency, (now - pose.stamp) * 1000.0)
         reason = self.neighbours.accept(who, pose, now)

@@ -21,7 +21,7 @@ from swarm_procs import Watch, processes, start_agent, start_world, wait_exit, w
 def garbage(rng: np.random.Generator, keys: Keys, cell: tuple[int, int], i: int) -> list[tuple[str, bytes]]:
     pose_key = keys.pose(cell, 1)
     good = msg.encode(msg.Pose(1, 10**9 + i, time.time(), -1, 0.0, 0.0, 0.0, 0.0))
-    nan_pose = struct.pack(msg.POSE_LAYOUT + "4d", 0xC1, msg.VERSION, 0, 0, 1, 10**9 + i, 0.0, -1,
+    nan_pose = struct.pack(msg.POSE_LAYOUT + "4d", 0xC1, msg.VERSION, 0, 0, 1, 10**9 + i, 0.0, -1, 0, 0,
                            math.nan, 0.0, 0.0, math.inf)
     return [
         (pose_key, rng.bytes(int(rng.integers(1, 64)))),                       # random bytes

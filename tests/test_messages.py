@@ -14,9 +14,10 @@ from zswarm.net import messages as msg
 finite = st.floats(-1e5, 1e5, allow_nan=False)
 pose_fields = (st.integers(0, 10_000), st.integers(0, 2**40), st.floats(0, 2e9), st.integers(-1, 10**6),
                finite, finite, finite, finite, st.one_of(st.none(), st.floats(-3.15, 3.15)))  # heading last
-poses = st.one_of(st.builds(msg.Pose, *pose_fields, z=st.none(), vz=st.none(), safety=st.integers(0, 3)),
+nodes = st.integers(0, 0xFFFF)
+poses = st.one_of(st.builds(msg.Pose, *pose_fields, z=st.none(), vz=st.none(), safety=st.integers(0, 3), node=nodes),
                   st.builds(msg.Pose, *pose_fields[:-1], heading=st.none(), z=finite, vz=finite,
-                            safety=st.integers(0, 3)))  # 2-D, 3-D (no heading in 3-D)
+                            safety=st.integers(0, 3), node=nodes))  # 2-D, 3-D (no heading in 3-D)
 hist = st.dictionaries(st.integers(0, msg.MAX_HIST_BINS - 1), st.integers(0, 10**6), max_size=20)
 
 
@@ -120,8 +121,8 @@ def test_a_batch_of_records_decodes_as_each_record_alone(ms, hits):
             assert took == isinstance(alone, msg.Pose), (payload, row)
             if took:
                 z = alone.z is not None
-                assert (int(row["id"]), int(row["seq"]), float(row["t"]), int(row["s"]), int(row["f"])) == (
-                    alone.id, alone.seq, alone.stamp, alone.step, alone.safety)
+                assert (int(row["id"]), int(row["seq"]), float(row["t"]), int(row["s"]), int(row["f"]),
+                        int(row["n"])) == (alone.id, alone.seq, alone.stamp, alone.step, alone.safety, alone.node)
                 assert (float(row["x"]), float(row["y"]), float(row["vx"]), float(row["vy"])) == (
                     alone.x, alone.y, alone.vx, alone.vy)
                 assert (float(row["z"]), float(row["vz"])) == (alone.z, alone.vz) if z else alone.z is None
@@ -132,7 +133,7 @@ def test_a_batch_of_records_decodes_as_each_record_alone(ms, hits):
 #: Each field of a pose record with values at and beyond its bounds (the first is a valid one).
 EDGES = {"magic": [0xC1, 0xC0], "v": [msg.VERSION, msg.VERSION + 1, msg.VERSION - 1], "flags": [None, 0, 1, 2, 3],
          "f": [0, 3, 4, 5], "i": [7, 0, msg.MAX_ID, msg.MAX_ID + 1], "seq": [9, 0, -1, 2**62, 2**62 + 1],
-         "s": [-1, -2, 0, 2**62, 2**62 + 1], "t": [0.0, 1e12, -1e12, 1.1e12, -1.1e12, math.nan, math.inf],
+         "s": [-1, -2, 0, msg.MAX_STEP, -2**31], "n": [3, 0, 0xFFFF], "spare": [0, 1, 0xFFFF], "t": [0.0, 1e12, -1e12, 1.1e12, -1.1e12, math.nan, math.inf],
          **{f"c{k}": [0.5, msg.MAX_COORD, -msg.MAX_COORD, 1.1e6, -1.1e6, math.nan, -math.inf, 7.0, -7.0, 7.5, -7.5]
             for k in range(6)}}
 
@@ -149,7 +150,8 @@ def test_every_bound_of_a_batch_of_records_as_decode_has_it(size, field, pick):
     else:
         values["flags"] = EDGES["flags"][1 + pick % 4]
     payload = struct.pack(msg.POSE_LAYOUT + "d" * n, values["magic"], values["v"], values["flags"], values["f"],
-                          values["i"], values["seq"], values["t"], values["s"], *(values[f"c{k}"] for k in range(n)))
+                          values["i"], values["seq"], values["t"], values["s"], values["n"], values["spare"],
+                          *(values[f"c{k}"] for k in range(n)))
     rows, ok = msg.decode_pose_records([payload])
     try:
         alone = msg.decode(payload)
@@ -161,10 +163,10 @@ def test_every_bound_of_a_batch_of_records_as_decode_has_it(size, field, pick):
 V = msg.VERSION
 
 
-def record(i=1, seq=1, t=0.0, s=-1, x=0.0, y=0.0, vx=0.0, vy=0.0, *, v=V, flags=0, f=0, extra=()) -> bytes:
+def record(i=1, seq=1, t=0.0, s=-1, x=0.0, y=0.0, vx=0.0, vy=0.0, *, v=V, flags=0, f=0, node=0, extra=()) -> bytes:
     """A 2-D pose record built field by field from :data:`messages.POSE_LAYOUT` (unchecked)."""
     fmt = msg.POSE_LAYOUT + "d" * (4 + len(extra))
-    return struct.pack(fmt, 0xC1, v, flags, f, i, seq, t, s, x, y, vx, vy, *extra)
+    return struct.pack(fmt, 0xC1, v, flags, f, i, seq, t, s, node, 0, x, y, vx, vy, *extra)
 
 
 @pytest.mark.parametrize("payload,reason", [

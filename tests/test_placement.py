@@ -1,4 +1,4 @@
-"""Which node runs which agent (zswarm.cluster.placement) and what it saves (zswarm bench placement):
+"""Which node runs which agent (zswarm.launch.placement) and what it saves (zswarm bench placement):
 pure functions and the command, no Ray needed."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from zswarm.cluster.placement import cross_router_share, place, shares
+from zswarm.launch.placement import cross_router_share, place, replace, shares
 from zswarm.net.keys import in_reach
 
 
@@ -47,6 +47,27 @@ def test_space_placement_keeps_neighbours_together_and_round_robin_does_not():
     assert cross_router_share({}, {0: 0}) is None
 
 
+def test_a_new_split_moves_as_few_agents_as_it_can_and_keeps_each_share():
+    """replace: a swarm that has not moved stays where it is, whatever the nodes were called; one that
+    moved keeps each node's share and moves fewer agents than handing the new blocks out as numbered."""
+    rng = np.random.default_rng(5)
+    points = rng.uniform(-10, 10, size=(90, 2))
+    first = np.asarray(place(points, [1, 1, 1], "space"))
+    renamed = (first + 1) % 3  # the same blocks, on other nodes
+    assert replace(points, renamed, [1, 1, 1]) == renamed.tolist()
+    turned = points @ np.array([[0.0, -1.0], [1.0, 0.0]])  # a quarter turn about the origin
+    new = np.asarray(replace(turned, first, [1, 1, 1]))
+    as_numbered = np.asarray(place(turned, [1, 1, 1], "space"))
+    assert np.bincount(new, minlength=3).tolist() == shares(90, [1, 1, 1])
+    assert (new != first).sum() <= (as_numbered != first).sum()
+    assert sorted(np.unique(as_numbered)) == sorted(np.unique(new))
+    # unequal capacities: a block only goes to a node of its own share
+    caps = [2, 1, 1]
+    base = np.asarray(place(points, caps, "space"))
+    got = np.asarray(replace(turned, base, caps))
+    assert np.bincount(got, minlength=3).tolist() == shares(90, caps)
+
+
 def test_bench_placement_reports_both_shares(cli):
     res = cli("-m", "zswarm", "bench", "placement", "--agents", "30", "--nodes", "3", "--duration", "3",
               "--samples", "5", "--json")
@@ -54,5 +75,10 @@ def test_bench_placement_reports_both_shares(cli):
     out = json.loads(res.stdout)
     assert 0 < out["space"] < out["round_robin"] < 1 and out["ratio"] == pytest.approx(out["space"] / out["round_robin"])
     assert 0 < out["space_replaced"] < out["round_robin"]
+    assert out["migrate_every"] == 10.0 and out["moves"] == 0  # a 3 s run is never moved
+    moved = json.loads(cli("-m", "zswarm", "bench", "placement", "--agents", "60", "--nodes", "3", "--duration", "20",
+                           "--samples", "20", "--migrate-every", "2", "--json").stdout)
+    assert moved["moves"] > 0 and moved["space_migrated"] < moved["space"]
+    assert moved["ratio_migrated"] == pytest.approx(moved["space_migrated"] / moved["round_robin"])
     bad = cli("-m", "zswarm", "bench", "placement", "--agents", "3", "--nodes", "5")
     assert bad.returncode == 2 and "--nodes between 1 and N" in bad.stderr

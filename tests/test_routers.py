@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import json
 
+import pytest
 from swarm_procs import our_processes, run_launch
+
+from zswarm.launch.placement import cross_router_share
 
 
 def test_three_meshed_routers_carry_one_swarm_that_catches_the_prey(tmp_path):
@@ -20,4 +23,30 @@ def test_three_meshed_routers_carry_one_swarm_that_catches_the_prey(tmp_path):
     heard = {int(k): set(v) for k, v in s["heard"].items()}
     for i, others in heard.items():
         assert any(j % 3 != i % 3 for j in others), (i, others)
+    # each pose names its sender's router: the share measured pose by pose is the one computed from
+    # who heard whom and where each agent ran
+    counts = {int(r): {int(j): n for j, n in senders.items()} for r, senders in s["heard_poses"].items()}
+    assert s["cross_router_share"] == pytest.approx(cross_router_share(counts, {i: i % 3 for i in range(6)}))
+    assert 0.3 < s["cross_router_share"] < 1 and s["cross_router_heard"] == 6
     assert our_processes("mesh3") == []
+
+
+def test_agents_move_between_routers_as_the_swarm_moves_and_nothing_is_lost(tmp_path):
+    """--migrate-every: agents are moved between routers make-before-break; no neighbour and not the
+    world sees one leave, every counter goes on in the process that took it over (a tick count that
+    restarted would fall short of the run's), the summary counts the moves, and every process ends."""
+    record = tmp_path / "moving.rrd"
+    res = run_launch(tmp_path, "--routers", "3", "--agents", "12", "--duration", "24", "--time-scale", "2",
+                     "--migrate-every", "2", "--run", "moving", "--record", str(record), "--quiet", timeout=180)
+    assert res.returncode == 0, res.stderr
+    s = json.loads(record.with_suffix(".json").read_text())
+    moves = s["migration"]
+    assert moves["every"] == 2.0 and moves["moves"] >= 3 and moves["epochs"] <= 12, moves
+    assert s["departures"] == [] and s["messages_rejected"] == 0 and s["collisions"] == 0
+    assert "exited with code" not in res.stderr
+    assert s["agents_reporting"] == 12 and s["agents_final_reports"] == 12
+    steps = s["steps"]  # every agent ticks once a step and sends a pose a tick, whichever process it was in
+    assert s["ticks"] >= 0.97 * 12 * steps, (s["ticks"], 12 * steps)
+    assert s["messages_sent"] >= 0.97 * 12 * steps
+    assert 0 < s["cross_router_share"] < 1
+    assert our_processes("moving") == []

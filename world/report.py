@@ -26,6 +26,7 @@ def transport_summary(stats: list[msg.Stats], world_rejected: dict[str, int]) ->
             rejected[k] = rejected.get(k, 0) + v
     lost = sum(s.health.seq_lost for s in stats)
     counted = sum(s.health.seq_lost + s.health.seq_received for s in stats)
+    poses = sum(s.health.poses for s in stats)
     return {
         "agents_reporting": len(stats),
         "agents_final_reports": sum(1 for s in stats if s.final),  # the rest: counts up to their last second
@@ -34,7 +35,11 @@ def transport_summary(stats: list[msg.Stats], world_rejected: dict[str, int]) ->
         "messages_rejected": sum(rejected.values()), "rejected_by_reason": rejected,
         "pose_age_ms": {"p50": histogram.percentile(ages, 0.5), "p99": histogram.percentile(ages, 0.99)},
         "pose_latency_ms": {"p50": histogram.percentile(lat, 0.5), "p99": histogram.percentile(lat, 0.99)},
-        "poses_received": sum(s.health.poses for s in stats),
+        "poses_received": poses,
+        # the share of those sent from another router (each pose names its sender's), and how many
+        # agents took in one: measured pose by pose, wherever each agent ran at the time
+        "cross_router_share": _ratio(float(sum(s.health.crossed for s in stats)), float(poses)),
+        "cross_router_heard": sum(1 for s in stats if s.health.crossed),
         "safety_interventions": sum(s.health.interventions for s in stats),
         "safety_stalled_ticks": sum(s.health.stalled_ticks for s in stats),
         "safety_braked_ticks": sum(s.health.braked_ticks for s in stats),

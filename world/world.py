@@ -123,6 +123,7 @@ class World:
         self.stop = asyncio.Event()
         self.started_wall = time.time()
         self.resumed: Resumed | None = None
+        self.last_seen: tuple[float, np.ndarray, np.ndarray] | None = None  # (t, ids, positions) observed last
         self.snapshot_spread = 0.0  # free clock: the widest spread of send times in one observed snapshot
         # free clock: collisions judged at one instant (a snapshot mixes poses sent at different times)
         self.timed = (TimedContacts(2.0 * self.scenario.params.swarm.robot_radius)
@@ -240,6 +241,15 @@ class World:
             self._event(f"agent {who} {how} at t = {event['t']:.2f} s"
                         + ("" if how == "left" else " (no final report: killed or failed)"))
 
+    def answer_positions(self, _params: dict[str, str]) -> list[tuple[str, bytes]]:
+        """The queryable ``keys.positions`` (on a Zenoh thread): where each live agent was last observed,
+        for the driver that places agents on nodes (``zswarm run --migrate-every``); never for an agent."""
+        seen = self.last_seen
+        if seen is None:
+            return []
+        t, ids, pos = seen
+        return [(self.keys.positions, msg.encode_positions(t, ids, pos))]
+
     def _event(self, text: str) -> None:
         self.recorder.log_event(self.clock.step, self.clock.t, text)
 
@@ -253,6 +263,7 @@ class World:
         if len(ids) == 0:
             return None
         metrics = self.observer.observe(self.clock.t, ids, pos, vel, self.prey)
+        self.last_seen = (self.clock.t, ids, pos)  # fresh arrays, replaced whole: read on a Zenoh thread
         self.reach.sample(pos, self.spec.subscription_radius, self.keys.cell_size)
         safety = (snap.safety, self.scenario.params.swarm.robot_radius) if self.spec.safety != "off" else None
         stamps = snap.stamps if self.spec.clock == "free" else None

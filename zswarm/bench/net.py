@@ -55,7 +55,7 @@ def start_field(kids: Children, spec: RunSpec, summary_path: Path, routers: int 
     world = kids.spawn("world", world_argv(spec, endpoints[0], "--summary", str(summary_path), "--progress", "0",
                                            "--start-timeout", "120"), stdout=subprocess.DEVNULL)
     fleet = Fleet(kids)
-    agents = [fleet.spawn(f"agent-{i}", agent_argv(spec, i, endpoints[i % routers])[2:])
+    agents = [fleet.spawn(f"agent-{i}", agent_argv(spec, i, endpoints[i % routers], "--node", str(i % routers))[2:])
               for i in range(spec.scenario.n_agents)]
     return endpoints[0], world, agents
 

@@ -25,6 +25,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--samples", type=int, default=50, help="instants of the run counted (default 50)")
     p.add_argument("--duration", type=float, default=None, help="simulated seconds (default the scenario's)")
+    p.add_argument("--migrate-every", type=float, default=10.0, metavar="S",
+                   help="also count space placement with the agents moved every S seconds, as zswarm run "
+                        "--migrate-every S moves them (default 10)")
     p.add_argument("--json", action="store_true", help="one JSON object: space, round_robin (the shares), ...")
 
 
@@ -34,10 +37,11 @@ def run(args: argparse.Namespace) -> int:
 
     if args.agents < 2 or not 1 <= args.nodes <= args.agents:
         raise UsageError(f"--agents must be >= 2 and --nodes between 1 and N (got {args.agents}, {args.nodes})")
-    if args.samples < 1 or (args.duration is not None and not args.duration > 0):
-        raise UsageError("--samples must be >= 1 and --duration > 0")
+    if args.samples < 1 or (args.duration is not None and not args.duration > 0) or not args.migrate_every > 0:
+        raise UsageError("--samples must be >= 1, and --duration and --migrate-every > 0")
     start = time.perf_counter()
-    out = placement_shares(args.scenario, args.agents, args.nodes, args.seed, args.samples, args.duration)
+    out = placement_shares(args.scenario, args.agents, args.nodes, args.seed, args.samples, args.duration,
+                           args.migrate_every)
     out["seconds"], out["machine"] = time.perf_counter() - start, machine()
     if args.json:
         print(json.dumps(out))
@@ -46,7 +50,10 @@ def run(args: argparse.Namespace) -> int:
           f"of {out['duration']:g} s: share of delivered poses that cross between routers")
     print(f"  space        {out['space']:.3f}")
     print(f"  round-robin  {out['round_robin']:.3f}")
-    print(f"  (space, split anew at each instant: {out['space_replaced']:.3f}; zswarm places once, at the start)")
-    print(f"  space / round-robin = {out['ratio']:.3f}   ({out['seconds']:.1f} s)")
+    print(f"  space, moved every {args.migrate_every:g} s  {out['space_migrated']:.3f}   "
+          f"({out['moves']} moves, {out['moves_per_agent']:.1f} per agent)")
+    print(f"  (space, split anew at each instant: {out['space_replaced']:.3f})")
+    print(f"  space / round-robin = {out['ratio']:.3f}; moved every {args.migrate_every:g} s / round-robin = "
+          f"{out['ratio_migrated']:.3f}   ({out['seconds']:.1f} s)")
     print(f"machine: {out['machine']}")
     return 0

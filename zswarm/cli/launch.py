@@ -103,6 +103,10 @@ def build_parser(prog: str = "zswarm run") -> Parser:
     p.add_argument("--placement", default="space", choices=("space", "round-robin"),
                    help="with --cluster: agents that start near each other share a node (space, default) or "
                         "ids are dealt in turn (round-robin)")
+    p.add_argument("--migrate-every", type=float, default=None, metavar="S",
+                   help="free clock, with --routers K or --cluster: every S seconds of the run, split the swarm "
+                        "anew by space and move each agent whose router (node) changes there, make-before-break "
+                        "(docs/cluster.md)")
     p.add_argument("--kill", type=parse_kill, default=None, metavar="K@T",
                    help="SIGKILL K agents, chosen with the seed, T seconds after the start")
     p.add_argument("--restart-after", type=float, default=None, metavar="S",

@@ -11,17 +11,14 @@ interface.
 
 from __future__ import annotations
 
-import json
 import time
-from pathlib import Path
 
 import numpy as np
 
 from zswarm.cluster.hosts import NodeLink
-from zswarm.cluster.placement import cross_router_share, place
+from zswarm.launch.placement import place
 from zswarm.cluster.ray_cluster import RayCluster
 from zswarm.errors import UsageError
-from zswarm.files import write_json
 from zswarm.launch.plan import Plan, id_ranges
 from zswarm.launch.supervisor import Launch, _say
 
@@ -62,7 +59,7 @@ class ClusterLaunch(Launch):
             _say(", ".join(f"{link.label}: {c} agents, router {e}" for link, c, e in
                            zip(self.links, counts, self.endpoints)), err=False)
         self._spawn_world(resume=False)
-        if self.pending:  # chaos counts from the world's start, heard on Zenoh
+        if self.pending or self.migration is not None:  # chaos and moves count from the world's start
             self._watch_world()
         for k, i in enumerate(plan.ids):
             if self.world is not None and not self.world.alive():
@@ -101,6 +98,12 @@ class ClusterLaunch(Launch):
     def router_of(self, agent: int) -> int:
         return self.node_of[agent]
 
+    def _moved(self, agent: int, router: int) -> None:
+        self.node_of[agent] = router
+
+    def capacities(self) -> list[float]:
+        return [float(link.cpus) for link in self.links]
+
     def host_of(self, agent: int) -> NodeLink | None:
         """Its node; one whose node was lost rejoins on the surviving node with the fewest agents (and
         that node's router: :meth:`router_of`)."""
@@ -123,20 +126,6 @@ class ClusterLaunch(Launch):
                                "nodes": [{"label": link.label, **link.info, "router": e, "lost": link.lost}
                                          for link, e in zip(self.links, self.endpoints)],
                                "agent_node": {str(i): self.links[k].label for i, k in self.placed.items()},
-                               "agent_node_at_end": {str(i): self.links[k].label for i, k in self.node_of.items()}}}
+                               "agent_node_at_end": {str(i): self.links[k].label for i, k in self.node_of.items()}},
+                   **self._migration_summary()}
         finish_recording(self.plan, self.world.proc.returncode, self.started_at, routing, _say)
-        # by where each agent was placed: one restarted on another node is counted where it started
-        add_cross_router_share(self.plan.summary, self.placed)
-
-
-def add_cross_router_share(summary_path: Path, node_of: dict[int, int]) -> None:
-    """Write ``cross_router_share`` (and ``cross_router_heard``, the count of agents that heard one on
-    another node) into the summary, from what each agent reported it heard from whom."""
-    if not summary_path.exists():
-        return
-    s = json.loads(summary_path.read_text())
-    heard = {int(r): {int(k): v for k, v in senders.items()} for r, senders in s.get("heard_poses", {}).items()}
-    s["cross_router_share"] = cross_router_share(heard, node_of)
-    s["cross_router_heard"] = sum(1 for r, senders in heard.items()
-                                  if any(node_of.get(j) != node_of.get(r) for j in senders if j in node_of))
-    write_json(summary_path, s)

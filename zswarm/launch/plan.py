@@ -57,6 +57,7 @@ class Plan:
     notes: tuple[str, ...] = ()  # said at start: where the recording goes, which agents drive robots
     connect_timeout: float | None = None  # how long the world and agents retry their router (their default 15 s)
     tracks: Path | None = None  # each agent writes the poses it sent here; judged at the end
+    migrate_every: float | None = None  # move agents between routers (nodes) every this many run seconds
 
 
 def plan_from_args(args: argparse.Namespace, cores: int | None = None, memory_mib: float | None = None) -> Plan:
@@ -108,6 +109,7 @@ def plan_from_args(args: argparse.Namespace, cores: int | None = None, memory_mi
         raise UsageError(f"--connect-timeout must be between 0 and 3600 seconds (got {args.connect_timeout})")
     if args.restart_after is not None and not args.restart_after >= 0:
         raise UsageError(f"--restart-after must be >= 0 (got {args.restart_after})")
+    check_migration(args, spec)
     tracks = tracks_folder(args.tracks)
     viewer = viewer_from_args(args) if "world" in args.role else Viewer()
     if (viewer.spawn or viewer.serve) and args.world_crash is not None and args.world_crash[1] is not None:
@@ -136,7 +138,24 @@ def plan_from_args(args: argparse.Namespace, cores: int | None = None, memory_mi
                 router_config=args.router_config, quiet=args.quiet, fork=args.fork, kill=args.kill, restart_after=args.restart_after,
                 world_outage=args.world_outage, world_crash=args.world_crash, viewer=viewer, design=design,
                 robots=args.robots, notes=tuple(notes), connect_timeout=args.connect_timeout,
-                tracks=tracks)
+                tracks=tracks, migrate_every=args.migrate_every)
+
+
+def check_migration(args: argparse.Namespace, spec: RunSpec) -> None:
+    """``--migrate-every S``: what moving agents between routers needs."""
+    every = args.migrate_every
+    if every is None:
+        return
+    if not every >= 1.0:
+        raise UsageError(f"--migrate-every must be at least 1 second of the run (got {every:g})")
+    if spec.clock != "free":
+        raise UsageError("--migrate-every runs on the free clock only (a lockstep step waits for every agent's pose)")
+    if args.routers < 2 and getattr(args, "cluster", None) is None:
+        raise UsageError("--migrate-every moves agents between routers: give --routers K (K >= 2) or --cluster")
+    if set(args.role) != {"router", "world", "agents"}:
+        raise UsageError("--migrate-every needs every role here (the launcher asks the world where its agents are)")
+    if args.robots is not None:
+        raise UsageError("--migrate-every with --robots is not supported: a robot's agent stays beside its robot")
 
 
 def tracks_folder(folder: Path | None) -> Path | None:

@@ -20,6 +20,8 @@ from zswarm.launch.chaos import Event, schedule
 from zswarm.launch.configs import agent_config_args, role_configs
 from zswarm.launch.ending import finish_recording
 from zswarm.launch.hosts import Host, LocalHost
+from zswarm.launch.migration import Migration
+from zswarm.launch.placement import place
 from zswarm.launch.plan import Plan
 from zswarm.net.config import endpoint_host_port
 from zswarm.launch.world_lines import DONE, forward_lines
@@ -66,6 +68,11 @@ class Launch:
         self.spawned_viewer: str | None = None  # the URL of the viewer --spawn started
         self.crashed: set[str] = set()
         self.world_crash_for_good = plan.world_crash is not None and plan.world_crash[1] is None
+        # --migrate-every: where each agent runs now, its newest process and the one it replaces
+        self.migration = Migration(plan.migrate_every) if plan.migrate_every else None
+        self.where: dict[int, int] = {}
+        self.current: dict[int, Child] = {}
+        self.leaving: dict[int, Child] = {}
 
     # --- start ----------------------------------------------------------------------------------------
 
@@ -109,7 +116,10 @@ class Launch:
                 raise UsageError(str(exc)) from None
         if "world" in plan.roles:
             self._spawn_world(resume=False)
-        if self.pending and ("world" in plan.roles or "agents" in plan.roles):
+        if self.migration is not None:  # agents start placed by space over the routers
+            spawns = self.spec.scenario.initial_positions(np.random.default_rng(self.spec.seed))[list(plan.ids)]
+            self.where = dict(zip(plan.ids, place(spawns, [1.0] * len(self.endpoints), "space")))
+        if (self.pending or self.migration is not None) and ("world" in plan.roles or "agents" in plan.roles):
             self._watch_world()
         if "agents" in plan.roles:
             for k, i in enumerate(plan.ids):
@@ -140,7 +150,15 @@ class Launch:
         return agent_config_args(self.plan, self.configs, agent)
 
     def router_of(self, agent: int) -> int:
-        return agent % len(self.endpoints)
+        return self.where.get(agent, agent % len(self.endpoints))
+
+    def _moved(self, agent: int, router: int) -> None:
+        """Agent ``agent`` runs on router (node) ``router`` from now on."""
+        self.where[agent] = router
+
+    def capacities(self) -> list[float]:
+        """How many agents each router (node) takes, relatively."""
+        return [1.0] * len(self.endpoints)
 
     def host_of(self, agent: int) -> Host | None:
         """Where agent ``agent`` runs (None: nowhere left to run it)."""
@@ -152,8 +170,41 @@ class Launch:
         if host is None:
             _say(f"agent {agent}: no host left to run it on")
             return
-        argv = agent_argv(self.spec, agent, self.endpoints[self.router_of(agent)], *self._agent_config(agent))
-        self.kids.add(host.spawn_agent(f"agent-{agent}", argv[2:]))  # without "-m agents"
+        router = self.router_of(agent)
+        movable = ["--movable"] if self.migration is not None else []
+        argv = agent_argv(self.spec, agent, self.endpoints[router], "--node", str(router), *movable,
+                          *self._agent_config(agent))
+        self.current[agent] = self.kids.add(host.spawn_agent(f"agent-{agent}", argv[2:]))  # without "-m agents"
+
+    def _migrate(self, t: float) -> None:
+        """Move the agents whose node the swarm's new split changes (:mod:`zswarm.launch.migration`)."""
+        from zswarm.net import messages as msg
+
+        try:
+            seen = self.watch.positions(self.spec.keys.positions)
+        except msg.DecodeError as exc:
+            _say(f"migration skipped at t = {t:.1f} s: {exc}")
+            seen = None
+        busy = {i for i, c in self.leaving.items() if c.alive()}
+        if seen is None:
+            self.migration.next_at = t + self.migration.every
+            return
+        _, ids, positions = seen
+        moves = self.migration.plan(t, ids, positions, {i: self.router_of(i) for i in self.current},
+                                    self.capacities(), busy)
+        for agent, _, to, position in moves:
+            self._moved(agent, to)
+            host = self.host_of(agent)
+            if host is None:
+                continue
+            n = sum(1 for m in self.migration.moves if m[1] == agent)
+            start = ",".join(repr(float(c)) for c in position)
+            argv = agent_argv(self.spec, agent, self.endpoints[to], "--node", str(to), "--takeover",
+                              f"--start={start}", *self._agent_config(agent))
+            self.leaving[agent] = self.current[agent]
+            self.current[agent] = self.kids.add(host.spawn_agent(f"agent-{agent}-m{n}", argv[2:]))
+        if moves and not self.plan.quiet:
+            _say(f"t = {t:.1f} s: moved {len(moves)} agents between routers", err=False)
 
     def _viewer(self):
         """The live viewer the world streams to; a --spawn'ed one is started here, once, so that a world
@@ -195,6 +246,10 @@ class Launch:
                 t0 = time.monotonic()  # chaos times count from the start of the world's clock
             while t0 is not None and self.pending and time.monotonic() - t0 >= self.pending[0].at:
                 self._stage(self.pending.pop(0), time.monotonic() - t0)
+            run_t = None if t0 is None else (time.monotonic() - t0) * self.spec.time_scale
+            if (run_t is not None and self.migration is not None and self.world is not None and self.world.alive()
+                    and self.migration.due(run_t) and run_t < self.spec.steps * self.spec.scenario.dt - 1.0):
+                self._migrate(run_t)  # not in the run's last second: a move must be over before it ends
             self._note_crashes()
             if self.world is not None and not self.world.alive() and not self.world_down:
                 break
@@ -282,4 +337,7 @@ class Launch:
             return
         agent_router = {str(i): self.router_of(i) for i in self.plan.ids} if "agents" in self.plan.roles else {}
         finish_recording(self.plan, self.world.proc.returncode, self.started_at,
-                         {"routers": self.endpoints, "agent_router": agent_router}, _say)
+                         {"routers": self.endpoints, "agent_router": agent_router, **self._migration_summary()}, _say)
+
+    def _migration_summary(self) -> dict:
+        return {} if self.migration is None else {"migration": self.migration.summary(len(self.plan.ids))}

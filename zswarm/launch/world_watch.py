@@ -32,6 +32,16 @@ class WorldWatch:
         self.subscriber = self.session.liveliness().declare_subscriber(keys.world_started, history=True,
                                                                        handler=heard)
 
+    def positions(self, key: str, timeout: float = 2.0):
+        """Where the world last saw each live agent: (t, ids, positions), or None when it did not answer
+        (:class:`zswarm.net.messages.DecodeError` for an answer that does not decode)."""
+        from zswarm.net.messages import decode_positions
+
+        for reply in self.session.get(key, timeout=timeout):
+            if reply.ok is not None:
+                return decode_positions(reply.ok.payload.to_bytes())
+        return None
+
     def close(self) -> None:
         try:
             self.subscriber.undeclare()

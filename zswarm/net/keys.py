@@ -136,6 +136,15 @@ class Keys:
     def world_started(self) -> str:
         return f"{self.root}/world/started"
 
+    def handoff(self, agent: int) -> str:
+        """Where the process running ``agent`` answers with its state, to one that takes it over."""
+        return f"{self.root}/handoff/{agent}"
+
+    @property
+    def positions(self) -> str:
+        """The world's queryable of where every live agent was last seen (the driver's placement)."""
+        return f"{self.root}/world/positions"
+
     @staticmethod
     def agent_of(key: str) -> int | None:
         """The agent id at the end of a pose, alive or stats key (None if it is not a number)."""

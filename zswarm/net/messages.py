@@ -23,7 +23,7 @@ from typing import Any, NamedTuple, Sequence, Union
 import msgpack
 import numpy as np
 
-VERSION = 2  # 2: poses are fixed binary records (1: msgpack maps)
+VERSION = 3  # 3: a pose names the router it entered on; 2: poses are fixed binary records (1: msgpack maps)
 #: The Zenoh encoding every zswarm payload but a pose is published with: generic Zenoh tools (z_sub,
 #: z_get) can tell it is msgpack, and of which zswarm schema version.
 ENCODING = f"application/msgpack;zswarm/{VERSION}"
@@ -71,6 +71,7 @@ class Pose(NamedTuple):
     z: float | None = None
     vz: float | None = None
     safety: int = 0  # what the safety filter did to the command it moved with: SAFETY_FLAGS
+    node: int = 0  # the index of the router its sender is connected to (POSE_LAYOUT)
 
     @property
     def dims(self) -> int:
@@ -148,11 +149,12 @@ class Health:
     stalled_ticks: int = 0
     braked_ticks: int = 0
     stalled_long: int = 0  # 1: stalled for a second or more in a row at some point
+    crossed: int = 0  # of ``poses``, those sent from another router (Pose.node is not its own)
 
 
 HEALTH_INTS = ("obstacle_queries_failed", "seq_received", "seq_lost", "injected_drops", "injected_passed",
                "queue_max", "poses", "interventions", "stalled_ticks", "braked_ticks",
-               "stalled_long")
+               "stalled_long", "crossed")
 
 
 @dataclass(frozen=True)
@@ -190,9 +192,12 @@ def encoding_of(payload: bytes) -> str:
 
 #: A pose on the wire, little-endian, no padding: the byte 0xC1 (never a msgpack byte), the version,
 #: flags (1: 3-D, 2: a heading follows), the safety flag, id (uint32), seq (int64), stamp (double,
-#: sender wall time), step (int64, -1 free), then doubles: x, y, vx, vy (2-D), x, y, z, vx, vy, vz (3-D),
-#: and the heading last where flagged. 64 bytes in 2-D, 72 with a heading, 80 in 3-D.
-POSE_LAYOUT = "<BBBBIqdq"
+#: sender wall time), step (int32, -1 free), node (uint16: the index of the router its sender is
+#: connected to, for counting the poses that crossed between routers), two bytes spare (0), then
+#: doubles: x, y, vx, vy (2-D), x, y, z, vx, vy, vz (3-D), and the heading last where flagged. 64
+#: bytes in 2-D, 72 with a heading, 80 in 3-D.
+POSE_LAYOUT = "<BBBBIqdiHH"
+MAX_STEP = 2**31 - 1
 POSE_MAGIC = b"\xc1"
 POSE_3D, POSE_HEADING = 1, 2
 _POSE_2D = struct.Struct(POSE_LAYOUT + "4d")
@@ -208,22 +213,24 @@ N_FLAGS = len(SAFETY_FLAGS)
 
 def encode_pose(agent: int, seq: int, stamp: float, step: int, x: float, y: float, vx: float, vy: float,
                 heading: float | None = None, z: float | None = None, vz: float | None = None,
-                safety: int = 0) -> bytes:
+                safety: int = 0, node: int = 0) -> bytes:
     """``encode(Pose(...))`` without building the Pose: an agent publishes one every tick
     (:data:`POSE_LAYOUT`). A 3-D pose has no heading."""
     if z is None:
         if heading is None:
-            return _POSE_2D.pack(0xC1, VERSION, 0, safety, agent, seq, stamp, step, x, y, vx, vy)
-        return _POSE_2DH.pack(0xC1, VERSION, POSE_HEADING, safety, agent, seq, stamp, step, x, y, vx, vy, heading)
+            return _POSE_2D.pack(0xC1, VERSION, 0, safety, agent, seq, stamp, step, node, 0, x, y, vx, vy)
+        return _POSE_2DH.pack(0xC1, VERSION, POSE_HEADING, safety, agent, seq, stamp, step, node, 0,
+                              x, y, vx, vy, heading)
     if heading is not None:
         raise ValueError("a 3-D pose has no heading")
-    return _POSE_3D.pack(0xC1, VERSION, POSE_3D, safety, agent, seq, stamp, step, x, y, z, vx, vy, vz)
+    return _POSE_3D.pack(0xC1, VERSION, POSE_3D, safety, agent, seq, stamp, step, node, 0, x, y, z, vx, vy, vz)
 
 
 #: Each record layout as a numpy row (the same bytes, no padding), by size: a receiver of many poses
 #: reads a batch of records of one size in one call (:func:`decode_pose_records`).
 POSE_ROWS = {size: np.dtype([("magic", "u1"), ("v", "u1"), ("flags", "u1"), ("f", "u1"), ("id", "<u4"),
-                             ("seq", "<i8"), ("t", "<f8"), ("s", "<i8"), *((name, "<f8") for name in names)])
+                             ("seq", "<i8"), ("t", "<f8"), ("s", "<i4"), ("n", "<u2"), ("spare", "<u2"),
+                             *((name, "<f8") for name in names)])
              for size, names in ((_POSE_2D.size, ("x", "y", "vx", "vy")),
                                  (_POSE_2DH.size, ("x", "y", "vx", "vy", "h")),
                                  (_POSE_3D.size, ("x", "y", "z", "vx", "vy", "vz")))}
@@ -242,11 +249,28 @@ def decode_pose_records(payloads: Sequence[bytes]) -> tuple[np.ndarray, np.ndarr
         raise ValueError("pose records of one size only")
     ok = ((rows["magic"] == POSE_MAGIC[0]) & (rows["v"] == VERSION) & (rows["flags"] == _ROW_FLAGS[size])
           & (rows["f"] < N_FLAGS) & (rows["id"] <= MAX_ID) & (rows["seq"] >= 0) & (rows["seq"] <= 2**62)
-          & (rows["s"] >= -1) & (rows["s"] <= 2**62) & (rows["t"] >= -1e12) & (rows["t"] <= 1e12))
-    for name in POSE_ROWS[size].names[8:]:  # NaN fails these, as it fails _pose's
+          & (rows["s"] >= -1) & (rows["t"] >= -1e12) & (rows["t"] <= 1e12))
+    for name in POSE_ROWS[size].names[10:]:  # NaN fails these, as it fails _pose's
         bound = MAX_HEADING if name == "h" else MAX_COORD
         ok &= (rows[name] >= -bound) & (rows[name] <= bound)
     return rows, ok
+
+
+def encode_positions(t: float, ids: np.ndarray, positions: np.ndarray) -> bytes:
+    """Where the world last saw each live agent, at its clock's ``t`` (the world's ``keys.positions``)."""
+    return _pack({"k": "positions", "t": float(t), "ids": np.asarray(ids, dtype=np.int64).tolist(),
+                  "p": np.asarray(positions, dtype=float).ravel().tolist(), "d": int(np.shape(positions)[-1])})
+
+
+def decode_positions(payload: bytes) -> tuple[float, np.ndarray, np.ndarray]:
+    """(t, ids, positions (N x D)) of :func:`encode_positions`; :class:`DecodeError` if malformed."""
+    try:
+        obj = msgpack.unpackb(payload, raw=False)
+        ids = np.asarray(obj["ids"], dtype=np.int64)
+        pos = np.asarray(obj["p"], dtype=float).reshape(len(ids), int(obj["d"]))
+        return float(obj["t"]), ids, pos
+    except Exception as exc:  # noqa: BLE001
+        raise DecodeError("malformed", f"a positions message ({type(exc).__name__}: {exc})") from None
 
 
 def encode(msg: Message) -> bytes:
@@ -382,35 +406,35 @@ def _pose(data: bytes) -> Pose:
     layout = _POSE_LAYOUTS.get(n)
     if layout is None:
         raise DecodeError("malformed", f"a pose record of {n} bytes (expected {', '.join(map(str, POSE_SIZES))})")
-    _, v, flags, f, i, seq, t, s, *rest = layout.unpack(data)
+    _, v, flags, f, i, seq, t, s, node, _spare, *rest = layout.unpack(data)
     if layout is _POSE_2D:
         x, y, vx, vy = rest
-        if (v == VERSION and flags == 0 and f < N_FLAGS and i <= MAX_ID and 0 <= seq <= 2**62 and -1 <= s <= 2**62
+        if (v == VERSION and flags == 0 and f < N_FLAGS and i <= MAX_ID and 0 <= seq <= 2**62 and -1 <= s
                 and -1e12 <= t <= 1e12 and -MAX_COORD <= x <= MAX_COORD and -MAX_COORD <= y <= MAX_COORD
                 and -MAX_COORD <= vx <= MAX_COORD and -MAX_COORD <= vy <= MAX_COORD):  # NaN fails these
-            return Pose(i, seq, t, s, x, y, vx, vy, safety=f) if f else Pose(i, seq, t, s, x, y, vx, vy)
-    elif (v == VERSION and f < N_FLAGS and i <= MAX_ID and 0 <= seq <= 2**62 and -1 <= s <= 2**62 and -1e12 <= t <= 1e12
+            return Pose(i, seq, t, s, x, y, vx, vy, None, None, None, f, node)
+    elif (v == VERSION and f < N_FLAGS and i <= MAX_ID and 0 <= seq <= 2**62 and -1 <= s and -1e12 <= t <= 1e12
           and all(-MAX_COORD <= c <= MAX_COORD for c in rest)):
         if layout is _POSE_3D and flags == POSE_3D:
             x, y, z, vx, vy, vz = rest
-            return Pose(i, seq, t, s, x, y, vx, vy, None, z, vz, f)
+            return Pose(i, seq, t, s, x, y, vx, vy, None, z, vz, f, node)
         if layout is _POSE_2DH and flags == POSE_HEADING and -MAX_HEADING <= rest[4] <= MAX_HEADING:
-            return Pose(i, seq, t, s, *rest, safety=f)
+            return Pose(i, seq, t, s, *rest, safety=f, node=node)
     if v != VERSION:
         raise DecodeError("version", f"version {v}, expected {VERSION}")
     want = {_POSE_2D: 0, _POSE_2DH: POSE_HEADING, _POSE_3D: POSE_3D}[layout]
     if flags != want:
         raise DecodeError("schema", f"flags {flags} in a pose record of {n} bytes (expected {want})")
     fields = {"id": i, "seq": seq, "s": s, "f": f}
-    bounds = {"id": (0, MAX_ID), "seq": (0, 2**62), "s": (-1, 2**62), "f": (0, len(SAFETY_FLAGS) - 1)}
+    bounds = {"id": (0, MAX_ID), "seq": (0, 2**62), "s": (-1, MAX_STEP), "f": (0, len(SAFETY_FLAGS) - 1)}
     for key, (lo, hi) in bounds.items():
         _int(fields, key, lo, hi)
     _float(t, "t", 1e12)
     names = ("x", "y", "vx", "vy", "h") if layout is not _POSE_3D else ("x", "y", "z", "vx", "vy", "vz")
     c = [_float(value, key, MAX_HEADING if key == "h" else MAX_COORD) for key, value in zip(names, rest)]
     if layout is _POSE_3D:
-        return Pose(i, seq, t, s, c[0], c[1], c[3], c[4], None, c[2], c[5], f)
-    return Pose(i, seq, t, s, *c[:4], c[4] if len(c) == 5 else None, safety=f)
+        return Pose(i, seq, t, s, c[0], c[1], c[3], c[4], None, c[2], c[5], f, node)
+    return Pose(i, seq, t, s, *c[:4], c[4] if len(c) == 5 else None, safety=f, node=node)
 
 
 def _other(obj: dict, kind: Any) -> Message:

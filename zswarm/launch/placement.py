@@ -49,6 +49,28 @@ def place(spawns: np.ndarray, capacities: Sequence[float], how: str = "space") -
     return node.tolist()
 
 
+def replace(points: np.ndarray, current: Sequence[int], capacities: Sequence[float]) -> list[int]:
+    """Where the agents now at ``points`` should run, given where they run (``current``): the space
+    split made anew (:func:`place`), its blocks handed to nodes so that as few agents as possible
+    move. Greedily, the block and node that share the most agents first; a block only goes to a node
+    of its own share (equal capacities: any node), so each node keeps its share."""
+    current = np.asarray(current, dtype=int)
+    k = len(capacities)
+    block = np.asarray(place(points, capacities, "space"), dtype=int)
+    counts = shares(len(block), capacities)
+    overlap = np.zeros((k, k), dtype=int)  # [block, node]
+    np.add.at(overlap, (block, current), 1)
+    pairs = sorted(((int(overlap[b, m]), -b, -m) for b in range(k) for m in range(k) if counts[b] == counts[m]),
+                   reverse=True)
+    node_of_block: dict[int, int] = {}
+    taken: set[int] = set()
+    for _, b, m in pairs:
+        if -b not in node_of_block and -m not in taken:
+            node_of_block[-b] = -m
+            taken.add(-m)
+    return [node_of_block[b] for b in block.tolist()]
+
+
 def _split(points: np.ndarray, ids: np.ndarray, nodes: list[int], counts: list[int], out: np.ndarray) -> None:
     if len(nodes) == 1:
         out[ids] = nodes[0]

@@ -1,0 +1,112 @@
+"""An agent moving between processes (between nodes of a cluster): the running one hands its state to
+the one that takes over, make-before-break.
+
+The driver starts the new process with ``--takeover`` on the node that now holds the agent's
+neighbours (``zswarm run --migrate-every``). It opens its session, asks the world for obstacles and
+enters the cells around where the driver last saw the agent, then asks the running process for its
+state (a Zenoh query on ``keys.handoff(id)``, which every process of a movable run answers). The
+running one answers at the end of its next tick, after that tick's pose, and leaves; the new one
+sets its body and counters to the state, declares its liveliness token and ticks on. Zenoh keeps one
+token alive while either process holds it, so no neighbour and not the world sees the agent leave;
+its neighbours miss about one tick of its poses, well within their staleness bound.
+
+What moves: the body (position, velocity, heading, step count), the pose sequence number (receivers
+see no gap) and every counter and histogram of its stats (the run's totals lose nothing). What does
+not: the neighbour table (the new process hears its cells anew, as an agent that joins does).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import threading
+import time
+from typing import Any, Callable
+
+import msgpack
+
+from agents.counters import Counters
+from agents.sensing import Body
+
+#: Counters fields carried as they are (the rejections are carried as their counts).
+_CARRIED = tuple(f.name for f in dataclasses.fields(Counters) if f.name != "rejections")
+_BODY = tuple(f.name for f in dataclasses.fields(Body))
+
+
+def encode_state(body: Body, seq: int, counters: Counters) -> bytes:
+    """What a process hands to the one that takes over its agent."""
+    return msgpack.packb({"k": "handoff", "body": {name: getattr(body, name) for name in _BODY}, "seq": seq,
+                          "counters": {name: getattr(counters, name) for name in _CARRIED},
+                          "rejected": dict(counters.rejections.counts)}, use_bin_type=True)
+
+
+class HandoffError(ValueError):
+    pass
+
+
+def apply_state(payload: bytes, body: Body, counters: Counters) -> int:
+    """Set ``body`` and ``counters`` to the handed-over state; returns the pose sequence number to go on
+    from. A state of the wrong shape raises :class:`HandoffError` (nothing is changed then)."""
+    try:
+        state = msgpack.unpackb(payload, raw=False, strict_map_key=False)
+        if not isinstance(state, dict) or state.get("k") != "handoff":
+            raise HandoffError("not a handoff state")
+        new_body = Body(**{name: state["body"][name] for name in _BODY})
+        if (new_body.z is None) != (body.z is None):
+            raise HandoffError(f"a {new_body.dims}-D state for a {body.dims}-D agent")
+        carried = {name: state["counters"][name] for name in _CARRIED}
+        rejected = {str(k): int(v) for k, v in state["rejected"].items()}
+        seq = int(state["seq"])
+    except HandoffError:
+        raise
+    except Exception as exc:  # noqa: BLE001 (any malformed state is refused in one line)
+        raise HandoffError(f"a malformed handoff state ({type(exc).__name__}: {exc})") from None
+    for name in _BODY:
+        setattr(body, name, getattr(new_body, name))
+    for name, value in carried.items():
+        setattr(counters, name, value)
+    counters.rejections.counts.update(rejected)
+    return seq
+
+
+class Desk:
+    """The running process's side: a queryable on ``keys.handoff(id)``. A query is held (on a Zenoh
+    thread) until the agent's loop answers it with its state after a tick (:meth:`answer`)."""
+
+    def __init__(self, session: Any, key: str) -> None:
+        self.lock = threading.Lock()
+        self.query: Any = None
+        self.key = key
+        self.queryable = session.declare_queryable(key, self._held)
+
+    def _held(self, query: Any) -> None:
+        with self.lock:
+            if self.query is None:
+                self.query = query  # replied to and dropped by answer(); a second asker waits its turn
+
+    @property
+    def due(self) -> bool:
+        return self.query is not None
+
+    def answer(self, state: bytes) -> None:
+        with self.lock:
+            query, self.query = self.query, None
+        if query is not None:
+            query.reply(self.key, state)
+            query.drop()
+
+    def undeclare(self) -> None:
+        self.queryable.undeclare()
+
+
+def take_over(session: Any, key: str, timeout: float, stopped: Callable[[], bool],
+              idle: Callable[[], Any] = lambda: None) -> bytes | None:
+    """The new process's side: ask for the state until the running process answers (None: nobody did
+    within ``timeout`` seconds, or ``stopped()``); ``idle`` runs between asks (take in what arrived)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and not stopped():
+        for reply in session.get(key, timeout=min(2.0, max(deadline - time.monotonic(), 0.1))):
+            if reply.ok is not None:
+                return reply.ok.payload.to_bytes()
+        idle()
+        time.sleep(0.05)
+    return None
