@@ -5,10 +5,13 @@ The driver starts the new process with ``--takeover`` on the node that now holds
 neighbours (``zswarm run --migrate-every``). It opens its session, asks the world for obstacles and
 enters the cells around where the driver last saw the agent, then asks the running process for its
 state (a Zenoh query on ``keys.handoff(id)``, which every process of a movable run answers). The
-running one answers at the end of its next tick, after that tick's pose, and leaves; the new one
-sets its body and counters to the state, declares its liveliness token and ticks on. Zenoh keeps one
-token alive while either process holds it, so no neighbour and not the world sees the agent leave;
-its neighbours miss about one tick of its poses, well within their staleness bound.
+running one answers at the end of its next tick, after that tick's pose, and stops moving; the new
+one sets its body and counters to the state and ticks on, and says it has the state (``?taken``),
+upon which the running one leaves (an answer that was lost is given again to the next ask, the same
+state: the agent did not move meanwhile). The new process declares its liveliness token before it
+asks: Zenoh keeps one token alive while either process holds it, so no neighbour and not the world
+sees the agent leave; its neighbours miss about one tick of its poses, well within their staleness
+bound.
 
 What moves: the body (position, velocity, heading, step count), the pose sequence number (receivers
 see no gap) and every counter and histogram of its stats (the run's totals lose nothing). What does
@@ -68,20 +71,33 @@ def apply_state(payload: bytes, body: Body, counters: Counters) -> int:
     return seq
 
 
+#: How long a process that handed its agent over keeps answering with the same state, for a taker
+#: whose first answer was lost (it asked again), until the taker says it has it.
+LINGER_S = 5.0
+
+
 class Desk:
     """The running process's side: a queryable on ``keys.handoff(id)``. A query is held (on a Zenoh
-    thread) until the agent's loop answers it with its state after a tick (:meth:`answer`)."""
+    thread) until the agent's loop answers it with its state after a tick (:meth:`answer`); a newer
+    one replaces it (the taker asks again when an answer is late: the newest is the one it waits on).
+    ``?taken`` is the taker saying it has the state."""
 
     def __init__(self, session: Any, key: str) -> None:
         self.lock = threading.Lock()
         self.query: Any = None
         self.key = key
+        self.taken = threading.Event()
         self.queryable = session.declare_queryable(key, self._held)
 
     def _held(self, query: Any) -> None:
+        if "taken" in str(query.parameters):
+            self.taken.set()
+            query.drop()
+            return
         with self.lock:
-            if self.query is None:
-                self.query = query  # replied to and dropped by answer(); a second asker waits its turn
+            old, self.query = self.query, query
+        if old is not None:
+            old.drop()  # no answer: its asker has given up on it
 
     @property
     def due(self) -> bool:
@@ -94,6 +110,17 @@ class Desk:
             query.reply(self.key, state)
             query.drop()
 
+    def hand_over(self, state: bytes, linger: float = LINGER_S) -> bool:
+        """Answer with ``state`` (the agent no longer moves) until the taker says it has it; False if it
+        did not within ``linger`` seconds (the taker then has it, or never will: either way this
+        process is done)."""
+        deadline = time.monotonic() + linger
+        while not self.taken.is_set() and time.monotonic() < deadline:
+            if self.due:
+                self.answer(state)
+            self.taken.wait(0.01)
+        return self.taken.is_set()
+
     def undeclare(self) -> None:
         self.queryable.undeclare()
 
@@ -104,9 +131,12 @@ def take_over(session: Any, key: str, timeout: float, stopped: Callable[[], bool
     within ``timeout`` seconds, or ``stopped()``); ``idle`` runs between asks (take in what arrived)."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline and not stopped():
-        for reply in session.get(key, timeout=min(2.0, max(deadline - time.monotonic(), 0.1))):
+        for reply in session.get(key, timeout=min(5.0, max(deadline - time.monotonic(), 0.1))):
             if reply.ok is not None:
-                return reply.ok.payload.to_bytes()
+                state = reply.ok.payload.to_bytes()
+                for _ in session.get(f"{key}?taken", timeout=1.0):  # the running process may go now
+                    pass
+                return state
         idle()
         time.sleep(0.05)
     return None

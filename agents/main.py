@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
+import zenoh
 
 from agents.agent import Agent, starting_body
 from agents.free import run_free, take_in, wait_for_world
@@ -165,8 +166,9 @@ class Process:
     def close(self, final_stats: bool) -> None:
         if self.agent.robot is not None:
             self.agent.robot.close()  # a zero Twist: a robot is never left driving on the last command
-        if final_stats:
-            self.session.put(self.spec.keys.stats(self.id), self.agent.stats(final=True), encoding=msg.ENCODING)
+        if final_stats:  # the run's totals: blocked rather than dropped on a congested link, sent at once
+            self.session.put(self.spec.keys.stats(self.id), self.agent.stats(final=True), encoding=msg.ENCODING,
+                             congestion_control=zenoh.CongestionControl.BLOCK, express=True)
         teardown(self.bridge, self.declared, self.session)
         if self.tracks is not None and self.agent.track:
             write_track(self.tracks, self.id, self.agent.track, self.spec.scenario.dimensions)
@@ -201,7 +203,7 @@ def run_free_agent(spec: RunSpec, args: argparse.Namespace, robots: RobotsFile |
             desk = Desk(proc.session, spec.keys.handoff(args.id))
         moved = run_free(agent, proc.injector, lambda: bool(stop), desk)
         if moved:
-            desk.answer(encode_state(agent.body, agent.seq, agent.counters))
+            desk.hand_over(encode_state(agent.body, agent.seq, agent.counters))
         done = True
         return 0
     finally:

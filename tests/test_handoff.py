@@ -52,3 +52,31 @@ def test_a_malformed_or_foreign_state_is_refused_and_changes_nothing():
     with pytest.raises(HandoffError, match="3-D state for a 2-D agent"):
         apply_state(three_d, body, counters)
     assert body == Body(1.0, 1.0, step=5) and counters == Counters(Rejections("agent 1"))
+
+
+def test_the_world_keeps_a_final_report_over_an_older_message_that_arrives_after_it():
+    """A moved agent's old process's last message can arrive after the new one's final report (another
+    path): a final report is not replaced by one with fewer ticks; otherwise the newest is the agent's
+    (a restarted agent counts anew); a report that does not decode is counted and the good one kept."""
+    from world.report import StatsBook
+    from zswarm.net import messages as msg
+    from zswarm.net.keys import Keys
+
+    def stats(ticks: int, final: bool) -> bytes:
+        c = Counters(Rejections("agent 4"))
+        c.ticks = ticks
+        return msg.encode(c.stats(4, final=final))
+
+    rejected = Rejections("world")
+    book = StatsBook(Keys.agent_of, rejected)
+    key = "zswarm/r/stats/4"
+    for payload in (stats(100, False), stats(480, True), stats(470, False), b"\x01junk", stats(0, True)):
+        book.add(key, payload)
+    got = book.get(4)
+    assert got.ticks == 480 and got.final and book.final(4)
+    assert rejected.total == 1
+    for t in range(20):  # a long run: what is not read yet stays bounded
+        book.add(key, stats(500 + t, False))
+    assert len(book.raw.get(4, [])) <= 8 and book.get(4).ticks == 519 and not book.final(4)
+    book.add(key, stats(12, False))  # killed and restarted: its counts begin anew
+    assert book.get(4).ticks == 12

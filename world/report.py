@@ -30,6 +30,7 @@ def transport_summary(stats: list[msg.Stats], world_rejected: dict[str, int]) ->
     return {
         "agents_reporting": len(stats),
         "agents_final_reports": sum(1 for s in stats if s.final),  # the rest: counts up to their last second
+        "agents_without_final_report": sorted(s.id for s in stats if not s.final),
         "messages_sent": sum(s.sent for s in stats),
         "messages_received": sum(s.received for s in stats),
         "messages_rejected": sum(rejected.values()), "rejected_by_reason": rejected,
@@ -59,13 +60,18 @@ class StatsBook:
 
     Every agent re-sends its cumulative counters and histograms once a second; decoding and
     validating each on arrival cost a 100-agent world more than all the poses it observes. Only the
-    latest message of each agent matters: it is decoded when read (the end-of-run wait, the summary),
-    and a message that does not decode is counted as rejected and the agent's last good one kept.
+    newest message of each agent matters: the messages are decoded when read (the end-of-run wait, the
+    summary), and a message that does not decode is counted as rejected and the agent's last good one
+    kept. The newest by arrival, except that a final report is not replaced by a message with fewer
+    ticks: an agent moved to another node (``--migrate-every``) carries its counts on in another
+    process, whose messages take another path, and the last one its old process sent can arrive after
+    the new one's final report. (An agent killed and restarted starts its counts anew and sent no final
+    report: its new messages replace the old.)
     """
 
     def __init__(self, agent_of: Callable[[str], int | None], rejected: Rejections) -> None:
         self.agent_of, self.rejected = agent_of, rejected
-        self.raw: dict[int, tuple[str, bytes]] = {}
+        self.raw: dict[int, list[tuple[str, bytes]]] = {}
         self.good: dict[int, msg.Stats] = {}
 
     def add(self, key: str, payload: bytes) -> None:
@@ -75,21 +81,24 @@ class StatsBook:
         elif len(payload) > msg.MAX_PAYLOAD:
             self.rejected.add("size", f"on {key}: {len(payload)} bytes")
         else:
-            self.raw[who] = (key, payload)
+            pending = self.raw.setdefault(who, [])
+            pending.append((key, payload))
+            if len(pending) > 8:  # read every few seconds; never a backlog however long the run
+                self.get(who)
 
     def get(self, who: int) -> msg.Stats | None:
-        pending = self.raw.pop(who, None)
-        if pending is not None:
-            key, payload = pending
+        for key, payload in self.raw.pop(who, ()):
             try:
                 m = msg.decode(payload)
             except msg.DecodeError as exc:
                 self.rejected.add(exc.reason, f"on {key}: {exc}")
-            else:
-                if isinstance(m, msg.Stats) and m.id == who:
-                    self.good[who] = m
-                else:
-                    self.rejected.add("kind")
+                continue
+            if not isinstance(m, msg.Stats) or m.id != who:
+                self.rejected.add("kind")
+                continue
+            held = self.good.get(who)
+            if held is None or not held.final or m.ticks >= held.ticks:
+                self.good[who] = m
         return self.good.get(who)
 
     def final(self, who: int) -> bool:

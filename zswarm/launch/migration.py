@@ -52,4 +52,5 @@ class Migration:
 
     def summary(self, n_agents: int) -> dict[str, Any]:
         return {"every": self.every, "epochs": self.epochs, "moves": len(self.moves),
-                "moves_per_agent": len(self.moves) / max(n_agents, 1), "left_moving": self.skipped}
+                "moves_per_agent": len(self.moves) / max(n_agents, 1), "left_moving": self.skipped,
+                "moved": {str(i): sum(1 for m in self.moves if m[1] == i) for i in sorted({m[1] for m in self.moves})}}
