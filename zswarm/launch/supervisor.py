@@ -185,7 +185,8 @@ class Launch:
         except msg.DecodeError as exc:
             _say(f"migration skipped at t = {t:.1f} s: {exc}")
             seen = None
-        busy = {i for i, c in self.leaving.items() if c.alive()}
+        # still handing over, or its process is gone (crashed: the restart, if any, brings it back)
+        busy = {i for i, c in self.leaving.items() if c.alive()} | {i for i, c in self.current.items() if not c.alive()}
         if seen is None:
             self.migration.next_at = t + self.migration.every
             return
