@@ -82,3 +82,24 @@ def test_bench_placement_reports_both_shares(cli):
     assert moved["ratio_migrated"] == pytest.approx(moved["space_migrated"] / moved["round_robin"])
     bad = cli("-m", "zswarm", "bench", "placement", "--agents", "3", "--nodes", "5")
     assert bad.returncode == 2 and "--nodes between 1 and N" in bad.stderr
+
+
+def test_migration_moves_only_the_agents_it_may_and_looks_again_every_period():
+    from zswarm.launch.migration import Migration
+
+    m = Migration(5.0)
+    assert not m.due(4.9) and m.due(5.0)
+    rng = np.random.default_rng(2)
+    ids = np.arange(30)
+    positions = np.column_stack([np.where(ids < 15, -5.0, 5.0) + rng.uniform(-1, 1, 30), rng.uniform(-1, 1, 30)])
+    where = {int(i): int(i) % 2 for i in ids}  # dealt in turn: half of each side on the wrong router
+    moves = m.plan(7.3, ids, positions, where, [1.0, 1.0], busy={0, 15})  # still moving: left where they are
+    moved = {a for a, _, _, _ in moves}
+    assert not moved & {0, 15} and all(where[a] == frm != to for a, frm, to, _ in moves)
+    after = {**where, **{a: to for a, _, to, _ in moves}}
+    left = {after[i] for i in range(1, 15)}
+    assert len(left) == 1 and {after[i] for i in range(16, 30)} == {1 - left.pop()}  # one side a router
+    assert len(moves) == 14  # half of each side was on the other router
+    assert m.next_at == 10.0 and not m.due(9.9)
+    s = m.summary(30)
+    assert s["moves"] == len(moves) and s["epochs"] == 1 and sum(s["moved"].values()) == len(moves)

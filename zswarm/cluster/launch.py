@@ -102,7 +102,7 @@ class ClusterLaunch(Launch):
         self.node_of[agent] = router
 
     def capacities(self) -> list[float]:
-        return [float(link.cpus) for link in self.links]
+        return [0.0 if link.lost else float(link.cpus) for link in self.links]  # a lost node takes no one
 
     def host_of(self, agent: int) -> NodeLink | None:
         """Its node; one whose node was lost rejoins on the surviving node with the fewest agents (and

@@ -14,6 +14,7 @@ time.
 
 from __future__ import annotations
 
+from collections import Counter
 from typing import Any, Sequence
 
 import numpy as np
@@ -27,6 +28,7 @@ class Migration:
         self.next_at = every  # the run's clock (simulated seconds) at which to look next
         self.epochs = 0
         self.moves: list[tuple[float, int, int, int]] = []  # (t, agent, from, to)
+        self.moved: Counter[int] = Counter()  # agent -> its moves so far
         self.skipped = 0  # agents left where they were because their last move was not over
 
     def due(self, t: float) -> bool:
@@ -48,9 +50,10 @@ class Migration:
         new = replace(positions, current, capacities)
         out = [(int(i), a, b, p) for i, a, b, p in zip(ids, current, new, positions) if a != b]
         self.moves += [(t, i, a, b) for i, a, b, _ in out]
+        self.moved.update(i for i, _, _, _ in out)
         return out
 
     def summary(self, n_agents: int) -> dict[str, Any]:
         return {"every": self.every, "epochs": self.epochs, "moves": len(self.moves),
                 "moves_per_agent": len(self.moves) / max(n_agents, 1), "left_moving": self.skipped,
-                "moved": {str(i): sum(1 for m in self.moves if m[1] == i) for i in sorted({m[1] for m in self.moves})}}
+                "moved": {str(i): n for i, n in sorted(self.moved.items())}}

@@ -198,7 +198,8 @@ class Launch:
             host = self.host_of(agent)
             if host is None:
                 continue
-            n = sum(1 for m in self.migration.moves if m[1] == agent)
+            to = self.router_of(agent)  # the host may have placed it elsewhere (a node lost meanwhile)
+            n = self.migration.moved[agent]
             start = ",".join(repr(float(c)) for c in position)
             argv = agent_argv(self.spec, agent, self.endpoints[to], "--node", str(to), "--takeover",
                               f"--start={start}", *self._agent_config(agent))
