@@ -190,6 +190,7 @@ def run_free_agent(spec: RunSpec, args: argparse.Namespace, robots: RobotsFile |
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda signum, _frame: stop.append(signum))
     done = moved = False
+    owns = not args.takeover  # a taker-over speaks for the agent (its final report) once it has its state
     desk = None
     try:
         if not wait_for_world(agent, proc.injector, args.start_timeout, lambda: bool(stop)):
@@ -197,8 +198,10 @@ def run_free_agent(spec: RunSpec, args: argparse.Namespace, robots: RobotsFile |
                 return 0
             raise proc.no_world(args.start_timeout)
         proc.announce()  # a taker-over's token beside the running process's: nobody sees the agent leave
-        if args.takeover and not take_over_agent(proc, args, lambda: bool(stop)):
-            return 0
+        if args.takeover:
+            if not take_over_agent(proc, args, lambda: bool(stop)):
+                return 0
+            owns = True
         if args.movable or args.takeover:
             desk = Desk(proc.session, spec.keys.handoff(args.id))
         moved = run_free(agent, proc.injector, lambda: bool(stop), desk)
@@ -209,7 +212,7 @@ def run_free_agent(spec: RunSpec, args: argparse.Namespace, robots: RobotsFile |
     finally:
         if desk is not None:
             desk.undeclare()
-        proc.close(final_stats=(done or bool(stop)) and not moved)  # a moved agent's counts went with it
+        proc.close(final_stats=(done or bool(stop)) and owns and not moved)  # a moved agent's counts went with it
 
 
 def take_over_agent(proc: Process, args: argparse.Namespace, stopped) -> bool:
