@@ -21,6 +21,7 @@ not: the neighbour table (the new process hears its cells anew, as an agent that
 from __future__ import annotations
 
 import dataclasses
+import math
 import threading
 import time
 from typing import Any, Callable
@@ -56,7 +57,17 @@ def apply_state(payload: bytes, body: Body, counters: Counters) -> int:
         new_body = Body(**{name: state["body"][name] for name in _BODY})
         if (new_body.z is None) != (body.z is None):
             raise HandoffError(f"a {new_body.dims}-D state for a {body.dims}-D agent")
+        numbers = [new_body.x, new_body.y, new_body.vx, new_body.vy,
+                   *(v for v in (new_body.heading, new_body.z, new_body.vz) if v is not None)]
+        if not all(type(v) is float and math.isfinite(v) for v in numbers) or type(new_body.step) is not int:
+            raise HandoffError("a handoff state whose body is not finite numbers")
         carried = {name: state["counters"][name] for name in _CARRIED}
+        defaults = Counters(counters.rejections)
+        for name, value in carried.items():  # each counter of its own kind: a number, or a table of numbers
+            kind = type(getattr(defaults, name))
+            if not (type(value) is kind or (kind is float and type(value) is int)) or (
+                    kind is dict and not all(type(k) is int and type(v) in (int, float) for k, v in value.items())):
+                raise HandoffError(f"a handoff state whose counter {name!r} is {type(value).__name__}")
         rejected = {str(k): int(v) for k, v in state["rejected"].items()}
         seq = int(state["seq"])
     except HandoffError:

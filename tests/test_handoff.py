@@ -44,8 +44,15 @@ def test_a_malformed_or_foreign_state_is_refused_and_changes_nothing():
     body, counters = Body(1.0, 1.0, step=5), Counters(Rejections("agent 1"))
     good = encode_state(Body(2.0, 2.0, step=9), 10, busy_counters())
     three_d = encode_state(Body(2.0, 2.0, z=1.0, vz=0.0), 10, busy_counters())
+    state = msgpack.unpackb(good, strict_map_key=False)
+
+    def changed(part: str, name: str, value) -> bytes:
+        return msgpack.packb({**state, part: {**state[part], name: value}}, use_bin_type=True)
+
     bad = [b"\x00\x01garbage", msgpack.packb({"k": "pose"}), good[: len(good) // 2],
-           msgpack.packb({**msgpack.unpackb(good, strict_map_key=False), "seq": "x"}, use_bin_type=True)]
+           msgpack.packb({**state, "seq": "x"}, use_bin_type=True), changed("body", "x", "1.0"),
+           changed("body", "y", float("nan")), changed("body", "step", 1.5), changed("counters", "ticks", "7"),
+           changed("counters", "ages", [1, 2]), changed("counters", "heard", {"a": 1})]
     for payload in bad:
         with pytest.raises(HandoffError):
             apply_state(payload, body, counters)
