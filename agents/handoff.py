@@ -121,12 +121,12 @@ class Desk:
             query.reply(self.key, state)
             query.drop()
 
-    def hand_over(self, state: bytes, linger: float = LINGER_S) -> bool:
+    def hand_over(self, state: bytes, stopped: Callable[[], bool] = lambda: False, linger: float = LINGER_S) -> bool:
         """Answer with ``state`` (the agent no longer moves) until the taker says it has it; False if it
-        did not within ``linger`` seconds (the taker then has it, or never will: either way this
-        process is done)."""
+        did not within ``linger`` seconds or ``stopped()`` (the taker then has it, or never will: either
+        way this process is done)."""
         deadline = time.monotonic() + linger
-        while not self.taken.is_set() and time.monotonic() < deadline:
+        while not self.taken.is_set() and time.monotonic() < deadline and not stopped():
             if self.due:
                 self.answer(state)
             self.taken.wait(0.01)

@@ -206,7 +206,7 @@ def run_free_agent(spec: RunSpec, args: argparse.Namespace, robots: RobotsFile |
             desk = Desk(proc.session, spec.keys.handoff(args.id))
         moved = run_free(agent, proc.injector, lambda: bool(stop), desk)
         if moved:
-            desk.hand_over(encode_state(agent.body, agent.seq, agent.counters))
+            desk.hand_over(encode_state(agent.body, agent.seq, agent.counters), lambda: bool(stop))
         done = True
         return 0
     finally:

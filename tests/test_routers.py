@@ -37,7 +37,7 @@ def test_agents_move_between_routers_as_the_swarm_moves_and_nothing_is_lost(tmp_
     restarted would fall short of the run's), the summary counts the moves, and every process ends."""
     record = tmp_path / "moving.rrd"
     res = run_launch(tmp_path, "--routers", "3", "--agents", "12", "--duration", "24", "--time-scale", "2",
-                     "--migrate-every", "2", "--run", "moving", "--record", str(record), "--quiet", timeout=180)
+                     "--migrate-every", "2", "--run", "migrating", "--record", str(record), "--quiet", timeout=180)
     assert res.returncode == 0, res.stderr
     s = json.loads(record.with_suffix(".json").read_text())
     moves = s["migration"]
@@ -49,4 +49,4 @@ def test_agents_move_between_routers_as_the_swarm_moves_and_nothing_is_lost(tmp_
     assert s["ticks"] >= 0.97 * 12 * steps, (s["ticks"], 12 * steps)
     assert s["messages_sent"] >= 0.97 * 12 * steps
     assert 0 < s["cross_router_share"] < 1
-    assert our_processes("moving") == []
+    assert our_processes("migrating") == []  # (not "moving": a substring of moving-prey)
