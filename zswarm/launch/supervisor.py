@@ -193,18 +193,24 @@ class Launch:
         _, ids, positions = seen
         moves = self.migration.plan(t, ids, positions, {i: self.router_of(i) for i in self.current},
                                     self.capacities(), busy)
-        for agent, _, to, position in moves:
+        for agent, was, to, position in moves:
             self._moved(agent, to)
             host = self.host_of(agent)
             if host is None:
+                self._moved(agent, was)
                 continue
             to = self.router_of(agent)  # the host may have placed it elsewhere (a node lost meanwhile)
             n = self.migration.moved[agent]
             start = ",".join(repr(float(c)) for c in position)
             argv = agent_argv(self.spec, agent, self.endpoints[to], "--node", str(to), "--takeover",
                               f"--start={start}", *self._agent_config(agent))
-            self.leaving[agent] = self.current[agent]
-            self.current[agent] = self.kids.add(host.spawn_agent(f"agent-{agent}-m{n}", argv[2:]))
+            try:
+                taker = self.kids.add(host.spawn_agent(f"agent-{agent}-m{n}", argv[2:]))
+            except Exception as exc:  # noqa: BLE001 (a node that cannot start it: the agent stays where it runs)
+                self._moved(agent, was)
+                _say(f"agent {agent} stays on router {was}: its move did not start ({(str(exc) or type(exc).__name__).splitlines()[-1][:120]})")
+                continue
+            self.leaving[agent], self.current[agent] = self.current[agent], taker
         if moves and not self.plan.quiet:
             _say(f"t = {t:.1f} s: moved {len(moves)} agents between routers", err=False)
 
