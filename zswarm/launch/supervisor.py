@@ -208,7 +208,8 @@ class Launch:
                 taker = self.kids.add(host.spawn_agent(f"agent-{agent}-m{n}", argv[2:]))
             except Exception as exc:  # noqa: BLE001 (a node that cannot start it: the agent stays where it runs)
                 self._moved(agent, was)
-                _say(f"agent {agent} stays on router {was}: its move did not start ({(str(exc) or type(exc).__name__).splitlines()[-1][:120]})")
+                why = (str(exc) or type(exc).__name__).splitlines()[-1][:120]
+                _say(f"agent {agent} stays on router {was}: its move did not start ({why})")
                 continue
             self.leaving[agent], self.current[agent] = self.current[agent], taker
         if moves and not self.plan.quiet:
