@@ -27,9 +27,8 @@ class Migration:
         self.every = every
         self.next_at = every  # the run's clock (simulated seconds) at which to look next
         self.epochs = 0
-        self.moves: list[tuple[float, int, int, int]] = []  # (t, agent, from, to)
         self.moved: Counter[int] = Counter()  # agent -> its moves so far
-        self.skipped = 0  # agents left where they were because their last move was not over
+        self.skipped = 0  # agents left where they were: their last move not over, or their process gone
 
     def due(self, t: float) -> bool:
         return t >= self.next_at
@@ -41,19 +40,20 @@ class Migration:
         while self.next_at <= t:
             self.next_at += self.every
         self.epochs += 1
-        keep = np.array([int(i) in where and int(i) not in busy for i in ids], dtype=bool)
-        self.skipped += int(sum(1 for i in ids if int(i) in busy))
+        moving = np.array([int(i) in busy for i in ids], dtype=bool)
+        keep = np.array([int(i) in where for i in ids], dtype=bool) & ~moving
+        self.skipped += int(moving.sum())
         ids, positions = np.asarray(ids)[keep], np.asarray(positions)[keep]
         if len(ids) < len(capacities):
             return []
         current = [where[int(i)] for i in ids]
         new = replace(positions, current, capacities)
         out = [(int(i), a, b, p) for i, a, b, p in zip(ids, current, new, positions) if a != b]
-        self.moves += [(t, i, a, b) for i, a, b, _ in out]
         self.moved.update(i for i, _, _, _ in out)
         return out
 
     def summary(self, n_agents: int) -> dict[str, Any]:
-        return {"every": self.every, "epochs": self.epochs, "moves": len(self.moves),
-                "moves_per_agent": len(self.moves) / max(n_agents, 1), "left_moving": self.skipped,
+        moves = sum(self.moved.values())
+        return {"every": self.every, "epochs": self.epochs, "moves": moves,
+                "moves_per_agent": moves / max(n_agents, 1), "left_moving": self.skipped,
                 "moved": {str(i): n for i, n in sorted(self.moved.items())}}

@@ -150,7 +150,7 @@ def check_migration(args: argparse.Namespace, spec: RunSpec) -> None:
         raise UsageError(f"--migrate-every must be at least 1 second of the run (got {every:g})")
     if spec.clock != "free":
         raise UsageError("--migrate-every runs on the free clock only (a lockstep step waits for every agent's pose)")
-    if args.routers < 2 and getattr(args, "cluster", None) is None:
+    if args.routers < 2 and args.cluster is None:
         raise UsageError("--migrate-every moves agents between routers: give --routers K (K >= 2) or --cluster")
     if set(args.role) != {"router", "world", "agents"}:
         raise UsageError("--migrate-every needs every role here (the launcher asks the world where its agents are)")

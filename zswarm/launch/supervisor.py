@@ -185,11 +185,11 @@ class Launch:
         except msg.DecodeError as exc:
             _say(f"migration skipped at t = {t:.1f} s: {exc}")
             seen = None
-        # still handing over, or its process is gone (crashed: the restart, if any, brings it back)
-        busy = {i for i, c in self.leaving.items() if c.alive()} | {i for i, c in self.current.items() if not c.alive()}
         if seen is None:
             self.migration.next_at = t + self.migration.every
             return
+        # still handing over, or its process is gone (crashed: the restart, if any, brings it back)
+        busy = {i for i, c in self.leaving.items() if c.alive()} | {i for i, c in self.current.items() if not c.alive()}
         _, ids, positions = seen
         moves = self.migration.plan(t, ids, positions, {i: self.router_of(i) for i in self.current},
                                     self.capacities(), busy)
