@@ -238,3 +238,16 @@ class Watch:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def cross_router_share(heard: dict[int, dict[int, int]], node_of: dict[int, int]) -> float | None:
+    """The share of the poses agents took in that came from an agent on another node (another router),
+    from who heard whom: ``heard[receiver][sender]`` counts poses. None when nothing was heard. The
+    oracle a run's measured ``cross_router_share`` (each pose names its sender's router) is held to."""
+    total = crossed = 0
+    for receiver, senders in heard.items():
+        for sender, count in senders.items():
+            if receiver in node_of and sender in node_of:
+                total += count
+                crossed += count if node_of[receiver] != node_of[sender] else 0
+    return crossed / total if total else None

@@ -8,7 +8,9 @@ import json
 import numpy as np
 import pytest
 
-from zswarm.launch.placement import cross_router_share, place, replace, shares
+from swarm_procs import cross_router_share
+
+from zswarm.launch.placement import place, replace, shares
 from zswarm.net.keys import in_reach
 
 

@@ -5,9 +5,7 @@ from __future__ import annotations
 import json
 
 import pytest
-from swarm_procs import our_processes, run_launch
-
-from zswarm.launch.placement import cross_router_share
+from swarm_procs import cross_router_share, our_processes, run_launch
 
 
 def test_three_meshed_routers_carry_one_swarm_that_catches_the_prey(tmp_path):

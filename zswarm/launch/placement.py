@@ -3,7 +3,9 @@ their neighbour traffic stays on one router), or round-robin.
 
 :func:`place` splits the spawn positions k-d style: the widest axis is cut where the nodes on each side
 get their share of agents, recursively, so each node receives a compact block of the start. Shares are
-in proportion to the nodes' CPUs. :func:`cross_router_share` is the figure the choice is judged by.
+in proportion to the nodes' CPUs. The figure the choice is judged by is a run's ``cross_router_share``
+(each agent counts the poses it takes in from another router). :func:`replace` makes the split anew
+as the swarm moves, with the fewest moves (``zswarm run --migrate-every``).
 """
 
 from __future__ import annotations
@@ -82,15 +84,3 @@ def _split(points: np.ndarray, ids: np.ndarray, nodes: list[int], counts: list[i
     order = ids[np.lexsort((ids, sub[:, axis]))] if len(ids) else ids  # ties broken by id: deterministic
     _split(points, order[:left_n], nodes[:half], counts, out)
     _split(points, order[left_n:], nodes[half:], counts, out)
-
-
-def cross_router_share(heard: dict[int, dict[int, int]], node_of: dict[int, int]) -> float | None:
-    """The share of the poses agents took in that came from an agent on another node (another router):
-    ``heard[receiver][sender]`` counts poses. None when nothing was heard."""
-    total = crossed = 0
-    for receiver, senders in heard.items():
-        for sender, count in senders.items():
-            if receiver in node_of and sender in node_of:
-                total += count
-                crossed += count if node_of[receiver] != node_of[sender] else 0
-    return crossed / total if total else None
