@@ -69,6 +69,7 @@ class Agent:
         self.pose_key = ""  # the key of its pose in that cell
         self.queryable: Any = None
         self.publisher: Any = None
+        self.stats_publisher: Any = None  # declared at the first stats message (a put on a key resolves it each time)
         self.member: Any = None  # its member token in the cell it is in (keys.member)
         self.latest_reply: tuple[str, bytes] | None = None
         self.replies_by_step: dict[int, tuple[str, bytes]] = {}
@@ -209,7 +210,9 @@ class Agent:
 
     def publish_stats_now(self) -> None:
         """The stats message, and a new window for the per-period figures (queue, tick lag)."""
-        self.bridge.session.put(self.keys.stats(self.id), self.stats(), encoding=msg.ENCODING)
+        if self.stats_publisher is None:
+            self.stats_publisher = self.bridge.session.declare_publisher(self.keys.stats(self.id), encoding=msg.ENCODING)
+        self.stats_publisher.put(self.stats())
         self.counters.new_window()
 
     async def publish_stats(self) -> None:

@@ -53,6 +53,18 @@ def test_round_trip(m):
     assert msg.decode(msg.encode(m)) == m
 
 
+def test_a_stats_message_carries_every_health_field():
+    """Each field of Health gets its own value and comes back as sent (a field the encoder does not name
+    would come back as its default)."""
+    import dataclasses
+
+    names = [f.name for f in dataclasses.fields(msg.Health)]
+    health = msg.Health(**{name: (7.5 + k if name == "tick_lag_max_ms" else k + 1) for k, name in enumerate(names)})
+    m = msg.Stats(3, 10, 20, {}, 0, 100, {1: 2}, {3: 4}, health=health)
+    assert msg.decode(msg.encode(m)).health == health
+    assert sorted(msg.HEALTH_FIELDS) == sorted(names)
+
+
 @settings(max_examples=1000, deadline=None)
 @given(data=st.binary(max_size=512))
 def test_random_bytes_never_crash_the_decoder(data):

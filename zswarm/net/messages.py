@@ -14,7 +14,6 @@ by reason).
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import struct
 from dataclasses import dataclass
@@ -155,6 +154,7 @@ class Health:
 HEALTH_INTS = ("obstacle_queries_failed", "seq_received", "seq_lost", "injected_drops", "injected_passed",
                "queue_max", "poses", "interventions", "stalled_ticks", "braked_ticks",
                "stalled_long", "crossed")
+HEALTH_FIELDS = (*HEALTH_INTS, "tick_lag_max_ms")  # every field of Health, as the stats map carries them
 
 
 @dataclass(frozen=True)
@@ -284,11 +284,13 @@ def encode(msg: Message) -> bytes:
         extra = {} if msg.dims == 2 else {"d": msg.dims}
         return _pack({"k": "obst", "c": [list(c) for c in msg.centers], "r": list(msg.radii), **extra})
     if isinstance(msg, Stats):
+        # once a second from every agent, on its control thread: plain copies (dataclasses.asdict deep-
+        # copies field by field; docs/benchmarks.md)
+        health = msg.health
         return _pack({"k": "stats", "id": msg.id, "sent": msg.sent, "recv": msg.received,
                       "rej": dict(msg.rejected), "late": msg.late_ticks, "ticks": msg.ticks,
-                      "ages": {int(k): int(v) for k, v in msg.age_hist.items()},
-                      "lat": {int(k): int(v) for k, v in msg.latency_hist.items()}, "f": msg.final,
-                      "x": dataclasses.asdict(msg.health), "h": list(msg.heard[:MAX_HEARD]),
+                      "ages": dict(msg.age_hist), "lat": dict(msg.latency_hist), "f": msg.final,
+                      "x": {name: getattr(health, name) for name in HEALTH_FIELDS}, "h": list(msg.heard[:MAX_HEARD]),
                       "hn": list(msg.heard_poses[:MAX_HEARD]),
                       "dep": dict(msg.departed or {}), "ret": dict(msg.returned or {})})
     raise TypeError(f"cannot encode {type(msg).__name__}")
