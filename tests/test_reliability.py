@@ -230,8 +230,6 @@ def test_the_world_repeats_the_final_tick_until_every_agent_has_said_goodbye(tmp
     A stand-in agent here holds a liveliness token and never answers."""
     import threading
 
-    import zenoh
-
     from zswarm.net import messages as msg
     from zswarm.net.config import open_session, zenoh_config
     from zswarm.net.keys import Keys
