@@ -29,6 +29,7 @@ from zswarm.net.config import add_zenoh_args, config_from_args, open_session
 from zswarm.net.injector import FaultInjector
 from zswarm.net.rings import CELL_CAPACITY
 from zswarm.net.runspec import RunSpec, add_run_args, spec_from_args
+from zswarm.stopping import stop_on_signals
 
 if TYPE_CHECKING:
     from agents.robot_link import RobotLink
@@ -186,33 +187,31 @@ def run_free_agent(spec: RunSpec, args: argparse.Namespace, robots: RobotsFile |
     # --connect-timeout) they end the process at once, as they would any other
     proc = Process(spec, args, loop=None, robots=robots)
     agent = proc.agent
-    stop: list[int] = []
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda signum, _frame: stop.append(signum))
+    stopped = stop_on_signals().is_set
     done = moved = False
     owns = not args.takeover  # a taker-over speaks for the agent (its final report) once it has its state
     desk = None
     try:
-        if not wait_for_world(agent, proc.injector, args.start_timeout, lambda: bool(stop)):
-            if stop:
+        if not wait_for_world(agent, proc.injector, args.start_timeout, stopped):
+            if stopped():
                 return 0
             raise proc.no_world(args.start_timeout)
         proc.announce()  # a taker-over's token beside the running process's: nobody sees the agent leave
         if args.takeover:
-            if not take_over_agent(proc, args, lambda: bool(stop)):
+            if not take_over_agent(proc, args, stopped):
                 return 0
             owns = True
         if args.movable or args.takeover:
             desk = Desk(proc.session, spec.keys.handoff(args.id))
-        moved = run_free(agent, proc.injector, lambda: bool(stop), desk)
+        moved = run_free(agent, proc.injector, stopped, desk)
         if moved:
-            desk.hand_over(encode_state(agent.body, agent.seq, agent.counters), lambda: bool(stop))
+            desk.hand_over(encode_state(agent.body, agent.seq, agent.counters), stopped)
         done = True
         return 0
     finally:
         if desk is not None:
             desk.undeclare()
-        proc.close(final_stats=(done or bool(stop)) and owns and not moved)  # a moved agent's counts went with it
+        proc.close(final_stats=(done or stopped()) and owns and not moved)  # a moved agent's counts went with it
 
 
 def take_over_agent(proc: Process, args: argparse.Namespace, stopped) -> bool:
