@@ -84,6 +84,7 @@ def run_free(agent: Agent, injector: FaultInjector | None, stopped: Callable[[],
             agent.move(s.prey, s.neighbour_positions(None, agent.staleness))
         agent.body.step += 1
         agent.reach.follow_cells()
+        agent.reach.check_members(time.time())
         agent.reach.follow_probe(now)
         agent.publish_pose(-1)
         if c.ticks % stats_every == 0:

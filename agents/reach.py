@@ -13,6 +13,7 @@ Obstacles: asked of the world's queryable within 2R of where the agent is, again
 from __future__ import annotations
 
 import asyncio
+import math
 import time
 
 from agents.cell_view import CellView
@@ -21,11 +22,16 @@ from zswarm.net.bridge import Bridge
 from zswarm.net.keys import cells_in_disc
 
 
+#: How often a member token the safety filter relies on alone is asked about again, at most (seconds).
+MEMBER_CHECK_S = 1.0
+
+
 class Reach:
     def __init__(self, sensing: Sensing, bridge: Bridge) -> None:
         self.sensing, self.bridge, self.keys = sensing, bridge, sensing.keys
         self.cell_view = CellView(self.keys, bridge, sensing.body, sensing.subscription_radius)
         self.asking: set[tuple[int, ...]] = set()  # cells asked for their agents, answers not all in
+        self.member_asked: dict[tuple[int, tuple[int, ...]], float] = {}  # (id, cell) -> when its token was asked about
 
     @property
     def cells(self) -> dict[tuple[int, ...], object]:
@@ -47,6 +53,19 @@ class Reach:
             self.asking.add(cell)
             self.bridge.get_into_inbox(self.keys.cell_poses(cell), "pose", 1.0,
                                        done=lambda cell=cell: self.asking.discard(cell))
+
+    def check_members(self, now: float) -> None:
+        """Ask again about the member tokens on which alone the safety filter guards a silent neighbour
+        (:attr:`agents.sensing.Sensing.doubted`): one nobody holds any longer is let go
+        (:meth:`agents.sensing.Sensing._member_gone`). Each token at most once every
+        :data:`MEMBER_CHECK_S` seconds."""
+        s = self.sensing
+        for who in s.doubted:
+            for cell in s.members.get(who, ()):
+                if now - self.member_asked.get((who, cell), -math.inf) >= MEMBER_CHECK_S:
+                    self.member_asked[(who, cell)] = now
+                    self.bridge.token_absent_into_inbox(self.keys.member(cell, who), "in-gone", 1.0)
+        s.doubted.clear()
 
     def follow_probe(self, now: float) -> None:
         """Ring-channel inbox: keep the latency probe on the nearest live neighbour, in its windows

@@ -87,6 +87,10 @@ class Sensing:
         self.last_seq: dict[int, int] = {}
         self.members: dict[int, set[tuple[int, ...]]] = {}  # id -> the cells it listens to that hold its token
         self.member_news: set[tuple[int, tuple[int, ...]]] = set()  # (id, cell) that changed live since subscribed
+        self.member_live_at: dict[tuple[int, tuple[int, ...]], float] = {}  # (id, cell) -> its last live change
+        # ids the safety filter guards only because their member token is in a cell it listens to: that
+        # token is asked about again (agents.reach.Reach.check_members)
+        self.doubted: set[int] = set()
         self.listening: set[tuple[int, ...]] = set()  # the cells it listens to (agents.cell_view)
         self.prey: tuple[float, ...] | None = None
         self.prey_stamp: float | None = None  # when the world sent the newest prey position heard
@@ -143,6 +147,9 @@ class Sensing:
         if tag in ("in", "in-now"):
             self._member(key, deleted, live=tag == "in")
             return
+        if tag == "in-gone":
+            self._member_gone(key, asked=received)
+            return
         self.counters.received += 1
         m = self._decoded(payload)
         if m is None:
@@ -169,11 +176,25 @@ class Sensing:
             return  # an answer about a cell it has left since it asked
         if live:
             self.member_news.add((who, cell))
+            self.member_live_at[(who, cell)] = time.time()
         elif (who, cell) in self.member_news:
             return
         if not deleted:
             self.members.setdefault(who, set()).add(cell)
         else:
+            self._not_in(who, {cell})
+
+    def _member_gone(self, key: str, asked: float) -> None:
+        """The member token ``key`` was asked about at ``asked`` and nobody holds it: it is no longer in
+        that cell, unless a live change of it came since. (A token's removal once never reached an agent
+        that had taken the token in from the answer to its ask on entering the cell; the agent then
+        guarded the silent sender, and braked beside where it was last heard, for as long as it listened
+        to that cell: docs/safety.md.)"""
+        parsed = self.keys.member_of(key)
+        if parsed is None:
+            return
+        cell, who = parsed
+        if self.member_live_at.get((who, cell), -math.inf) < asked:
             self._not_in(who, {cell})
 
     def listen_to(self, new: list[tuple[int, ...]], left: list[tuple[int, ...]]) -> None:
@@ -185,6 +206,7 @@ class Sensing:
         gone = set(left)
         self.listening -= gone
         self.member_news = {(who, cell) for who, cell in self.member_news if cell not in gone}
+        self.member_live_at = {k: t for k, t in self.member_live_at.items() if k[1] not in gone}
         for who in list(self.members):
             self._not_in(who, gone)
 
@@ -354,9 +376,10 @@ class Sensing:
         for pose, age, quiet, d, lag in heard:
             # its silence counts only beyond its own path's extra delay: a sender whose poses queue
             # (a router that reads it late) falls silent while it is still there
-            if (step is None and quiet - max(lag - path, 0.0) > left and d + v * (age - fresh) > cells
-                    and pose.id not in self.members):
-                continue
+            if step is None and quiet - max(lag - path, 0.0) > left and d + v * (age - fresh) > cells:
+                if pose.id not in self.members:
+                    continue
+                self.doubted.add(pose.id)  # guarded on its member token alone: that token is asked about
             point = pose.position
             if lookahead and pose.heading is not None:
                 point = (point[0] + lookahead * math.cos(pose.heading), point[1] + lookahead * math.sin(pose.heading))

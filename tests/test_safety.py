@@ -481,3 +481,60 @@ def test_poses_that_waited_in_a_queue_are_not_refused_as_jumps_but_a_forged_leap
     assert table.accept(1, later, now + 0.001) is None
     forged = msg.Pose(1, 10**6, now, -1, 500.0, 0.0, 0.0, 0.0)  # a huge sequence number buys no leap
     assert table.accept(1, forged, now + 0.002) == "jump"
+
+
+def test_a_member_token_nobody_holds_any_longer_is_asked_about_and_let_go():
+    """The filter guards a silent neighbour whose member token is in a cell it listens to. Once, the
+    token's removal never reached an agent (it had taken the token in from its question on entering
+    the cell), and the agent braked beside where that neighbour was last heard for as long as it
+    stayed (35 s, the CI failure of the hostile flood). A token the filter relies on alone is now
+    asked about again, over real Zenoh sessions here: one nobody holds is let go, one that is held
+    stays, and a live change that comes after the question wins over its answer."""
+    import time
+
+    import zenoh
+
+    from agents.reach import Reach
+    from agents.sensing import Body, Sensing
+    from conftest import free_port
+    from zswarm.net import messages as msg
+    from zswarm.net.bridge import Bridge
+    from zswarm.net.config import zenoh_config
+    from zswarm.net.runspec import RunSpec
+
+    spec = RunSpec(run="asked", scenario_name="moving-prey")  # R = 1, v_max = 1: cells reach 1.1
+    keys = spec.keys
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    with zenoh.open(zenoh_config("peer", listen=[endpoint])) as holder, \
+            zenoh.open(zenoh_config("peer", connect=[endpoint])) as session:
+        sensing = Sensing(spec, 0, Body(0.0, 0.0), probe_latency=False)
+        bridge = Bridge(session, None, deliver=sensing.handle, batch=True, channels=True)
+        reach = Reach(sensing, bridge)
+        now = time.time()
+        at = {1: (0.5, 0.0), 3: (-0.9, 0.0), 4: (0.0, -0.95)}
+        for who, p in at.items():
+            age = 0.02 if who == 1 else 2.0  # 1 heard all along; 3 and 4 quiet for 2 s near the edge
+            assert sensing.neighbours.accept(who, msg.Pose(who, 1, now - age, -1, *p, 0.0, 0.0), now - age) is None
+            sensing.alive.add(who)
+        cells = {who: keys.cell(*p) for who, p in at.items()}
+        sensing.listen_to(sorted(set(cells.values())), [])
+        token = holder.liveliness().declare_token(keys.member(cells[4], 4))  # 4 is still there
+        for who in (3, 4):  # both came in as answers on entering the cells; 3's removal never came
+            sensing.handle(("in-now", keys.member(cells[who], who), b"", False, now))
+        guarded = lambda: set(dict(sensing.safety_neighbours(None, 1.0, 0.05, 0.5)))  # noqa: E731
+        assert guarded() == {at[1], at[3], at[4]} and sensing.doubted == {3, 4}
+        time.sleep(0.5)  # the holder's token has reached the other session
+        reach.check_members(time.time())
+        deadline = time.monotonic() + 10.0
+        while 3 in sensing.members and time.monotonic() < deadline:
+            bridge.drain()
+            time.sleep(0.05)
+        assert 3 not in sensing.members and sensing.members[4] == {cells[4]}
+        assert guarded() == {at[1], at[4]}
+        # asked again no sooner than MEMBER_CHECK_S; a live change after a question wins over its answer
+        asked = time.time()
+        sensing.handle(("in", keys.member(cells[3], 3), b"", False, asked + 0.1))
+        sensing.handle(("in-gone", keys.member(cells[3], 3), b"", True, asked))
+        assert sensing.members[3] == {cells[3]}
+        token.undeclare()
+        bridge.close()

@@ -199,6 +199,21 @@ class Bridge:
                 append((tag, str(reply.ok.key_expr), b"", False, now()))
         self.session.liveliness().get(key, on_reply, timeout=timeout)
 
+    def token_absent_into_inbox(self, key: str, tag: str, timeout: float) -> None:
+        """Ask whether anybody holds the liveliness token ``key`` and return at once; if nobody answered
+        by the end of the query, a ``tag`` sample (deleted, stamped with the time it was asked) joins
+        the inbox."""
+        asked, held = time.time(), []
+
+        def on_reply(reply: Any) -> None:
+            if reply.ok is not None:
+                held.append(True)
+
+        def on_done() -> None:
+            if not self.closed and not held:
+                self.inbox.append((tag, key, b"", True, asked))
+        self.session.liveliness().get(key, zenoh.handlers.Callback(on_reply, on_done), timeout=timeout)
+
     def close(self) -> None:
         self.closed = True
 
