@@ -78,15 +78,26 @@ class Agent:
 
     # --- control ---------------------------------------------------------------------------------------
 
-    def move(self, goal: tuple[float, ...], neighbours: list[tuple[float, ...]], step: int | None = None) -> None:
-        """The command sat(-grad U_i) from what it sensed (eq 5 with the speed limit), through the safety
+    def move(self, goal: tuple[float, ...], step: int | None = None) -> None:
+        """The command sat(-grad U_i) from what it senses (eq 5 with the speed limit), through the safety
         filter, and one step of its body under it (:func:`zswarm.model.body.step`; the point body in
-        plain floats, the same arithmetic), or, beside a robot, the robot's command. ``step``: the
-        lockstep step whose poses it steers on (None: free, the newest)."""
+        plain floats, the same arithmetic), or, beside a robot, the command sent to the robot as a
+        Twist (a silent robot is stopped and the agent leaves: :meth:`agents.robot_link.RobotLink.check`).
+        ``step``: the lockstep step whose poses it steers on (None: free, the newest)."""
         if self.robot is not None:
-            self.drive_robot(goal, neighbours, step)
+            self.robot.check(time.time())
+            if not self.follow_robot():
+                return
+        late = step is None and self.safety is not None and self.late_world()
+        headed = self.body_spec.headed
+        neighbours, guarded = self.sensing.sense(step, self.staleness, self.spec.time_scale, self.dt,
+                                                 self.body_spec.lookahead if headed else 0.0,
+                                                 guard=self.safety is not None and not late)
+        v_d = self.safe(self.command(goal, neighbours), guarded, late)
+        if self.robot is not None:
+            self.robot.drive(v_d)
             return
-        b, v_d = self.body, self.safe(self.command(goal, neighbours), step)
+        b = self.body
         if self.body_spec.kind == "point":
             (b.x, b.y, b.z), (b.vx, b.vy, b.vz) = point_step(b.x, b.y, b.z, v_d, self.dt)
             return
@@ -97,7 +108,7 @@ class Agent:
         b.x, b.y, b.vx, b.vy = position[0], position[1], velocity[0], velocity[1]
         if b.z is not None:
             b.z, b.vz = position[2], velocity[2]
-        b.heading = float(moved.heading) if self.body_spec.headed else None
+        b.heading = float(moved.heading) if headed else None
 
     def follow_robot(self) -> bool:
         """Beside a robot: its body is where the robot's odometry says (False: none heard yet)."""
@@ -108,13 +119,6 @@ class Agent:
         b.vx, b.vy = pose.u * math.cos(pose.yaw), pose.u * math.sin(pose.yaw)
         return True
 
-    def drive_robot(self, goal: tuple[float, ...], neighbours: list[tuple[float, ...]], step: int | None) -> None:
-        """The command from where the robot is, through the safety filter, sent to it as a Twist; a
-        silent robot is stopped and the agent leaves (:meth:`agents.robot_link.RobotLink.check`)."""
-        self.robot.check(time.time())
-        if self.follow_robot():
-            self.robot.drive(self.safe(self.command(goal, neighbours), step))
-
     def late_world(self) -> bool:
         """The newest prey position it heard is older than the filter's data-age bound: everything it
         hears is that late (a machine or network far behind, a lost router), so a neighbour that came
@@ -122,20 +126,22 @@ class Agent:
         stamp = self.sensing.prey_stamp
         return stamp is not None and (time.time() - stamp) * self.spec.time_scale + self.dt > self.safety.max_age
 
-    def safe(self, v_d: tuple[float, ...], step: int | None) -> tuple[float, ...]:
+    def safe(self, v_d: tuple[float, ...], guarded: list[tuple[tuple[float, ...], float]],
+             late: bool) -> tuple[float, ...]:
         """The command the safety filter lets through (:func:`zswarm.model.safety.filter_one`), from
-        every neighbour it knows of and the age of that knowledge; counted in its stats."""
+        every neighbour it guards against and the age of what it knows of each
+        (:meth:`agents.sensing.Sensing.sense`); ``late``: the world is late, it brakes
+        (:meth:`late_world`). Counted in its stats."""
         if self.safety is None:
             return v_d
-        b, lookahead = self.body, (self.body_spec.lookahead if self.body_spec.headed else 0.0)
-        point = b.position
-        if lookahead and b.heading is not None:
-            point = (b.x + lookahead * math.cos(b.heading), b.y + lookahead * math.sin(b.heading))
-        if step is None and self.late_world():  # nothing it heard can bound anything: no rows to build
+        if late:  # nothing it heard can bound anything
             command, done = (0.0,) * len(v_d), Acted(any(v_d), any(v_d), True)
         else:
-            sensed = self.sensing.safety_neighbours(step, self.spec.time_scale, self.dt, self.staleness, lookahead)
-            command, done = filter_one(self.safety, point, v_d, sensed, self.sensing.obstacles)
+            b, lookahead = self.body, (self.body_spec.lookahead if self.body_spec.headed else 0.0)
+            point = b.position
+            if lookahead and b.heading is not None:
+                point = (b.x + lookahead * math.cos(b.heading), b.y + lookahead * math.sin(b.heading))
+            command, done = filter_one(self.safety, point, v_d, guarded, self.sensing.obstacles)
         c = self.counters
         stalled = done is not None and done.stalled
         if done is not None:
@@ -245,7 +251,7 @@ class Agent:
                 k = self.body.step
                 await self.reach.await_step_poses(k, self.lockstep_wait)
                 await self.reach.refresh_obstacles()
-                self.move(self.prey_by_step.get(k, tick.position), s.neighbour_positions(k, self.staleness), k)
+                self.move(self.prey_by_step.get(k, tick.position), k)
                 self.body.step += 1
                 self.prey_by_step.pop(k - 2, None)
             await self.reach.update_cells()

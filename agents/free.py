@@ -81,7 +81,7 @@ def run_free(agent: Agent, injector: FaultInjector | None, stopped: Callable[[],
         c.window_queue_max = max(c.window_queue_max, take_in(agent, injector))
         agent.reach.request_obstacles(time.time())
         if s.prey is not None:
-            agent.move(s.prey, s.neighbour_positions(None, agent.staleness))
+            agent.move(s.prey)
         agent.body.step += 1
         agent.reach.follow_cells()
         agent.reach.check_members(time.time())

@@ -304,74 +304,84 @@ class Sensing:
 
     # --- what the agent senses -------------------------------------------------------------------------
 
-    def _held(self, step: int | None, guard: bool = False, quiet: float = math.inf):
-        """(entry, pose) of every neighbour holding a liveliness token: its step-k pose (lockstep) or its
-        newest (free, ``step`` None), where it has one. ``guard`` (the safety filter): also one whose
-        token has not come yet (its poses prove it is there; under load a token can come seconds after
-        them); not one seen departing, nor one whose token has not come in :data:`TOKEN_GRACE` seconds
-        since its first pose and from which nothing came for ``quiet`` seconds: a sender that never
-        announced itself and fell silent is no member of the swarm (a hostile peer's made-up agent
-        once held an agent braking beside it for the rest of a run)."""
-        departed, now = self.counters.departed, (time.time() if guard else 0.0)
-        for who, nb in self.neighbours.entries.items():
-            if who in self.alive or (guard and who not in departed
-                                     and (now - nb.first <= TOKEN_GRACE or now - nb.received <= quiet)):
-                pose = nb.by_step.get(step) if step is not None else nb.latest
-                if pose is not None:
-                    yield nb, pose
+    def sense(self, step: int | None, staleness: float, time_scale: float = 1.0, period: float = 0.0,
+              lookahead: float = 0.0, guard: bool = True) -> tuple[list[tuple[float, ...]], list[tuple[tuple[float, ...], float]]]:
+        """What the law and the safety filter may use now, from one pass over the neighbours it holds
+        (an agent does this every tick): ``(positions, guarded)``.
 
-    def neighbour_positions(self, step: int | None, staleness: float) -> list[tuple[float, ...]]:
-        """Positions of the neighbours it may use now: step-k poses (lockstep) or fresh ones (free:
-        received within ``staleness`` seconds), of agents that hold a liveliness token.
+        *positions* (the law's neighbours): of the agents that hold a liveliness token, the step-k pose
+        (lockstep, ``step`` k) or the newest, if received within ``staleness`` seconds (free, ``step``
+        None). The age of each pose within the sensing radius is recorded here, at the moment it is used.
 
-        The age of each pose within the sensing radius is recorded here, at the moment it is used.
-        """
-        now = time.time()
-        out = []
-        for nb, pose in self._held(step):
-            if step is None and now - nb.received > staleness:
-                continue
-            if self.body.distance(pose) <= self.radius:
-                self.counters.add(self.counters.ages, (now - pose.stamp) * 1000.0)
-            out.append(pose.position)
-        return out
-
-    def safety_neighbours(self, step: int | None, time_scale: float, period: float, staleness: float,
-                          lookahead: float = 0.0) -> list[tuple[tuple[float, ...], float]]:
-        """What the safety filter guards against, as (where the filter acts on it, age in simulated
-        seconds): every neighbour not seen departing (a token that has not come yet does not hide one:
-        :meth:`_held`) whose newest pose may be within the sensing radius by now (no farther beyond it
-        than v_max times its age). One from which nothing came for
-        ``staleness`` wall seconds longer than from the one heard last has gone *quiet*: it has left the
-        cells this agent listens to, or its poses are being lost. One whose member token is in one of
-        those cells is there (tokens travel on Zenoh's control plane, which pose loss does not touch):
-        its silence is loss, and it stays guarded against. Otherwise it is let go only if it can have left:
-        if its newest pose plus what it can have moved while the others were still heard (its age beyond
-        the freshest neighbour's: had it stayed, its poses would have come through the same delay as
-        theirs) reaches past the subscription disc (the cells cover at least that disc about this
-        agent). One deep inside cannot have left: its silence is loss, and it stays guarded against
-        where it may be (``docs/safety.md``). That premise holds only for a neighbour whose poses came
-        through no slower a path than the others': one whose newest pose arrived later after it was
-        sent than the promptest neighbour's by some extra delay is given that extra before its silence
-        counts (a router that reads some senders seconds late made them fall silent while they were
-        there, and neighbours walked into them).
+        *guarded* (the safety filter's rows, empty unless ``guard``): (where the filter acts on it, age
+        in simulated seconds) of every neighbour not seen departing, with or without its token. A
+        neighbour whose token has not come yet counts (its poses prove it is there; under load a token
+        can come seconds after them), unless its token has not come in :data:`TOKEN_GRACE` seconds
+        since its first pose and nothing came from it for ``staleness`` seconds: a sender that never
+        announced itself and fell silent is no member of the swarm (a hostile peer's made-up agent once
+        held an agent braking beside it for the rest of a run). Of those, the ones whose newest pose may
+        be within the sensing radius by now (no farther beyond it than v_max times its age), less the
+        ones that have gone quiet and can have left (:meth:`_guarded`).
 
         Lockstep: the step-k poses, exact for step k (age 0). Free: the newest pose, its age from its
         stamp scaled by ``time_scale``, plus one control period ``period`` (a neighbour on its own timer
         may have stepped once more than the age says: ticks that catch up on a late one come closer
         together). ``lookahead``: a unicycle's tracked point ahead of its axle, from the heading."""
-        now, v, cells = time.time(), self.v_max, self.subscription_radius
+        now, b, entries = time.time(), self.body, self.neighbours.entries
+        radius, v, alive, departed = self.radius, self.v_max, self.alive, self.counters.departed
+        c = self.counters
+        positions: list[tuple[float, ...]] = []
         heard = []
-        for nb, pose in self._held(step, guard=True, quiet=staleness):
-            age = 0.0 if step is not None else max(now - pose.stamp, 0.0) * time_scale + period
-            d = self.body.distance(pose)
-            if d - v * age <= self.radius:
-                heard.append((pose, age, now - nb.received, d, nb.received - pose.stamp))
+        # over what is heard: the least time since a neighbour was heard, the least age, the least delay
+        quiet_min = age_min = lag_min = math.inf
+        for who, nb in entries.items():
+            pose = nb.latest if step is None else nb.by_step.get(step)
+            if pose is None:
+                continue
+            quiet = now - nb.received
+            member = who in alive
+            if not member and not (guard and who not in departed
+                                   and (now - nb.first <= TOKEN_GRACE or quiet <= staleness)):
+                continue
+            d = b.distance(pose)
+            if member and (step is not None or quiet <= staleness):
+                if d <= radius:
+                    c.add(c.ages, (now - pose.stamp) * 1000.0)
+                positions.append(pose.position)
+            if guard:
+                age = 0.0 if step is not None else max(now - pose.stamp, 0.0) * time_scale + period
+                if d - v * age <= radius:
+                    lag = nb.received - pose.stamp
+                    heard.append((pose, age, quiet, d, lag))
+                    quiet_min, age_min, lag_min = min(quiet_min, quiet), min(age_min, age), min(lag_min, lag)
         if not heard:
-            return []
-        left = min(h[2] for h in heard) + staleness
-        fresh = min(h[1] for h in heard)  # the delay every pose heard now has come through
-        path = min(h[4] for h in heard)  # the shortest delay a newest pose came through
+            return positions, []
+        return positions, self._guarded(heard, (quiet_min, age_min, lag_min), step, staleness, lookahead)
+
+    def _guarded(self, heard: list, least: tuple[float, float, float], step: int | None, staleness: float,
+                 lookahead: float) -> list[tuple[tuple[float, ...], float]]:
+        """The safety filter's rows from ``heard`` (pose, age, seconds since it was heard, distance,
+        delay it came through): the neighbours that may be within its radius (:meth:`sense`); ``least``:
+        the least time since heard, age and delay over them.
+
+        One from which nothing came for ``staleness`` wall seconds longer than from the one heard last
+        has gone *quiet*: it has left the cells this agent listens to, or its poses are being lost. One
+        whose member token is in one of those cells is there (tokens travel on Zenoh's control plane,
+        which pose loss does not touch): its silence is loss, and it stays guarded against. Otherwise it
+        is let go only if it can have left: if its newest pose plus what it can have moved while the
+        others were still heard (its age beyond the freshest neighbour's: had it stayed, its poses would
+        have come through the same delay as theirs) reaches past the subscription disc (the cells cover
+        at least that disc about this agent). One deep inside cannot have left: its silence is loss, and
+        it stays guarded against where it may be (``docs/safety.md``). That premise holds only for a
+        neighbour whose poses came through no slower a path than the others': one whose newest pose
+        arrived later after it was sent than the promptest neighbour's by some extra delay is given that
+        extra before its silence counts (a router that reads some senders seconds late made them fall
+        silent while they were there, and neighbours walked into them). ``lookahead``: a unicycle's
+        tracked point ahead of its axle, from the heading."""
+        v, cells = self.v_max, self.subscription_radius
+        left = least[0] + staleness
+        fresh = least[1]  # the delay every pose heard now has come through
+        path = least[2]  # the shortest delay a newest pose came through
         out = []
         for pose, age, quiet, d, lag in heard:
             # its silence counts only beyond its own path's extra delay: a sender whose poses queue

@@ -285,20 +285,20 @@ def test_an_agent_guards_against_late_neighbours_and_quiet_ones_that_cannot_have
         pose = msg.Pose(who, 1, now - age, -1, *p, 0.0, 0.0)
         assert sensing.neighbours.accept(who, pose, received) is None
         sensing.alive.add(who)
-    got = dict((p, a) for p, a in sensing.safety_neighbours(None, 1.0, 0.05, 0.5))
+    got = dict((p, a) for p, a in sensing.sense(None, 0.5, 1.0, 0.05)[1])
     assert set(got) == {(0.3, 0.0), (0.0, 0.4), (0.0, -1.3), (0.0, -0.3)}
     assert got[(0.0, -0.3)] == pytest.approx(0.65, abs=0.01)  # guarded with its whole age
     assert got[(0.3, 0.0)] == pytest.approx(0.25, abs=0.01)  # its age, plus one control period
     assert got[(0.0, 0.4)] == pytest.approx(0.07, abs=0.01)
-    half = dict((p, a) for p, a in sensing.safety_neighbours(None, 0.5, 0.05, 0.5))
+    half = dict((p, a) for p, a in sensing.sense(None, 0.5, 0.5, 0.05)[1])
     assert half[(0.3, 0.0)] == pytest.approx(0.15, abs=0.01)  # simulated seconds: at half pace, half the age
     sensing.alive.discard(1)  # its token has not come yet: its poses say it is there, so it is guarded
-    assert (0.3, 0.0) in dict(sensing.safety_neighbours(None, 1.0, 0.05, 0.5))
-    assert (0.3, 0.0) not in dict((p, 0) for p in sensing.neighbour_positions(None, 0.5))  # the law waits for it
+    assert (0.3, 0.0) in dict(sensing.sense(None, 0.5, 1.0, 0.05)[1])
+    assert (0.3, 0.0) not in dict((p, 0) for p in sensing.sense(None, 0.5, guard=False)[0])  # the law waits for it
     sensing.handle(("alive", spec.keys.alive(1), b"", True, time.time()))  # it departed: not a neighbour
-    assert (0.3, 0.0) not in dict(sensing.safety_neighbours(None, 1.0, 0.05, 0.5))
+    assert (0.3, 0.0) not in dict(sensing.sense(None, 0.5, 1.0, 0.05)[1])
     # lockstep: the step's poses, exact for that step
-    assert sensing.safety_neighbours(7, 1.0, 0.05, 0.5) == []
+    assert sensing.sense(7, 0.5, 1.0, 0.05)[1] == []
 
 
 def test_under_a_common_delay_a_quiet_neighbour_deep_inside_stays_guarded_in_agents_and_simulators():
@@ -306,7 +306,7 @@ def test_under_a_common_delay_a_quiet_neighbour_deep_inside_stays_guarded_in_age
     whether a quiet neighbour can have left: had it stayed in the cells, its poses would have come
     through the same delay as the others'. So it counts as gone only if its newest position plus what
     it can have moved *beyond the freshest neighbour's age* reaches past the cells: agents
-    (``Sensing.safety_neighbours``) and simulators (``BatchChannel.known``) alike. On its whole age
+    (``Sensing.sense``) and simulators (``BatchChannel.known``) alike. On its whole age
     (2.65 s at v_max 1) the neighbour 0.3 away would be let go; it is guarded."""
     import time
 
@@ -327,7 +327,7 @@ def test_under_a_common_delay_a_quiet_neighbour_deep_inside_stays_guarded_in_age
     for who, (p, age, received) in late.items():
         assert sensing.neighbours.accept(who, msg.Pose(who, 1, now - age, -1, *p, 0.0, 0.0), received) is None
         sensing.alive.add(who)
-    got = dict(sensing.safety_neighbours(None, 1.0, 0.05, 0.5))
+    got = dict(sensing.sense(None, 0.5, 1.0, 0.05)[1])
     assert set(got) == {(0.5, 0.0), (0.0, -0.3)}
     assert got[(0.0, -0.3)] == pytest.approx(2.65, abs=0.01)  # guarded with its whole age
 
@@ -366,7 +366,7 @@ def test_a_sender_that_never_announced_itself_and_fell_silent_is_not_guarded_for
         if last != first:
             assert sensing.neighbours.accept(who, msg.Pose(who, 2, last, -1, *p, 0.0, 0.0), last) is None
 
-    guarded = lambda: set(dict(sensing.safety_neighbours(None, 1.0, 0.05, 0.5)))  # noqa: E731
+    guarded = lambda: set(dict(sensing.sense(None, 0.5, 1.0, 0.05)[1]))  # noqa: E731
     hear(999, (0.4, 0.0), long_ago, long_ago + 0.2)  # made up long ago, silent since, no one else heard
     assert guarded() == set()
     sensing.alive.add(999)  # had its token come: alone, its silence cannot be told from loss: guarded
@@ -401,7 +401,7 @@ def test_a_quiet_neighbour_whose_member_token_is_in_the_cells_is_guarded_whateve
     for who, (p, age, received) in heard.items():
         assert sensing.neighbours.accept(who, msg.Pose(who, 1, now - age, -1, *p, 0.0, 0.0), received) is None
         sensing.alive.add(who)
-    guarded = lambda: dict(sensing.safety_neighbours(None, 1.0, 0.05, 0.5))  # noqa: E731
+    guarded = lambda: dict(sensing.sense(None, 0.5, 1.0, 0.05)[1])  # noqa: E731
     assert set(guarded()) == {(0.5, 0.0)}
     cell = keys.cell(-0.9, 0.0)
     sensing.handle(("in", keys.member(cell, 3), b"", False, now))  # a cell it does not listen to
@@ -462,7 +462,7 @@ def test_a_quiet_neighbour_whose_poses_came_through_a_slower_path_is_given_that_
     for who, (p, sent, received) in heard.items():
         assert sensing.neighbours.accept(who, msg.Pose(who, 1, now - sent, -1, *p, 0.0, 0.0), now - received) is None
         sensing.alive.add(who)
-    got = dict(sensing.safety_neighbours(None, 1.0, 0.05, 0.5))
+    got = dict(sensing.sense(None, 0.5, 1.0, 0.05)[1])
     assert set(got) == {(0.5, 0.0), (-0.9, 0.0)}
     assert got[(-0.9, 0.0)] == pytest.approx(5.05, abs=0.01)  # guarded with its whole age
 
@@ -521,7 +521,7 @@ def test_a_member_token_nobody_holds_any_longer_is_asked_about_and_let_go():
         token = holder.liveliness().declare_token(keys.member(cells[4], 4))  # 4 is still there
         for who in (3, 4):  # both came in as answers on entering the cells; 3's removal never came
             sensing.handle(("in-now", keys.member(cells[who], who), b"", False, now))
-        guarded = lambda: set(dict(sensing.safety_neighbours(None, 1.0, 0.05, 0.5)))  # noqa: E731
+        guarded = lambda: set(dict(sensing.sense(None, 0.5, 1.0, 0.05)[1]))  # noqa: E731
         assert guarded() == {at[1], at[3], at[4]} and sensing.doubted == {3, 4}
         time.sleep(0.5)  # the holder's token has reached the other session
         reach.check_members(time.time())

@@ -99,7 +99,7 @@ class BatchChannel:
 
     def known(self, k: int, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """After :meth:`step` k, what the safety filter guards against, as an agent process does
-        (:meth:`agents.sensing.Sensing.safety_neighbours`): every neighbour an agent has heard whose newest
+        (:meth:`agents.sensing.Sensing.sense`): every neighbour an agent has heard whose newest
         position may be within the sensing radius of it by now (no farther than v_max times its age
         beyond it), unless that is older than the staleness limit beyond its freshest neighbour's and
         it can have left the agent's cells (its newest position plus what it can have moved while the
