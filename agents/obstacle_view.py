@@ -75,13 +75,13 @@ class ObstacleView:
         """Without an event loop: ask the world for the obstacles within 2R when it has moved R from
         the last answer (or has none); the answer is taken in with the next samples. An unanswered
         query counts as failed after ``timeout`` seconds and is asked again."""
-        point = self.body.position
         if self.query is not None:
             if now - self.query[1] < timeout:
                 return
             self.counters.obstacle_queries_failed += 1
             self.query = None
-        if self.current():
+        point, at = self.body.position, self.query_at
+        if at is not None and math.dist(point, at) < self.radius:  # current(), every tick
             return
         self.query = (point, now)
         bridge.get_into_inbox(self.keys.obstacle_query(point, 2.0 * self.radius), "obstacles", timeout)

@@ -46,6 +46,8 @@ class Reach:
         """Listen to the cells the sensing disc overlaps; the new cells' agents are asked at once (the
         cells whose answers are not all in yet: :attr:`asking`)."""
         new, left = self.cell_view.move()
+        if not new and not left:
+            return  # most ticks
         self.sensing.listen_to(new, left)
         for cell in new:
             # who sits in it already (its live member tokens were subscribed first: Sensing._member)
@@ -60,6 +62,8 @@ class Reach:
         (:meth:`agents.sensing.Sensing._member_gone`). Each token at most once every
         :data:`MEMBER_CHECK_S` seconds."""
         s = self.sensing
+        if not s.doubted:
+            return  # most ticks
         for who in s.doubted:
             for cell in s.members.get(who, ()):
                 if now - self.member_asked.get((who, cell), -math.inf) >= MEMBER_CHECK_S:

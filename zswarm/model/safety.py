@@ -325,19 +325,20 @@ def filter_one(safety: Safety, point: tuple[float, ...], u_hat: tuple[float, ...
     (None: nothing)."""
     rate, v, dims = safety.kappa / safety.period, safety.v_max, len(point)
     far = 2.0 * v * math.sqrt(2.0) / rate  # a gap this wide gives b >= |a| v_max for every row: none binds
+    distance, max_age = safety.distance, safety.max_age
     binding: list[tuple[tuple[float, ...], float]] = []
     violated = stale = False
     for q, age in neighbours:
+        d = math.dist(point, q)  # |psi|, the same arithmetic as hypot of the differences
+        gap = d - distance - v * age
+        if gap >= far and age <= max_age:
+            continue  # most neighbours, most ticks: nothing more is computed
         psi = [point[k] - q[k] for k in range(dims)]
-        d = math.hypot(*psi)
-        gap = d - safety.distance - v * age
-        if gap >= far and age <= safety.max_age:
-            continue
         b = 0.5 * rate * max(gap, 0.0)
         spread = min(v * age / d, 1.0) if d > 0 else 1.0
         cos = math.sqrt(1.0 - spread * spread)
         if cos * b < v * math.sqrt(1.0 + (dims - 2) * spread * spread):
-            stale |= age > safety.max_age or v * age >= d
+            stale |= age > max_age or v * age >= d
             unit = [c / d for c in psi] if d > 0 else [0.0] * dims
             rows_j = [(tuple(-c for c in unit), cos * b)]
             if spread > 0:
@@ -347,10 +348,10 @@ def filter_one(safety: Safety, point: tuple[float, ...], u_hat: tuple[float, ...
                 binding.append((a, bound))
                 violated |= sum(a[k] * u_hat[k] for k in range(dims)) - bound > TOL
     for obstacle in obstacles:
-        psi = [point[k] - obstacle[k] for k in range(dims)]
-        d = math.hypot(*psi)
+        d = math.dist(point, obstacle[:dims])
         b = rate * max(d - obstacle[dims] - safety.clearance, 0.0)
         if b < v:
+            psi = [point[k] - obstacle[k] for k in range(dims)]
             a = tuple(-c / d for c in psi) if d > 0 else (0.0,) * dims
             binding.append((a, b))
             violated |= sum(a[k] * u_hat[k] for k in range(dims)) - b > TOL
