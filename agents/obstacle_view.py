@@ -80,8 +80,8 @@ class ObstacleView:
                 return
             self.counters.obstacle_queries_failed += 1
             self.query = None
-        point, at = self.body.position, self.query_at
-        if at is not None and math.dist(point, at) < self.radius:  # current(), every tick
+        if self.current():
             return
+        point = self.body.position
         self.query = (point, now)
         bridge.get_into_inbox(self.keys.obstacle_query(point, 2.0 * self.radius), "obstacles", timeout)

@@ -220,22 +220,16 @@ class Sensing:
                 del self.members[who]
 
     def _pose_sample(self, key: str, payload: bytes, received: float) -> None:
-        """A sample of the cells it listens to, or an answer of one it asked: a neighbour's pose (a
-        few every tick: a well-formed pose of its dimension goes straight on)."""
-        c = self.counters
-        c.received += 1
+        """A sample of the cells it listens to, or an answer of one it asked: a neighbour's pose."""
+        self.counters.received += 1
         who = self.keys.agent_of(key)
         if who == self.id:
             return  # its own pose, answered by its own queryable when it asked a cell
-        try:
-            m = msg.decode(payload)
-        except msg.DecodeError as exc:
-            c.rejections.add(exc.reason, str(exc))
-            return
-        if type(m) is msg.Pose and (m.z is None) == self.flat:
+        m = self._decoded(payload)
+        if type(m) is msg.Pose:
             self._on_pose(who, key, m, received)
-        elif self._fits(m):
-            c.rejections.add("kind", f"{type(m).__name__} on pose key")
+        elif m is not None:
+            self.counters.rejections.add("kind", f"{type(m).__name__} on pose key")
 
     def _decoded(self, payload: bytes) -> msg.Message | None:
         """The message, or None (counted by reason) if it is malformed or of the other dimension."""
@@ -244,15 +238,11 @@ class Sensing:
         except msg.DecodeError as exc:
             self.counters.rejections.add(exc.reason, str(exc))
             return None
-        return m if self._fits(m) else None
-
-    def _fits(self, m: msg.Message) -> bool:
-        """``m`` is of this run's dimension (a pose, prey or tick of the other one is counted by reason)."""
         if isinstance(m, (msg.Pose, msg.Prey, msg.Tick)) and (m.z is None) != self.flat:
             self.counters.rejections.add("dimensions", f"a {len(m.position)}-D {type(m).__name__.lower()} in a "
                                          f"{self.body.dims}-D run (every process of a run needs the same --scenario)")
-            return False
-        return True
+            return None
+        return m
 
     def fault_source(self, tag: str, key: str, payload: bytes) -> tuple[int, float | None] | None:
         """The link a message arrives on, and (poses) its sender's distance over the sensing radius."""

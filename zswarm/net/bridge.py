@@ -88,26 +88,18 @@ class Bridge:
         return len(self.inbox)
 
     def drain(self) -> int:
-        """Deliver every sample waiting (inbox, then channels in the order subscribed, liveliness
-        channels last); returns how many. One loop over the channels, nothing called per channel but
-        ``try_recv``: an agent drains about twenty of them every tick, most of them empty."""
+        """Deliver every sample waiting (inbox, then channels in the order subscribed); returns how many."""
         n = 0
         inbox, deliver = self.inbox, self.deliver
         while inbox:
             deliver(inbox.popleft())
             n += 1
         if self.channels:
-            now, delete, batches = time.time(), zenoh.SampleKind.DELETE, self.batches
-            for held in (self.channels, self.tokens):
-                for tag, sub in held:
-                    if batches and tag in batches:
-                        n += self._empty(tag, sub, now)
-                        continue
-                    sample = sub.try_recv()
-                    while sample is not None:
-                        deliver((tag, str(sample.key_expr), sample.payload.to_bytes(), sample.kind == delete, now))
-                        n += 1
-                        sample = sub.try_recv()
+            now = time.time()
+            for tag, sub in self.channels:
+                n += self._empty(tag, sub, now)
+            for tag, sub in self.tokens:
+                n += self._empty(tag, sub, now)
         return n
 
     def _empty(self, tag: str, sub: Any, now: float) -> int:
