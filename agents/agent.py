@@ -61,6 +61,8 @@ class Agent:
         self.keys = spec.keys
         self.dt = spec.scenario.dt
         self.body_spec = bodies.body_spec(spec.scenario.params)
+        # a unicycle's tracked point ahead of its axle, where the filter acts (its own and its neighbours')
+        self.lookahead = self.body_spec.lookahead if self.body_spec.headed else 0.0
         self.counters = sensing.counters
         self.staleness, self.lockstep_wait = staleness, lockstep_wait
         self.seq = 0
@@ -89,10 +91,8 @@ class Agent:
             if not self.follow_robot():
                 return
         late = step is None and self.safety is not None and self.late_world()
-        headed = self.body_spec.headed
         neighbours, guarded = self.sensing.sense(step, self.staleness, self.spec.time_scale, self.dt,
-                                                 self.body_spec.lookahead if headed else 0.0,
-                                                 guard=self.safety is not None and not late)
+                                                 self.lookahead, guard=self.safety is not None and not late)
         v_d = self.safe(self.command(goal, neighbours), guarded, late)
         if self.robot is not None:
             self.robot.drive(v_d)
@@ -108,7 +108,7 @@ class Agent:
         b.x, b.y, b.vx, b.vy = position[0], position[1], velocity[0], velocity[1]
         if b.z is not None:
             b.z, b.vz = position[2], velocity[2]
-        b.heading = float(moved.heading) if headed else None
+        b.heading = float(moved.heading) if self.body_spec.headed else None
 
     def follow_robot(self) -> bool:
         """Beside a robot: its body is where the robot's odometry says (False: none heard yet)."""
@@ -137,7 +137,7 @@ class Agent:
         if late:  # nothing it heard can bound anything
             command, done = (0.0,) * len(v_d), Acted(any(v_d), any(v_d), True)
         else:
-            b, lookahead = self.body, (self.body_spec.lookahead if self.body_spec.headed else 0.0)
+            b, lookahead = self.body, self.lookahead
             point = b.position
             if lookahead and b.heading is not None:
                 point = (b.x + lookahead * math.cos(b.heading), b.y + lookahead * math.sin(b.heading))
