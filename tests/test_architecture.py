@@ -10,6 +10,7 @@ through others (a circle).
     agents, world  the two process programs                       net, record (world only), model, base
     sim | net      the engines: reference simulator | runtime     model, record (sim only), base
     record         Rerun recordings: write, read back, repair     model, base
+    laws           the law contract, the built-in laws, loading   model, base
     model          the paper's math, scenarios, metrics, faults   base
     base           zswarm.errors, args, files, provenance, ports,  nothing of zswarm
                    stopping
@@ -30,18 +31,19 @@ BASE = {"zswarm", "zswarm.errors", "zswarm.args", "zswarm.files", "zswarm.proven
 ALLOWED: dict[str, set[str]] = {
     "base": {"base"},
     "model": {"base", "model"},
+    "laws": {"base", "model", "laws"},
     "record": {"base", "model", "record"},
-    "sim": {"base", "model", "record", "sim"},
+    "sim": {"base", "model", "laws", "record", "sim"},
     "net": {"base", "model", "net"},
     "ros": {"base", "model", "ros"},
-    "agents": {"base", "model", "net", "ros", "agents"},
-    "world": {"base", "model", "net", "record", "world"},
-    "tune": {"base", "model", "record", "sim", "tune"},
-    "launch": {"base", "model", "record", "sim", "net", "ros", "launch"},
-    "cluster": {"base", "model", "record", "sim", "net", "ros", "launch", "cluster"},
-    "bench": {"base", "model", "record", "sim", "net", "launch", "cluster", "bench"},
-    "cli": {"base", "model", "record", "sim", "net", "tune", "launch", "cluster", "bench", "ros", "cli"},
-    "api": {"base", "model", "record", "sim"},  # zswarm/__init__: the notebook API
+    "agents": {"base", "model", "laws", "net", "ros", "agents"},
+    "world": {"base", "model", "laws", "net", "record", "world"},
+    "tune": {"base", "model", "laws", "record", "sim", "tune"},
+    "launch": {"base", "model", "laws", "record", "sim", "net", "ros", "launch"},
+    "cluster": {"base", "model", "laws", "record", "sim", "net", "ros", "launch", "cluster"},
+    "bench": {"base", "model", "laws", "record", "sim", "net", "launch", "cluster", "bench"},
+    "cli": {"base", "model", "laws", "record", "sim", "net", "tune", "launch", "cluster", "bench", "ros", "cli"},
+    "api": {"base", "model", "laws", "record", "sim"},  # zswarm/__init__: the notebook API
 }
 
 

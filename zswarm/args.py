@@ -54,8 +54,19 @@ def read_params_file(path: str) -> list[str]:
     from zswarm.files import read_toml
 
     data = read_toml(path, "parameter file")
-    table = data.get("params", data) if isinstance(data.get("params"), dict) else data
+    table = dict(data.get("params", data) if isinstance(data.get("params"), dict) else data)
+    law = table.pop("law", None)
     out = []
+    if isinstance(law, dict):  # [law]: name = "boids", and the law's own parameters
+        law = dict(law)
+        if "name" in law:
+            out.append(f"law={law.pop('name')}")
+        for name, value in law.items():
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise UsageError(f"parameter file {path}: [law] {name} must be a number (got {value!r})")
+            out.append(f"law.{name}={value!r}")
+    elif law is not None:
+        out.append(f"law={law}")
     for name, value in table.items():
         if isinstance(value, str):  # a name (interaction, body): checked where it is used, as a --set is
             out.append(f"{name}={value}")

@@ -13,6 +13,9 @@ Symbols follow Kim, Wang & Shin (2006):
   the variants.
 - ``body``: what a commanded velocity does (:mod:`zswarm.model.body`): ``point`` (the paper's),
   ``unicycle`` (``turn_rate``, ``lookahead``) or ``double-integrator`` (``accel``).
+- ``law``: which control law the agents run (:mod:`zswarm.laws`): ``apf`` (the paper's, the default),
+  another built-in, or a user's; ``law.NAME`` sets one of that law's own parameters (checked by the
+  law when it is bound, :func:`zswarm.laws.registry.bind`).
 
 Every field has one spec in :data:`FIELDS`; :func:`validate` is the only place that checks them, and
 :meth:`Params.with_overrides` is how command lines (``--set NAME=VALUE``) reach them.
@@ -85,10 +88,22 @@ FIELDS: dict[str, FieldSpec] = {
     "lookahead": FieldSpec("body", float, 0.0, True,
                            "unicycle: how far ahead of the axle the tracked point is"),
     "accel": FieldSpec("body", float, 0.0, True, "double-integrator: the largest acceleration"),
+    "law": FieldSpec("law", str, 0.0, False, "the control law: apf (the paper's), olfati-saber, vasarhelyi, "
+                     "boids, FILE.py:NAME, package.module:NAME or an installed entry point (zswarm laws)"),
 }
 
+#: ``law.NAME``: one of the law's own parameters (a finite number; the law checks its name and range).
+LAW_PREFIX = "law."
+
 #: How a name-valued field is read.
-_NAMES = {"interaction": lambda v: parse_interaction(v).name, "body": parse_body}
+_NAMES = {"interaction": lambda v: parse_interaction(v).name, "body": parse_body, "law": lambda v: _law_name(v)}
+
+
+def _law_name(value: Any) -> str:
+    if not isinstance(value, str) or not value.strip() or any(c.isspace() for c in value.strip()):
+        raise ParamError(f"law must be a name (apf, olfati-saber, vasarhelyi, boids, FILE.py:NAME or "
+                         f"package.module:NAME; zswarm laws lists them) (got {value!r})")
+    return value.strip()
 
 
 Value = float | int | str
@@ -96,9 +111,12 @@ Value = float | int | str
 
 def validate(name: str, value: Any) -> Value:
     """Check one field; return its value coerced to the field's type, or raise :class:`ParamError`."""
+    if isinstance(name, str) and name.startswith(LAW_PREFIX):
+        return _law_setting(name, value)
     spec = FIELDS.get(name)
     if spec is None:
-        raise ParamError(f"unknown parameter {name!r}; known: {', '.join(FIELDS)}")
+        raise ParamError(f"unknown parameter {name!r}; known: {', '.join(FIELDS)}, or law.NAME for a parameter "
+                         "of the law")
     if isinstance(value, bool):
         raise ParamError(f"{name} must be {spec.describe()} (got {value!r})")
     if spec.kind is str:
@@ -114,6 +132,16 @@ def validate(name: str, value: Any) -> Value:
         value = float(value)
     if value < spec.lo or (spec.lo_open and value == spec.lo) or value > spec.hi:
         raise ParamError(f"{name} must be {spec.describe()} (got {value!r})")
+    return value
+
+
+def _law_setting(name: str, value: Any) -> float | int:
+    """``law.NAME = VALUE``: a finite number (its name and range are the law's to check)."""
+    key = name[len(LAW_PREFIX):]
+    if not key.isidentifier():
+        raise ParamError(f"{name}: a law parameter is law.NAME with NAME a Python identifier (e.g. law.c1_alpha)")
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ParamError(f"{name} must be a finite number (got {value!r})")
     return value
 
 
@@ -198,33 +226,64 @@ class BodyParams:
 
 
 @dataclass(frozen=True)
+class LawChoice:
+    """Which control law the agents run and the values set for its own parameters (``law.NAME``);
+    the law checks them when it is bound (:func:`zswarm.laws.registry.bind`)."""
+
+    law: str = "apf"
+    settings: tuple[tuple[str, float | int], ...] = ()
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "law", validate("law", self.law))
+        object.__setattr__(self, "settings", tuple(sorted(
+            (k, _law_setting(LAW_PREFIX + k, v)) for k, v in dict(self.settings).items())))
+
+    def flat(self) -> dict[str, Value]:
+        return {"law": self.law, **{LAW_PREFIX + k: v for k, v in self.settings}}
+
+
+@dataclass(frozen=True)
 class Params:
-    """A complete parameter set: potentials, swarm, design margins, interaction and body."""
+    """A complete parameter set: potentials, swarm, design margins, interaction, body and the law."""
 
     potential: PotentialParams = field(default_factory=PotentialParams)
     swarm: SwarmParams = field(default_factory=SwarmParams)
     margins: DesignMargins = field(default_factory=DesignMargins)
     interaction: InteractionParams = field(default_factory=InteractionParams)
     body: BodyParams = field(default_factory=BodyParams)
+    law: LawChoice = field(default_factory=LawChoice)
 
     def flat(self) -> dict[str, Value]:
-        """Every effective value by field name (the keys of :data:`FIELDS`)."""
+        """Every effective value by field name (the keys of :data:`FIELDS`, and ``law.NAME`` for each
+        parameter set for the law)."""
         out: dict[str, Value] = {}
         for part in (self.potential, self.swarm, self.margins, self.interaction, self.body):
             out.update(dataclasses.asdict(part))
+        out.update(self.law.flat())
         return out
 
     def with_values(self, values: Mapping[str, Any]) -> Params:
-        """A copy with some fields replaced (already-typed values; validated)."""
+        """A copy with some fields replaced (already-typed values; validated). Choosing another law
+        drops the settings of the one before it."""
         groups: dict[str, dict[str, Any]] = {g: {} for g in ("potential", "swarm", "margins", "interaction", "body")}
+        law, settings = self.law.law, dict(self.law.settings)
         for name, value in values.items():
-            groups[FIELDS[name].group if name in FIELDS else "potential"][name] = validate(name, value)
+            if name.startswith(LAW_PREFIX):
+                settings[name[len(LAW_PREFIX):]] = validate(name, value)
+            elif name == "law":
+                chosen = validate(name, value)
+                if chosen != law:
+                    law, settings = chosen, {k[len(LAW_PREFIX):]: v for k, v in values.items()
+                                             if k.startswith(LAW_PREFIX)}
+            else:
+                groups[FIELDS[name].group if name in FIELDS else "potential"][name] = validate(name, value)
         return Params(
             potential=dataclasses.replace(self.potential, **groups["potential"]),
             swarm=dataclasses.replace(self.swarm, **groups["swarm"]),
             margins=dataclasses.replace(self.margins, **groups["margins"]),
             interaction=dataclasses.replace(self.interaction, **groups["interaction"]),
             body=dataclasses.replace(self.body, **groups["body"]),
+            law=LawChoice(law, tuple(settings.items())),
         )
 
     def with_overrides(self, assignments: list[str]) -> Params:
@@ -244,10 +303,26 @@ def parse_assignments(assignments: list[str]) -> dict[str, Value]:
         name = name.strip()
         if not sep or not name:
             raise ParamError(f"--set expects NAME=VALUE (got {item!r})")
+        if name.startswith(LAW_PREFIX):
+            out[name] = _law_setting(name, _parse_law_number(name, text.strip()))
+            continue
         if name not in FIELDS:
             validate(name, 0)  # raises the unknown-name error
         out[name] = validate(name, _parse_number(name, text.strip()))
     return out
+
+
+def _parse_law_number(name: str, text: str) -> float | int:
+    try:
+        if "/" in text:
+            num, den = text.split("/", 1)
+            return float(num) / float(den)
+        try:
+            return int(text)
+        except ValueError:
+            return float(text)
+    except (ValueError, ZeroDivisionError):
+        raise ParamError(f"{name} must be a finite number (got {text!r})") from None
 
 
 def _parse_number(name: str, text: str) -> Value:

@@ -261,7 +261,7 @@ def get_scenario(name: str, overrides: dict[str, Any] | None = None) -> Scenario
 
 
 _TOP_KEYS = {"name", "description", "params", "obstacles", "prey_start", "prey", "spawn", "starts",
-             "duration", "dt", "combination", "formation", "capture_radius", "dimensions"}
+             "duration", "dt", "combination", "formation", "capture_radius", "dimensions", "law"}
 
 
 def load_scenario_file(path: Path) -> Scenario:
@@ -271,7 +271,7 @@ def load_scenario_file(path: Path) -> Scenario:
     if unknown:
         raise UsageError(f"scenario file {path}: unknown keys {sorted(unknown)}; allowed: {sorted(_TOP_KEYS)}")
     try:
-        kw: dict[str, Any] = {k: v for k, v in data.items() if k not in {"params", "obstacles", "prey"}}
+        kw: dict[str, Any] = {k: v for k, v in data.items() if k not in {"params", "obstacles", "prey", "law"}}
         kw.setdefault("name", Path(path).stem)
         kw.setdefault("description", f"loaded from {path}")
         for key in ("prey_start", "spawn"):
@@ -280,7 +280,9 @@ def load_scenario_file(path: Path) -> Scenario:
         if "starts" in kw:
             kw["starts"] = tuple(tuple(float(v) for v in p) for p in kw["starts"])
         dims = {"dimensions": kw.pop("dimensions")} if "dimensions" in kw else {}
-        kw["params"] = DEFAULT_PARAMS.with_values({**dims, **data.get("params", {})})
+        law = dict(data.get("law", {}))  # [law]: name = "boids", and the law's own parameters
+        law = {**({"law": law.pop("name")} if "name" in law else {}), **{f"law.{k}": v for k, v in law.items()}}
+        kw["params"] = DEFAULT_PARAMS.with_values({**dims, **data.get("params", {}), **law})
         kw["obstacles"] = tuple(Obstacle(float(o["x"]), float(o["y"]), float(o.get("radius", 0.0)),
                                          float(o.get("z", 0.0))) for o in data.get("obstacles", []))
         prey = dict(data.get("prey", {}))

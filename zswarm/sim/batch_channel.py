@@ -42,6 +42,8 @@ class BatchChannel:
         self.slots = max_delay + 1  # a ring longer than any run's delay: the same arrivals as its own ring
         s = n + 1  # column n is the prey
         self.history = np.zeros((b, self.slots, s, dims))
+        self.history_velocity = np.zeros((b, self.slots, n, dims))  # what each pose says of its velocity
+        self.belief_velocity = np.zeros((b, n, n, dims))
         self.incoming = np.full((b, self.slots, n, s), -1, dtype=np.int64)
         self.belief_stamp = np.full((b, n, s), -1, dtype=np.int64)
         self.belief_pos = np.zeros((b, n, s, dims))
@@ -61,13 +63,17 @@ class BatchChannel:
             self._block_start = k
         return self._uniforms[k - self._block_start]
 
-    def step(self, k: int, positions: np.ndarray, prey: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def step(self, k: int, positions: np.ndarray, prey: np.ndarray,
+             velocities: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Publish step k and deliver what arrives at it; (positions (B, N, 2), prey (B, 2)) ->
         (believed positions (B, N, N, 2), which of them agent i uses (B, N, N), goal per agent (B, N, 2),
-        NaN where no fresh prey position has reached it)."""
+        NaN where no fresh prey position has reached it). ``velocities`` (B, N, 2): what each pose says
+        of its sender's velocity, believed with its position (:meth:`heard_motion`)."""
         n = self.n
         sources = np.concatenate([positions, prey[:, None, :]], axis=1)
         self.history[:, k % self.slots] = sources
+        if velocities is not None:
+            self.history_velocity[:, k % self.slots] = velocities
         u = self._draws(k)
         self.bad = np.where(self.bad, u[:, 0] >= self.r_bad, u[:, 0] < self.p_bad)
         lost = np.where(self.gilbert, self.bad, u[:, 0] < self.dropout)
@@ -90,12 +96,20 @@ class BatchChannel:
         stamp = now[br, bi, bj]
         self.belief_stamp[br, bi, bj] = stamp
         self.belief_pos[br, bi, bj] = self.history[br, stamp % self.slots, bj]
+        pose = bj < n
+        self.belief_velocity[br[pose], bi[pose], bj[pose]] = self.history_velocity[br[pose], stamp[pose] % self.slots,
+                                                                                 bj[pose]]
         self.incoming[:, k % self.slots] = -1
         fresh = (self.belief_stamp >= 0) & (k - self.belief_stamp <= self.stale_steps)
         goal = np.where(fresh[:, :, n, None], self.belief_pos[:, :, n], np.nan)
         believed = self.belief_pos[:, :, :n]
         near = fresh[:, :, :n] & (np.linalg.norm(positions[:, :, None, :] - believed, axis=-1) <= self.radius)
         return believed, near, goal
+
+    def heard_motion(self, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """After :meth:`step` k: the velocity each agent believes of each other (B, N, N, D), and the
+        age of that belief in seconds (B, N, N)."""
+        return self.belief_velocity, (k - self.belief_stamp[:, :, : self.n]) * self.dt
 
     def known(self, k: int, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """After :meth:`step` k, what the safety filter guards against, as an agent process does

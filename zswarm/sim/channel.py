@@ -33,12 +33,19 @@ class FaultyChannel:
                                   np.array([v_max]), staleness, dims)
         self.sent = 0
 
-    def step(self, k: int, positions: np.ndarray, prey: np.ndarray):
-        """Publish step k, deliver what arrives at step k; return (i, j, believed positions, goal per agent)."""
-        believed, near, goal = self.batch.step(k, positions[None], np.asarray(prey, dtype=float)[None])
+    def step(self, k: int, positions: np.ndarray, prey: np.ndarray, velocities: np.ndarray | None = None):
+        """Publish step k, deliver what arrives at step k; return (i, j, believed positions, goal per agent).
+        ``velocities``: each agent's, carried with its pose (:meth:`heard_motion`)."""
+        believed, near, goal = self.batch.step(k, positions[None], np.asarray(prey, dtype=float)[None],
+                                               None if velocities is None else velocities[None])
         self.sent += self.n * self.n  # n (n - 1) pose links and n prey links
         i, j = np.nonzero(near[0])
         return i, j, believed[0][i, j], goal[0]
+
+    def heard_motion(self, k: int, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """After :meth:`step` k: the velocity agent i believes of j and that belief's age (s), per pair."""
+        velocity, age = self.batch.heard_motion(k)
+        return velocity[0][i, j], age[0][i, j]
 
     def known(self, k: int, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """After :meth:`step` k: every neighbour each agent has heard at all (fresh or stale) whose

@@ -22,6 +22,8 @@ from typing import Any
 
 import numpy as np
 
+from zswarm.laws.contract import Observations
+from zswarm.laws.registry import bind
 from zswarm.model import body as bodies
 from zswarm.model import prey as prey_motion
 from zswarm.model.faults import FaultModel
@@ -47,6 +49,8 @@ class Simulator:
         self.combination: Combination = combination or scenario.combination
         p = scenario.params
         self.law = compile_law(p, self.combination, scenario.formation)  # once, shared with the observer
+        self.bound = bind(scenario, self.combination)  # the law the agents run (apf: self.law, on flat pairs)
+        self.law_state = self.bound.start_state((len(scenario.initial_positions(np.random.default_rng(seed))),))
         self.rng = np.random.default_rng(seed)
         self.body = bodies.body_spec(p)
         self.state = bodies.start(self.body, scenario.initial_positions(self.rng), np.asarray(scenario.prey_start))
@@ -75,8 +79,11 @@ class Simulator:
     def t(self) -> float:
         return self.step_index * self.scenario.dt
 
-    def potential_and_velocity(self, positions: np.ndarray, goal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Every agent's U_i and commanded velocity from what it senses at ``positions``."""
+    def potential_and_velocity(self, positions: np.ndarray, goal: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
+        """Every agent's U_i (apf; None for another law) and commanded velocity from what it senses at
+        ``positions``."""
+        if not self.bound.is_apf:
+            return None, self.law_velocity(positions, goal)
         pairs, blind, exact = None, None, None
         if self.channel is not None:  # what each agent believes, through the faulty channel
             i, _, believed, goal = self.channel.step(self.step_index, positions, goal)
@@ -94,6 +101,34 @@ class Simulator:
         if self.safety is not None:
             v = self.filter(positions, v, exact)
         return u, v
+
+    def law_velocity(self, positions: np.ndarray, goal: np.ndarray) -> np.ndarray:
+        """A law other than apf through the contract: each agent's observation (its neighbours within
+        the sensing radius, exactly or through the faulty channel with their velocities and ages; the
+        obstacles within it; the target), the law's batched form on the swarm, then the filter."""
+        velocities, radius = self.state.velocity, self.scenario.params.swarm.sensing_radius
+        blind = None
+        if self.channel is not None:
+            i, j, believed, goal = self.channel.step(self.step_index, positions, goal, velocities)
+            heard_velocity, age = self.channel.heard_motion(self.step_index, i, j)
+            blind = np.isnan(goal[:, 0])
+            goal = np.where(blind[:, None], positions, goal)
+            pairs = (i, believed, heard_velocity, age)
+        else:
+            i, j = pairs_within(positions, radius)
+            pairs = (i, positions[j], velocities[j], np.zeros(len(i)))
+        a, m = self.obstacles.sensed(positions)
+        obs = Observations.of_swarm(positions, velocities, np.broadcast_to(goal, positions.shape),
+                                    self.scenario.params.swarm.v_max, self.scenario.dt, self.law_state, pairs,
+                                    (a, self.obstacles.centers[m], self.obstacles.radii[m]))
+        v, state = self.bound.decide_batch(obs)
+        v, self.law_state = v[0], state[0]
+        if blind is not None:
+            v[blind] = 0.0
+        if self.safety is not None:
+            exact = None if self.channel is not None else (i, positions[i] - positions[j], np.zeros(len(i)))
+            v = self.filter(positions, v, exact)
+        return v
 
     def filter(self, positions: np.ndarray, v: np.ndarray,
                pairs: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> np.ndarray:
@@ -150,7 +185,7 @@ def simulate(scenario: Scenario, seed: int, *, combination: Combination | None =
     prey_traj = np.empty((steps + 1, len(sim.prey))) if keep_trajectory else None
     header = {"scenario": scenario.name, "n_agents": int(len(sim.positions)), "seed": seed,
               "potential": sim.combination, "duration": steps * scenario.dt, "steps": steps,
-              "dt": scenario.dt, "safety": safety}
+              "dt": scenario.dt, "safety": safety, "law": sim.bound.describe()}
     rec = None
     if record is not None or (viewer is not None and viewer.wanted):
         from zswarm.record import swarm_log
@@ -173,7 +208,7 @@ def simulate(scenario: Scenario, seed: int, *, combination: Combination | None =
             traj[k], prey_traj[k] = sim.positions, sim.prey
         if k % metrics_every == 0 or k == steps:
             # the energy of the true configuration: the agents' own sum when they sense it exactly
-            energy = float(u.sum()) if sim.channel is None else None
+            energy = float(u.sum()) if sim.channel is None and u is not None else None
             metrics = observer.observe(sim.t, sim.ids, sim.positions, v, sim.prey, energy)
             if rec is not None and (k % record_every == 0 or k == steps):
                 _log_step(rec, series, labels, sim, v, metrics, trail,

@@ -1,0 +1,77 @@
+"""Reynolds (1987), "Flocks, herds, and schools: a distributed behavioral model", Computer Graphics
+21(4):25-34: separation, alignment and cohesion, plus a target term, in the steering form of Reynolds
+(1999) and Shiffman's *Nature of Code* (its "Flocking" example's defaults).
+
+Each rule asks for a desired velocity and steers toward it with a bounded force:
+
+    steer(desired) = limit(desired - v_i, F_max)
+    separation: desired = v_max unit(mean_{j: r_ij < R_sep} unit(r_i - r_j) / r_ij)
+    alignment:  desired = v_max unit(mean_j v_j)
+    cohesion:   desired = v_max unit(mean_j r_j - r_i)                       (seek the neighbours' centre)
+    target:     desired = v_max unit(target - r_i)                           (seek the target)
+    a = w_sep sep + w_ali ali + w_coh coh + w_tgt tgt,   v <- limit(v_i + a dt, v_max)
+
+once per frame; here a frame lasts the law's time unit (:mod:`zswarm.laws.scale`), so a control step of
+dt adds a dt. Neighbours are those within R = 2 R_sep (Shiffman's 50 px for a 25 px separation) and the
+sensing radius. Obstacles, which Reynolds steers around by a rule of their own, are left to the safety
+filter here (the law ignores them). Published values: w_sep 1.5, w_ali 1, w_coh 1, R_sep 25 px,
+v_max 2 px a frame, F_max 0.03 px a frame^2; the target's weight, w_tgt = 1, is this project's choice
+(no standard value exists).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from zswarm.laws.contract import Observations, SwarmLaw, limit, masked_sum, norm, param, unit
+from zswarm.laws.scale import Units
+
+
+@dataclass(frozen=True)
+class BoidsParams:
+    r_sep: float = param(25.0, "length", "separation radius R_sep (the spacing)")
+    r_neighbour: float = param(50.0, "length", "alignment and cohesion radius")
+    w_sep: float = param(1.5, "none", "separation weight", lo_open=False)
+    w_ali: float = param(1.0, "none", "alignment weight", lo_open=False)
+    w_coh: float = param(1.0, "none", "cohesion weight", lo_open=False)
+    w_tgt: float = param(1.0, "none", "target weight (this project's choice)", lo_open=False)
+    f_max: float = param(0.03, "accel", "the largest steering force F_max")
+    top_speed: float = param(2.0, "speed", "v_max, px a frame: what the scenario's v_max stands for")
+
+
+class Boids(SwarmLaw):
+    name = "boids"
+    reference = "Reynolds (1987), Computer Graphics 21(4):25-34; Shiffman, The Nature of Code, Flocking"
+    Params = BoidsParams
+    needs = ("neighbour velocities",)
+    ranges = {"w_sep": (0.5, 4.0), "w_ali": (0.0, 3.0), "w_coh": (0.0, 3.0), "w_tgt": (0.2, 4.0)}
+
+    def __init__(self, params: BoidsParams, context) -> None:
+        super().__init__(params, context)
+        self.units = Units.fit(context, params.r_sep, params.top_speed)
+
+    def batch(self, obs: Observations) -> np.ndarray:
+        p, law = self.params, self.units.to_law(obs)
+        r, v, top = law.position, law.velocity, np.asarray(law.v_max, dtype=float)
+        top_b = np.broadcast_to(top, r.shape[:-1])[..., None]
+
+        def steer(desired: np.ndarray) -> np.ndarray:
+            return limit(desired - v, p.f_max)
+
+        away = r[..., None, :] - law.neighbour_position
+        dist = norm(away)
+        near = obs.neighbour_mask & (dist < p.r_neighbour)
+        close = obs.neighbour_mask & (dist < p.r_sep) & (dist > 0.0)
+        push = unit(away) / np.where(dist > 0.0, dist, 1.0)[..., None]
+        sep = masked_sum(push, close) / np.maximum(close.sum(axis=-1), 1)[..., None]
+        count = np.maximum(near.sum(axis=-1), 1)[..., None]
+        ali = masked_sum(law.neighbour_velocity, near) / count
+        centre = masked_sum(law.neighbour_position, near) / count
+        some = near.any(axis=-1)[..., None]
+        a = p.w_sep * np.where(close.any(axis=-1)[..., None], steer(top_b * unit(sep)), 0.0)
+        a += p.w_ali * np.where(some, steer(top_b * unit(ali)), 0.0)
+        a += p.w_coh * np.where(some, steer(top_b * unit(centre - r)), 0.0)
+        a += p.w_tgt * steer(top_b * unit(law.target - r))
+        return limit(v + a * law.dt, top) * self.units.speed

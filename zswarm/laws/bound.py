@@ -1,0 +1,144 @@
+"""A law bound to a run: loaded, its parameters checked, its units fitted, and each call's answer
+checked (a sequence of D finite floats). Every consumer (both simulators, the agent processes, robots,
+the cluster) calls a law through :class:`BoundLaw`."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import numpy as np
+
+from zswarm.errors import ParamError
+from zswarm.laws.contract import Context, NoParams, Observation, Observations, SwarmLaw
+
+
+class LawError(RuntimeError):
+    """A law's answer is not a velocity (wrong length, NaN, infinity, not numbers)."""
+
+
+class FunctionLaw(SwarmLaw):
+    """A plain function ``law(obs) -> velocity`` as a law without parameters, state or batched form."""
+
+    fn: Callable[[Observation], Any]
+
+    def command(self, obs: Observation) -> Any:
+        return type(self).fn(obs)
+
+
+def function_law(fn: Callable[[Observation], Any], name: str) -> type[SwarmLaw]:
+    """A :class:`SwarmLaw` class around ``fn``."""
+    return type("FunctionLaw", (FunctionLaw,), {"fn": staticmethod(fn), "name": name,
+                                                "reference": (fn.__doc__ or "").strip().split("\n")[0]})
+
+
+def law_params(cls: type[SwarmLaw], settings: dict[str, float | int]) -> Any:
+    """The law's parameter set: its published defaults with ``settings`` applied, each checked in one
+    line against the range its field declares (:func:`zswarm.laws.contract.param`)."""
+    params_cls = cls.Params
+    if params_cls is NoParams or not dataclasses.is_dataclass(params_cls):
+        if settings:
+            raise ParamError(f"law {cls.name} has no parameters of its own (got law.{next(iter(settings))})")
+        return NoParams()
+    fields = {f.name: f for f in dataclasses.fields(params_cls)}
+    for name, value in settings.items():
+        f = fields.get(name)
+        if f is None:
+            raise ParamError(f"law {cls.name} has no parameter {name!r}; its parameters: {', '.join(fields)}")
+        meta = f.metadata
+        lo, hi, lo_open = meta.get("lo", -math.inf), meta.get("hi", math.inf), meta.get("lo_open", False)
+        if not math.isfinite(value) or value < lo or (lo_open and value == lo) or value > hi:
+            bound = f"{'>' if lo_open else '>='} {lo:g}" + ("" if math.isinf(hi) else f" and <= {hi:g}")
+            raise ParamError(f"law.{name} must be a finite number {bound} (got {value!r})")
+    return params_cls(**{k: float(v) for k, v in settings.items()})
+
+
+def checked(out: Any, dims: int, name: str) -> np.ndarray:
+    """``out`` as a velocity of ``dims`` finite floats, or :class:`LawError` saying what it is."""
+    try:
+        v = np.asarray(out, dtype=float)
+    except (TypeError, ValueError):
+        raise LawError(f"law {name} returned {type(out).__name__} {out!r:.60}, not a sequence of {dims} numbers") from None
+    if v.shape != (dims,):
+        raise LawError(f"law {name} returned a velocity of shape {v.shape} in a {dims}-D run (want {dims} numbers)")
+    if not np.all(np.isfinite(v)):
+        raise LawError(f"law {name} returned a velocity that is not finite: {v.tolist()}")
+    return v
+
+
+@dataclass
+class BoundLaw:
+    """One run's law: the instance, where it came from and what it was set to."""
+
+    law: SwarmLaw
+    name: str
+    source: str
+    settings: dict[str, float | int]
+    context: Context
+
+    @property
+    def is_apf(self) -> bool:
+        return self.name == "apf"
+
+    @property
+    def state_size(self) -> int:
+        return int(getattr(self.law, "state_size", 0))
+
+    def start_state(self, lead: tuple[int, ...] = ()) -> np.ndarray:
+        return np.zeros((*lead, self.state_size))
+
+    def decide(self, obs: Observation) -> tuple[np.ndarray, np.ndarray]:
+        """The single form: (velocity (D,), the agent's next state (S,))."""
+        out = self.law.command(obs)
+        if self.state_size:
+            if not (isinstance(out, tuple) and len(out) == 2):
+                raise LawError(f"law {self.name} keeps a state of {self.state_size}: return (velocity, state)")
+            out, state = out
+            state = np.asarray(state, dtype=float).reshape(self.state_size)
+        else:
+            state = obs.state
+        return checked(out, obs.dims, self.name), state
+
+    @property
+    def has_batch(self) -> bool:
+        return type(self.law).has_batch()
+
+    def decide_batch(self, obs: Observations) -> tuple[np.ndarray, np.ndarray]:
+        """The batched form where the law has one; otherwise the single form agent by agent (correct,
+        and slower: a Python call per agent per step)."""
+        if self.has_batch:
+            out = self.law.batch(obs)
+            if self.state_size:
+                out, state = out
+            else:
+                state = obs.state
+            v = np.asarray(out, dtype=float)
+            if v.shape != obs.position.shape or not np.all(np.isfinite(v)):
+                raise LawError(f"law {self.name}'s batched form returned shape {v.shape} (want "
+                               f"{obs.position.shape}) or values that are not finite")
+            return v, np.asarray(state, dtype=float)
+        v, state = np.empty_like(obs.position), np.array(obs.state, dtype=float)
+        for index in np.ndindex(*obs.lead):
+            v[index], state[index] = self.decide(obs.one(index))
+        return v, state
+
+    def describe(self) -> dict[str, Any]:
+        """What a run records of its law: name, source, parameters (published and in scenario units)."""
+        law = self.law
+        out: dict[str, Any] = {"name": self.name, "source": self.source, "reference": type(law).reference,
+                               "settings": dict(self.settings)}
+        if self.is_apf:  # the scenario's own parameters
+            out["params"] = {**dataclasses.asdict(law.params.p), "combination": law.params.combination,
+                             "interaction": "paper" if law.params.neighbours is None
+                             else law.params.neighbours.interaction.name}
+            return out
+        if dataclasses.is_dataclass(law.params) and not isinstance(law.params, type):
+            out["params"] = dataclasses.asdict(law.params)
+        units = getattr(law, "units", None)
+        if units is not None:
+            out["units"] = units.describe()
+            out["scaled"] = {f.name: units.scaled(getattr(law.params, f.name), f.metadata.get("dimension", "none"))
+                             for f in dataclasses.fields(law.params)}
+        return out

@@ -1,0 +1,268 @@
+"""The law contract: what a control law is given (one agent's observation) and what it gives back (a
+desired velocity), in one form for one agent and one for a batch.
+
+A law sees what an agent really has, and nothing global:
+
+- its own ``position`` and ``velocity`` (D = 2 or 3 coordinates);
+- each sensed neighbour's ``position``, ``velocity`` and ``age`` (seconds since that neighbour sent it);
+- the obstacles within reach, each a ``centre`` and a ``radius`` (0: the paper's point obstacle);
+- the ``target``: the goal or the prey as it last sensed it;
+- ``v_max``, the control period ``dt``, the dimension, and the law's own per-agent ``state``.
+
+The least a user writes is one function ``law(obs) -> velocity`` (a sequence of D floats). A law with
+parameters, per-agent state or a batched form subclasses :class:`SwarmLaw`. The batched observation,
+:class:`Observations`, holds the same fields over leading axes (runs, agents), with neighbours and
+obstacles padded to a common count and masked; :meth:`Observations.stack` and :meth:`Observations.one`
+are the only places the two layouts are converted, so a law written for one agent runs in a batch by a
+per-agent loop, and a batched form is held to its single form by ``tests/test_law_conformance.py``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, Sequence
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Neighbour:
+    """A sensed neighbour as the agent knows it: where it was, how it moved, how old that is (s)."""
+
+    position: np.ndarray
+    velocity: np.ndarray
+    age: float = 0.0
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    """An obstacle within reach: a disc (a ball in 3-D) of ``radius`` about ``centre``."""
+
+    centre: np.ndarray
+    radius: float = 0.0
+
+
+@dataclass(frozen=True)
+class Observation:
+    """What one agent has at one control step (see the module doc)."""
+
+    position: np.ndarray
+    velocity: np.ndarray
+    neighbours: tuple[Neighbour, ...]
+    obstacles: tuple[Obstacle, ...]
+    target: np.ndarray
+    v_max: float
+    dt: float
+    state: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    @property
+    def dims(self) -> int:
+        return len(self.position)
+
+
+@dataclass(frozen=True)
+class Observations:
+    """Observations over leading axes L (runs, agents): each field of :class:`Observation` as an array,
+    neighbours (L, K) and obstacles (L, M) padded and masked. ``v_max`` broadcasts against L."""
+
+    position: np.ndarray  # (L..., D)
+    velocity: np.ndarray  # (L..., D)
+    neighbour_position: np.ndarray  # (L..., K, D)
+    neighbour_velocity: np.ndarray  # (L..., K, D)
+    neighbour_age: np.ndarray  # (L..., K)
+    neighbour_mask: np.ndarray  # (L..., K) bool: which slots hold a sensed neighbour
+    obstacle_centre: np.ndarray  # (L..., M, D)
+    obstacle_radius: np.ndarray  # (L..., M)
+    obstacle_mask: np.ndarray  # (L..., M) bool
+    target: np.ndarray  # (L..., D)
+    v_max: np.ndarray | float  # broadcasts against (L...)
+    dt: float
+    state: np.ndarray  # (L..., S)
+
+    @property
+    def dims(self) -> int:
+        return self.position.shape[-1]
+
+    @property
+    def lead(self) -> tuple[int, ...]:
+        return self.position.shape[:-1]
+
+    @classmethod
+    def stack(cls, rows: Sequence[Sequence[Observation]]) -> Observations:
+        """(B, N) single observations as one batch, neighbours and obstacles padded with masked slots
+        (filled with values a law must not see: far away, fast, old)."""
+        b, n = len(rows), len(rows[0])
+        if any(len(r) != n for r in rows):
+            raise ValueError("every run of a batch needs the same number of agents")
+        first = rows[0][0]
+        d, s = first.dims, len(first.state)
+        k = max((len(o.neighbours) for r in rows for o in r), default=0)
+        m = max((len(o.obstacles) for r in rows for o in r), default=0)
+        out = {name: np.zeros(shape) for name, shape in (
+            ("position", (b, n, d)), ("velocity", (b, n, d)), ("target", (b, n, d)), ("state", (b, n, s)),
+            ("neighbour_position", (b, n, k, d)), ("neighbour_velocity", (b, n, k, d)),
+            ("neighbour_age", (b, n, k)), ("obstacle_centre", (b, n, m, d)), ("obstacle_radius", (b, n, m)),
+            ("v_max", (b, n)))}
+        out["neighbour_position"][:] = _PAD
+        out["neighbour_velocity"][:] = _PAD
+        out["neighbour_age"][:] = _PAD
+        out["obstacle_centre"][:] = _PAD
+        out["obstacle_radius"][:] = 1.0
+        nmask, omask = np.zeros((b, n, k), dtype=bool), np.zeros((b, n, m), dtype=bool)
+        for r, row in enumerate(rows):
+            for i, o in enumerate(row):
+                out["position"][r, i], out["velocity"][r, i], out["target"][r, i] = o.position, o.velocity, o.target
+                out["state"][r, i], out["v_max"][r, i] = o.state, o.v_max
+                for j, nb in enumerate(o.neighbours):
+                    out["neighbour_position"][r, i, j], out["neighbour_velocity"][r, i, j] = nb.position, nb.velocity
+                    out["neighbour_age"][r, i, j] = nb.age
+                    nmask[r, i, j] = True
+                for j, ob in enumerate(o.obstacles):
+                    out["obstacle_centre"][r, i, j], out["obstacle_radius"][r, i, j] = ob.centre, ob.radius
+                    omask[r, i, j] = True
+        return cls(neighbour_mask=nmask, obstacle_mask=omask, dt=first.dt, **out)
+
+    @classmethod
+    def of_swarm(cls, position: np.ndarray, velocity: np.ndarray, target: np.ndarray, v_max: float, dt: float,
+                 state: np.ndarray, pairs: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+                 obstacles: tuple[np.ndarray, np.ndarray, np.ndarray]) -> Observations:
+        """One swarm's observations (leading axes (1, N)) from flat lists: ``pairs`` (agent i, the
+        neighbour's position, velocity, age) and ``obstacles`` (agent i, centre, radius), each padded
+        to the most any agent has."""
+        n, d = position.shape
+        agent, nb_pos, nb_vel, nb_age = pairs
+        slot, k = _slots(agent, n)
+        shape = (1, n, k)
+        npos, nvel, nage = np.full(shape + (d,), _PAD), np.full(shape + (d,), _PAD), np.full(shape, _PAD)
+        nmask = np.zeros(shape, dtype=bool)
+        npos[0, agent, slot], nvel[0, agent, slot], nage[0, agent, slot], nmask[0, agent, slot] = nb_pos, nb_vel, nb_age, True
+        o_agent, centre, radius = obstacles
+        o_slot, m = _slots(o_agent, n)
+        ocen, orad, omask = np.full((1, n, m, d), _PAD), np.ones((1, n, m)), np.zeros((1, n, m), dtype=bool)
+        ocen[0, o_agent, o_slot], orad[0, o_agent, o_slot], omask[0, o_agent, o_slot] = centre, radius, True
+        return cls(position=position[None], velocity=velocity[None], neighbour_position=npos, neighbour_velocity=nvel,
+                   neighbour_age=nage, neighbour_mask=nmask, obstacle_centre=ocen, obstacle_radius=orad,
+                   obstacle_mask=omask, target=target[None], v_max=v_max, dt=dt, state=state[None])
+
+    def one(self, index: tuple[int, ...]) -> Observation:
+        """The single observation at ``index`` of the leading axes (its masked slots dropped)."""
+        nm, om = self.neighbour_mask[index], self.obstacle_mask[index]
+        v_max = np.broadcast_to(self.v_max, self.lead)[index]
+        return Observation(
+            position=self.position[index].copy(), velocity=self.velocity[index].copy(),
+            neighbours=tuple(Neighbour(p.copy(), v.copy(), float(a)) for p, v, a in zip(
+                self.neighbour_position[index][nm], self.neighbour_velocity[index][nm], self.neighbour_age[index][nm])),
+            obstacles=tuple(Obstacle(c.copy(), float(r)) for c, r in zip(
+                self.obstacle_centre[index][om], self.obstacle_radius[index][om])),
+            target=self.target[index].copy(), v_max=float(v_max), dt=self.dt, state=self.state[index].copy())
+
+    def replace(self, **changes: Any) -> Observations:
+        return dataclasses.replace(self, **changes)
+
+
+_PAD = 1e6  # what a masked slot holds: a law that reads it unmasked gives a visibly wrong answer
+
+
+def _slots(agent: np.ndarray, n: int) -> tuple[np.ndarray, int]:
+    """Each pair's slot among its agent's pairs (in the order given), and the most slots any agent uses."""
+    agent = np.asarray(agent, dtype=np.intp)
+    if len(agent) == 0:
+        return agent, 0
+    order = np.argsort(agent, kind="stable")
+    first = np.searchsorted(agent[order], agent[order], side="left")
+    slot = np.empty(len(agent), dtype=np.intp)
+    slot[order] = np.arange(len(agent)) - first
+    return slot, int(np.bincount(agent, minlength=n).max())
+
+
+@dataclass(frozen=True)
+class Context:
+    """What a law knows of the run when it is bound, before any agent steps: the dimension, the
+    control period, the speed limit, the sensing radius, the agents' radius and the pair spacing d
+    the scenario is built for (the paper's d^f; R / 1.2 where its potential has none)."""
+
+    dims: int
+    dt: float
+    v_max: float
+    sensing_radius: float
+    robot_radius: float
+    spacing: float
+
+
+@dataclass(frozen=True)
+class NoParams:
+    """A law without parameters of its own."""
+
+
+class SwarmLaw:
+    """A law as a class: its parameters (``Params``, a frozen dataclass whose defaults are the
+    published values; set from a params file's ``[law]`` table or ``--set law.NAME=VALUE``), the ranges
+    ``zswarm tune`` may search (``ranges``), what it needs beyond positions (``needs``), the size of its
+    per-agent state (``state_size``: then both forms return ``(velocity, state)`` and read
+    ``obs.state``, zeros at the start), and optionally a batched form (:meth:`batch`).
+
+    The single form :meth:`command` defaults to the batched form on a batch of one; a law defines at
+    least one of the two."""
+
+    name: ClassVar[str] = ""
+    reference: ClassVar[str] = ""
+    Params: ClassVar[type] = NoParams
+    ranges: ClassVar[dict[str, tuple[float, float]]] = {}
+    needs: ClassVar[tuple[str, ...]] = ()
+    state_size: ClassVar[int] = 0
+
+    def __init__(self, params: Any, context: Context) -> None:
+        self.params, self.context = params, context
+
+    def command(self, obs: Observation) -> Any:
+        if type(self).batch is SwarmLaw.batch:
+            raise NotImplementedError(f"law {self.name or type(self).__name__} defines neither command nor batch")
+        out = self.batch(Observations.stack([[obs]]))
+        if self.state_size:
+            return out[0][0, 0], out[1][0, 0]
+        return out[0, 0]
+
+    def batch(self, obs: Observations) -> Any:
+        """The batched form over ``obs``'s leading axes: (L..., D) velocities (and (L..., S) states)."""
+        raise NotImplementedError
+
+    @classmethod
+    def has_batch(cls) -> bool:
+        return cls.batch is not SwarmLaw.batch
+
+
+# -- vectorized helpers the built-in laws share ----------------------------------------------------------
+
+def norm(x: np.ndarray) -> np.ndarray:
+    """|x| over the last axis."""
+    return np.sqrt(np.einsum("...k,...k->...", x, x))
+
+
+def unit(x: np.ndarray) -> np.ndarray:
+    """x / |x| over the last axis (0 where x = 0)."""
+    n = norm(x)[..., None]
+    return np.divide(x, n, out=np.zeros_like(x), where=n > 0.0)
+
+
+def limit(x: np.ndarray, top: np.ndarray | float) -> np.ndarray:
+    """x scaled down to magnitude ``top`` where longer (``top`` broadcasts against x's leading axes)."""
+    n = norm(x)
+    top = np.broadcast_to(np.asarray(top, dtype=float), n.shape)
+    scale = np.divide(top, n, out=np.ones_like(n), where=n > top)
+    return x * scale[..., None]
+
+
+def masked_sum(values: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """Sum over the slot axis (-2 for vectors (L, K, D), -1 for scalars (L, K)) of the masked-in slots."""
+    if values.ndim == mask.ndim + 1:
+        return np.where(mask[..., None], values, 0.0).sum(axis=-2)
+    return np.where(mask, values, 0.0).sum(axis=-1)
+
+
+def param(default: float, dimension: str = "none", doc: str = "", lo: float = 0.0, lo_open: bool = True,
+          hi: float = float("inf")) -> Any:
+    """A law parameter: its published default, its dimension (:meth:`zswarm.laws.scale.Units.scaled`),
+    what it is, and its valid range (checked in one place, :func:`zswarm.laws.bound.law_params`)."""
+    return field(default=default, metadata={"dimension": dimension, "doc": doc, "lo": lo, "lo_open": lo_open,
+                                            "hi": hi})
