@@ -69,3 +69,28 @@ def test_faulty_runs_differ_from_fault_free_ones() -> None:
 def test_runs_of_different_sizes_cannot_share_a_batch() -> None:
     with pytest.raises(ValueError, match="same N"):
         simulate_batch([Member(get_scenario("moving-prey"), 0), Member(get_scenario("narrow-passage"), 0)], 5)
+
+
+def test_every_law_runs_in_a_batch_as_alone_with_faults_and_a_law_without_a_batched_form(tmp_path) -> None:
+    """Runs of the built-in laws other than apf (their batched forms, grouped by law), a user's
+    function law (no batched form: the per-agent loop), faults among them: each the run simulate()
+    makes alone, with the filter on."""
+    law_file = tmp_path / "rush.py"
+    law_file.write_text("import numpy as np\n\ndef rush(obs):\n    to = obs.target - obs.position\n"
+                        "    d = float(np.linalg.norm(to))\n    return obs.v_max * to / d if d > 0 else 0 * to\n")
+    faults = FaultModel(latency=0.1, jitter=0.05, dropout=0.3, seed=4)
+    members = [Member(get_scenario("moving-prey", {"law": name}), seed, f, safety="barrier")
+               for name, seed, f in (("olfati-saber", 0, None), ("vasarhelyi", 1, None), ("boids", 2, faults),
+                                     ("olfati-saber", 3, faults), (f"{law_file}:rush", 4, None),
+                                     ("vasarhelyi", 5, faults))]
+    members.append(Member(get_scenario("moving-prey-evasive", {"law": "boids"}), 6))
+    steps = 200
+    batch = simulate_batch(members, steps, keep_trajectory=True)
+    for r, m in enumerate(members):
+        alone = simulate(m.scenario, m.seed, duration=steps * m.scenario.dt, keep_trajectory=True, faults=m.faults,
+                         safety=m.safety)
+        np.testing.assert_allclose(batch.trajectory[:, r], alone.trajectory, rtol=0, atol=1e-9,
+                                   err_msg=f"run {r} ({m.scenario.params.law.law}, seed {m.seed})")
+        assert batch.outcomes[r].collisions == alone.summary["collisions"]
+        assert batch.outcomes[r].safety_interventions == alone.summary.get("safety_interventions", 0), r
+    assert np.ptp(batch.trajectory[-1, :, :, 0]) > 0.1  # the laws moved the swarms differently

@@ -32,6 +32,9 @@ from typing import Any
 
 import numpy as np
 
+from zswarm.laws.bound import BoundLaw
+from zswarm.laws.contract import Observations
+from zswarm.laws.registry import bind, context_of
 from zswarm.model import body as bodies
 from zswarm.model import metrics
 from zswarm.model import prey as prey_motion
@@ -119,6 +122,8 @@ def _law_groups(scen: list[Scenario], combinations: list[Combination]) -> list[_
     groups: dict[tuple[str, int], list[int]] = {}
     laws = [neighbour_law(s.params) for s in scen]
     for r, law in enumerate(laws):
+        if scen[r].params.law.law != "apf":  # another law: stepped through the contract (_ContractGroup)
+            continue
         if not scen[r].formation:  # no neighbour terms: only a swirl about the goal is left of the interaction
             laws[r] = law = dataclasses.replace(law, interaction=Interaction(swirl=law.interaction.swirl))
         key = ("paper", 0) if law.interaction.is_paper else (law.interaction.name, law.k_nearest)
@@ -134,6 +139,28 @@ def _law_groups(scen: list[Scenario], combinations: list[Combination]) -> list[_
         index = slice(None) if len(rows) == len(scen) else np.array(rows)
         out.append(_LawGroup(index, law, _Potentials(pots, 2), _Potentials(pots, 3),
                              np.array([combinations[r] == "multiplicative" for r in rows])[:, None]))
+    return out
+
+
+@dataclass
+class _ContractGroup:
+    """The runs of a batch that run one law other than apf, bound alike (the same law, settings and
+    context): one call of its batched form (or its per-agent loop) steps them, with their state."""
+
+    rows: np.ndarray
+    law: BoundLaw
+    state: np.ndarray  # (b, N, S)
+
+
+def _contract_groups(scen: list[Scenario], combinations: list[Combination], n: int) -> list[_ContractGroup]:
+    groups: dict[tuple, list[int]] = {}
+    for r, s in enumerate(scen):
+        if s.params.law.law != "apf":
+            groups.setdefault((s.params.law, context_of(s)), []).append(r)
+    out = []
+    for rows in groups.values():
+        law = bind(scen[rows[0]], combinations[rows[0]])
+        out.append(_ContractGroup(np.array(rows), law, law.start_state((len(rows), n))))
     return out
 
 
@@ -180,7 +207,9 @@ class BatchSimulator:
         self.members = members
         b = len(members)
         scen = [m.scenario for m in members]
-        self.laws = _law_groups(scen, [m.combination or m.scenario.combination for m in members])
+        combinations = [m.combination or m.scenario.combination for m in members]
+        self.laws = _law_groups(scen, combinations)
+        self.contract = _contract_groups(scen, combinations, self.n)
         self.formation = _column([float(s.formation) for s in scen], 3)
         self.radius = np.array([s.params.swarm.sensing_radius for s in scen])
         self.v_max = np.array([s.params.swarm.v_max for s in scen])
@@ -222,10 +251,12 @@ class BatchSimulator:
         psi_f = x[:, :, None, :] - x[:, None, :, :]  # (B, N, N, D): P_i - P_j
         r2 = np.einsum("bijk,bijk->bij", psi_f, psi_f)
         near = (r2 <= np.square(self.radius)[:, None, None]) & self.off_diagonal
-        blind = None
+        blind, heard = None, None
         if self.channel is not None:  # the faulty runs use what reached them instead
             f_idx = self.faulty
-            believed, sensed, heard_goal = self.channel.step(self.step_index, x[f_idx], self.prey[f_idx])
+            believed, sensed, heard_goal = self.channel.step(self.step_index, x[f_idx], self.prey[f_idx],
+                                                             self.state.velocity[f_idx])
+            heard = (f_idx, believed, *self.channel.heard_motion(self.step_index))
             blind = np.zeros(x.shape[:2], dtype=bool)
             blind[f_idx] = np.isnan(heard_goal[..., 0])
             goal = goal.copy()
@@ -234,7 +265,8 @@ class BatchSimulator:
             psi_f[f_idx] = x[f_idx][:, :, None, :] - believed
             near = near.copy()
             near[f_idx] = sensed
-        near &= self.formation > 0
+        sensed_f = near
+        near = near & (self.formation > 0)
         # obstacles (eqs 9-11): the sensed ones, |P - C| - rho within the sensing radius
         d = x[:, :, None, :] - self.centers[:, None, :, :]
         dist = np.sqrt(np.einsum("bimk,bimk->bim", d, d))
@@ -247,11 +279,38 @@ class BatchSimulator:
             f[r] = field(psi_g[r], DensePairs(sensed_o[r]), psi_o[r], DensePairs(near[r]), psi_f[r], g.per_agent,
                          g.multiplicative, law=g.law, p_pairs=g.per_pair, energy=False)[1]
         v = saturate(f, self.v_max[:, None])
+        if self.contract:
+            self._contract_velocities(v, x, goal, sensed_f, sensed_o, heard)
         if blind is not None:
             v[blind] = 0.0
         if self.filters:
             v = self._filter(x, v, sensed_o)
         return v
+
+    def _contract_velocities(self, v: np.ndarray, x: np.ndarray, goal: np.ndarray, near: np.ndarray,
+                             sensed_o: np.ndarray, heard: tuple | None) -> None:
+        """Into ``v``: the commands of the runs whose law is not apf, each group's law through the
+        contract on its observations: every other agent within the sensing radius (or, through the
+        faulty channel, what reached it, with the velocity and age it came with), the obstacles within
+        it, the target."""
+        b, n, dims = x.shape
+        nb_pos = np.broadcast_to(x[:, None, :, :], (b, n, n, dims))
+        nb_vel = np.broadcast_to(self.state.velocity[:, None, :, :], (b, n, n, dims))
+        nb_age = np.zeros((b, n, n))
+        if heard is not None:
+            f_idx, believed, velocity, age = heard
+            nb_pos, nb_vel = nb_pos.copy(), nb_vel.copy()
+            nb_pos[f_idx], nb_vel[f_idx], nb_age[f_idx] = believed, velocity, age
+        m = self.centers.shape[1]
+        for g in self.contract:
+            r = g.rows
+            obs = Observations(
+                position=x[r], velocity=self.state.velocity[r], neighbour_position=nb_pos[r],
+                neighbour_velocity=nb_vel[r], neighbour_age=nb_age[r], neighbour_mask=near[r],
+                obstacle_centre=np.broadcast_to(self.centers[r][:, None], (len(r), n, m, dims)),
+                obstacle_radius=np.broadcast_to(self.radii[r][:, None], (len(r), n, m)), obstacle_mask=sensed_o[r],
+                target=goal[r], v_max=self.v_max[r][:, None], dt=self.dt, state=g.state)
+            v[r], g.state = g.law.decide_batch(obs)
 
     def _filter(self, x: np.ndarray, v: np.ndarray, sensed_o: np.ndarray) -> np.ndarray:
         """The safety filter (:mod:`zswarm.model.safety`) on the commands of the runs that use it, all of
