@@ -18,6 +18,7 @@ from __future__ import annotations
 import asyncio
 import math
 import time
+import traceback
 from array import array
 from typing import Any
 
@@ -26,8 +27,9 @@ import numpy as np
 from agents.reach import Reach
 from agents.sensing import Body, Sensing
 from zswarm.model import body as bodies
-from zswarm.model.agent_law import agent_velocity, point_step
-from zswarm.model.law import Law, sense_one
+from zswarm.laws.bound import BoundLaw
+from zswarm.laws.contract import Neighbour, Observation, Obstacle
+from zswarm.model.agent_law import point_step
 from zswarm.model.safety import Acted, Safety, filter_one
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Bridge
@@ -53,11 +55,13 @@ class Agent:
     inbound links and the ROS 2 robot that drives its body."""
 
     def __init__(self, spec: RunSpec, agent_id: int, body: Body, sensing: Sensing, reach: Reach, bridge: Bridge,
-                 law: Law, injector: FaultInjector | None = None, robot: Any = None, staleness: float = 0.5,
+                 law: BoundLaw, injector: FaultInjector | None = None, robot: Any = None, staleness: float = 0.5,
                  lockstep_wait: float = 0.25, safety: Safety | None = None, track: array | None = None) -> None:
         """``track``: where every pose it sends is kept as (stamp, position...) for ``--tracks``."""
         self.spec, self.id, self.body, self.sensing, self.reach, self.bridge = spec, agent_id, body, sensing, reach, bridge
         self.law, self.injector, self.robot, self.safety, self.track = law, injector, robot, safety, track
+        self.law_state = law.start_state()  # the law's own per-agent state (zswarm.laws.contract)
+        self.law_failure: str | None = None  # the traceback of a law that raised: the agent brakes and leaves
         self.keys = spec.keys
         self.dt = spec.scenario.dt
         self.body_spec = bodies.body_spec(spec.scenario.params)
@@ -93,7 +97,7 @@ class Agent:
         late = step is None and self.safety is not None and self.late_world()
         neighbours, guarded = self.sensing.sense(step, self.staleness, self.spec.time_scale, self.dt,
                                                  self.lookahead, guard=self.safety is not None and not late)
-        v_d = self.safe(self.command(goal, neighbours), guarded, late)
+        v_d = self.safe(self.command(goal, neighbours, step), guarded, late)
         if self.robot is not None:
             self.robot.drive(v_d)
             return
@@ -153,17 +157,37 @@ class Agent:
         c.stalled_long |= c.stalled_run * self.dt >= 1.0
         return command
 
-    def command(self, goal: tuple[float, ...], neighbours: list[tuple[float, ...]]) -> tuple[float, ...]:
-        """The desired velocity from what it sensed: in plain floats in 2-D, the one law on one row in
-        3-D (the same equations; :mod:`zswarm.model.agent_law` says why 2-D has its own)."""
+    def command(self, goal: tuple[float, ...], neighbours: list[msg.Pose], step: int | None = None) -> tuple[float, ...]:
+        """The desired velocity from what it sensed, through the law contract (:mod:`zswarm.laws`).
+        ``apf`` in 2-D takes its plain-float single form (:meth:`zswarm.laws.apf.Apf.floats`: at one
+        agent's size numpy's per-call cost is most of the work); every other law gets the agent's
+        :class:`~zswarm.laws.contract.Observation`: its neighbours within the sensing radius with their
+        velocities and ages (0 in lockstep, where the step's poses are exact), the obstacles within it,
+        the target. A law that raises or answers with something other than a velocity leaves the agent
+        braking (:attr:`law_failure` holds the traceback; the clock loops end the process on it)."""
         b, s, law = self.body, self.sensing, self.law
-        if b.z is None:
-            return agent_velocity(b.x, b.y, goal, s.obstacles, neighbours, s.radius, law.p, law.combination,
-                                  law.formation, law.v_max, law.neighbours)
+        if law.is_apf and b.z is None:
+            return law.law.floats(b.position, goal, s.obstacles, [p.position for p in neighbours])
+        try:
+            v, self.law_state = law.decide(self.observation(goal, neighbours, step))
+        except Exception:  # noqa: BLE001 - a user's law may raise anything: this agent brakes and leaves
+            self.law_failure = traceback.format_exc()
+            return (0.0,) * len(goal)
+        return tuple(v.tolist())
+
+    def observation(self, goal: tuple[float, ...], neighbours: list[msg.Pose], step: int | None) -> Observation:
+        """What the law sees this tick (:class:`zswarm.laws.contract.Observation`)."""
+        b, s = self.body, self.sensing
+        radius, now, scale = s.radius, time.time(), self.spec.time_scale
+        seen = tuple(Neighbour(np.array(p.position), np.array(p.velocity),
+                               0.0 if step is not None else max(now - p.stamp, 0.0) * scale)
+                     for p in neighbours if b.distance(p) <= radius)
         position = np.array(b.position)
         centers, radii = s.obstacle_arrays
-        sensed = sense_one(position, centers, radii, np.array(neighbours, dtype=float).reshape(-1, 3), s.radius)
-        return tuple(law.velocity(position, np.array(goal, dtype=float), sensed).tolist())
+        gap = np.sqrt(((centers - position) ** 2).sum(axis=1)) - radii if len(radii) else radii
+        obstacles = tuple(Obstacle(c, float(r)) for c, r, g in zip(centers, radii, gap) if g <= radius)
+        return Observation(position, np.array(b.velocity), seen, obstacles, np.array(goal, dtype=float),
+                           self.law.context.v_max, self.dt, self.law_state)
 
     # --- outbound --------------------------------------------------------------------------------------
 
@@ -256,3 +280,5 @@ class Agent:
                 self.prey_by_step.pop(k - 2, None)
             await self.reach.update_cells()
             self.publish_pose(self.body.step)
+            if self.law_failure is not None:  # braked and said where: the process ends on it
+                return

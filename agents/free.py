@@ -87,6 +87,8 @@ def run_free(agent: Agent, injector: FaultInjector | None, stopped: Callable[[],
         agent.reach.check_members(time.time())
         agent.reach.follow_probe(now)
         agent.publish_pose(-1)
+        if agent.law_failure is not None:  # braked this tick and said where: the process ends on it
+            return False
         if c.ticks % stats_every == 0:
             agent.publish_stats_now()
         if desk is not None and desk.due:

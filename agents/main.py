@@ -21,7 +21,8 @@ from agents.handoff import Desk, HandoffError, apply_state, encode_state, take_o
 from agents.reach import Reach
 from agents.sensing import Sensing
 from zswarm.args import Parser, UsageError, run_main
-from zswarm.model.law import compile_law
+from zswarm.laws.bound import EXIT_LAW_FAILED
+from zswarm.laws.registry import bind
 from zswarm.model.safety_tally import safety_of
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Bridge, Deliver, Inbound, teardown
@@ -117,7 +118,7 @@ class Process:
         start = start_position(spec, args.id, args.start)
         self.spec, self.id = spec, args.id
         p, keys = spec.scenario.params, spec.keys
-        law = compile_law(p, spec.combination, spec.scenario.formation)
+        law = bind(spec.scenario, spec.combination, probe=False)  # zswarm run probed it before any process
         self.session = open_session(config_from_args(args), what=f"agent {args.id}", retry_for=args.connect_timeout)
         body = starting_body(spec, start)
         # free clock: samples wait in ring channels (in an inbox, stamped on arrival, when a delay is
@@ -207,7 +208,7 @@ def run_free_agent(spec: RunSpec, args: argparse.Namespace, robots: RobotsFile |
         if moved:
             desk.hand_over(encode_state(agent.body, agent.seq, agent.counters), stopped)
         done = True
-        return 0
+        return law_failed(agent)
     finally:
         if desk is not None:
             desk.undeclare()
@@ -253,9 +254,19 @@ async def run_lockstep_agent(spec: RunSpec, args: argparse.Namespace) -> int:
         agent.stop.set()
         stats_task.cancel()
         done = True
-        return 0
+        return law_failed(agent)
     finally:
         proc.close(final_stats=done)
+
+
+def law_failed(agent: Agent) -> int:
+    """0, or, after its law failed, the law's traceback on stderr (the agent's log) and
+    :data:`EXIT_LAW_FAILED`: the launcher counts it as a crash and the other agents carry on."""
+    if agent.law_failure is None:
+        return 0
+    print(f"agent {agent.id}: its law {agent.law.name} failed; it braked and left the swarm:\n{agent.law_failure}",
+          file=sys.stderr, end="", flush=True)
+    return EXIT_LAW_FAILED
 
 
 def robots_file(args: argparse.Namespace, spec: RunSpec) -> RobotsFile | None:

@@ -306,11 +306,11 @@ class Sensing:
     # --- what the agent senses -------------------------------------------------------------------------
 
     def sense(self, step: int | None, staleness: float, time_scale: float = 1.0, period: float = 0.0,
-              lookahead: float = 0.0, guard: bool = True) -> tuple[list[tuple[float, ...]], list[tuple[tuple[float, ...], float]]]:
+              lookahead: float = 0.0, guard: bool = True) -> tuple[list[msg.Pose], list[tuple[tuple[float, ...], float]]]:
         """What the law and the safety filter may use now, from one pass over the neighbours it holds
-        (an agent does this every tick): ``(positions, guarded)``.
+        (an agent does this every tick): ``(poses, guarded)``.
 
-        *positions* (the law's neighbours): of the agents that hold a liveliness token, the step-k pose
+        *poses* (the law's neighbours): of the agents that hold a liveliness token, the step-k pose
         (lockstep, ``step`` k) or the newest, if received within ``staleness`` seconds (free, ``step``
         None). The age of each pose within the sensing radius is recorded here, at the moment it is used.
 
@@ -331,7 +331,7 @@ class Sensing:
         now, b, entries = time.time(), self.body, self.neighbours.entries
         radius, v, alive, departed = self.radius, self.v_max, self.alive, self.counters.departed
         c = self.counters
-        positions: list[tuple[float, ...]] = []
+        positions: list[msg.Pose] = []
         heard = []
         # over what is heard: the least time since a neighbour was heard, the least age, the least delay
         quiet_min = age_min = lag_min = math.inf
@@ -348,7 +348,7 @@ class Sensing:
             if member and (step is not None or quiet <= staleness):
                 if d <= radius:
                     c.add(c.ages, (now - pose.stamp) * 1000.0)
-                positions.append(pose.position)
+                positions.append(pose)
             if guard:
                 age = 0.0 if step is not None else max(now - pose.stamp, 0.0) * time_scale + period
                 if d - v * age <= radius:

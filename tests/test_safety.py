@@ -293,12 +293,14 @@ def test_an_agent_guards_against_late_neighbours_and_quiet_ones_that_cannot_have
     half = dict((p, a) for p, a in sensing.sense(None, 0.5, 0.5, 0.05)[1])
     assert half[(0.3, 0.0)] == pytest.approx(0.15, abs=0.01)  # simulated seconds: at half pace, half the age
     # the law uses every fresh one, in reach or not (the law itself looks at the distance), not the quiet
-    assert set(sensing.sense(None, 0.5, 1.0, 0.05)[0]) == {(0.3, 0.0), (0.0, 0.4), (3.0, 0.0), (0.0, -1.3)}
+    assert {p.position for p in sensing.sense(None, 0.5, 1.0, 0.05)[0]} == {(0.3, 0.0), (0.0, 0.4), (3.0, 0.0),
+                                                                            (0.0, -1.3)}
     sensing.alive.discard(1)  # its token has not come yet: its poses say it is there, so it is guarded
-    positions, guarded = sensing.sense(None, 0.5, 1.0, 0.05)  # one pass, as an agent's tick
+    poses, guarded = sensing.sense(None, 0.5, 1.0, 0.05)  # one pass, as an agent's tick
+    positions = [p.position for p in poses]
     assert (0.3, 0.0) in dict(guarded)
     assert (0.3, 0.0) not in positions  # the law waits for its token
-    assert (0.3, 0.0) not in sensing.sense(None, 0.5, guard=False)[0]
+    assert (0.3, 0.0) not in [p.position for p in sensing.sense(None, 0.5, guard=False)[0]]
     sensing.handle(("alive", spec.keys.alive(1), b"", True, time.time()))  # it departed: not a neighbour
     assert (0.3, 0.0) not in dict(sensing.sense(None, 0.5, 1.0, 0.05)[1])
     # lockstep: the step's poses, exact for that step

@@ -28,6 +28,7 @@ from world.intake import PoseIntake, Snapshot
 from world.obstacles import ObstacleService
 from world.recorder import Resumed, WorldRecorder
 from world.report import StatsBook, transport_summary
+from zswarm.laws.registry import bind
 from zswarm.model.design import verdict
 from zswarm.model import prey as prey_motion
 from zswarm.model.observer import SwarmObserver
@@ -131,6 +132,7 @@ class World:
         self.judged_wall = 0.0  # when the judge last ran (wall time)
         self.intake = PoseIntake(spec, self.rejected, self.timed, batched)
         self.design: dict[str, Any] | None = None  # the set's design verdict (:meth:`judge_design`)
+        self.law = bind(self.scenario, spec.combination, probe=False).describe()  # what the agents run
         self.design_judge: threading.Thread | None = None
 
     def judge_design(self) -> None:
@@ -163,7 +165,7 @@ class World:
         """What the run was asked to do, as the recording stores it."""
         from zswarm.provenance import versions
 
-        return {**self.spec.describe(), "versions": versions(), "argv": self.argv,
+        return {**self.spec.describe(), "law": self.law, "versions": versions(), "argv": self.argv,
                 "segment": self.recorder.segment,
                 "resumed_from": None if self.resumed is None else self.resumed.to_dict()}
 
@@ -436,6 +438,6 @@ class World:
                        "snapshot_spread_max_s": self.snapshot_spread if s.clock == "free" else None,
                        **self._timed_result(),
                        "resumed_from": None if self.resumed is None else self.resumed.to_dict(),
-                       "design": self._design()})
+                       "design": self._design(), "law": self.law})
         self.recorder.close(result)
         return result

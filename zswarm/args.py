@@ -49,6 +49,22 @@ def add_param_args(parser: argparse.ArgumentParser) -> None:
                              "e.g. the best.toml of zswarm tune; --set overrides them")
 
 
+def add_law_arg(parser) -> None:
+    """``--law NAME``: the control law, the same as ``--set law=NAME`` (``zswarm laws`` lists them)."""
+    parser.add_argument("--law", dest="assignments", action=LawName, metavar="NAME",
+                        help="the control law: apf (the paper's, default), olfati-saber, vasarhelyi, boids, "
+                             "FILE.py:NAME, package.module:NAME or an installed one (zswarm laws lists them); "
+                             "its parameters: --set law.NAME=VALUE")
+
+
+class LawName(argparse.Action):
+    """``--law NAME``: ``law=NAME`` after a params file's law, whatever the order (the law's own
+    ``--set law.X`` are kept wherever they stand)."""
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        setattr(namespace, self.dest, list(getattr(namespace, self.dest) or []) + [f"law={values}"])
+
+
 def read_params_file(path: str) -> list[str]:
     """A parameter file as ``NAME=VALUE`` strings (checked as --set values are, where they are used)."""
     from zswarm.files import read_toml

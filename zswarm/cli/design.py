@@ -8,8 +8,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from zswarm.args import UsageError, add_param_args
-from zswarm.model.design import check
+from zswarm.args import UsageError, add_law_arg, add_param_args
+from zswarm.model.design import check, no_guidelines
 from zswarm.model.design_text import render
 from zswarm.model.nearest import Found, nearest_passing
 from zswarm.model.params import DEFAULT_PARAMS, PAPER_PARAMS, Params, parse_assignments
@@ -17,6 +17,7 @@ from zswarm.model.params import DEFAULT_PARAMS, PAPER_PARAMS, Params, parse_assi
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_param_args(parser)
+    add_law_arg(parser)
     parser.add_argument("--paper", action="store_true",
                         help="start from the paper's printed values instead of zswarm's defaults")
     parser.add_argument("--scenario", metavar="NAME|FILE.toml",
@@ -52,6 +53,10 @@ def _progress(line: str) -> None:
 
 def run(args: argparse.Namespace) -> int:
     params, dt = judged(args)
+    note = no_guidelines(params)
+    if note is not None:  # Propositions 1-5 are the paper's law's
+        print(json.dumps({"ok": None, "law": params.law.law, "note": note}) if args.json else note)
+        return 0
     from zswarm.files import check_writable
     from zswarm.record.design_figure import FORMATS
 

@@ -26,8 +26,8 @@ def module_command(sub: argparse._SubParsersAction, name: str, text: str, module
 
 def build_parser() -> Parser:
     from zswarm.cli import (bench_bodies, bench_guidelines, bench_interactions, bench_net, bench_placement,
-                            bench_safety, bench_world, certs, design, export, monitor, replay, robot_sim, sim, soak,
-                            tune)
+                            bench_safety, bench_world, certs, design, export, laws, monitor, replay, robot_sim, sim,
+                            soak, tune)
 
     parser = Parser(prog="zswarm", description="Decentralized APF swarms (Kim, Wang & Shin 2006).")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
@@ -42,6 +42,7 @@ def build_parser() -> Parser:
     sim.add_sim_arguments(s)
     s.set_defaults(run=sim.run_sim)
 
+    module_command(sub, "laws", "list the control laws (built-in, installed), their parameters and needs", laws)
     module_command(sub, "tune", "search the parameters that pass the guidelines and perform best", tune)
     module_command(sub, "monitor", "watch a running swarm live from any machine on its router", monitor)
     module_command(sub, "robot-sim", "stand-in ROS 2 robots (odometry, cmd_vel) to rehearse a deployment",

@@ -8,7 +8,7 @@ import sys
 import time
 from pathlib import Path
 
-from zswarm.args import add_param_args, positive_float, positive_int, seed_arg
+from zswarm.args import add_law_arg, add_param_args, positive_float, positive_int, seed_arg
 from zswarm.model.params import parse_assignments
 from zswarm.model.potentials import COMBINATIONS
 from zswarm.model.scenarios import SCENARIOS, get_scenario
@@ -19,6 +19,7 @@ def add_sim_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"a registered scenario ({', '.join(SCENARIOS)}) or a .toml file")
     parser.add_argument("--seed", type=seed_arg, default=0, help="random seed (spawn positions); default 0")
     add_param_args(parser)
+    add_law_arg(parser)
     parser.add_argument("--potential", choices=COMBINATIONS, default=None,
                         help="obstacle-goal combination: additive (eq 12) or multiplicative (eq 14); "
                              "default: the scenario's")
@@ -51,8 +52,15 @@ def run_sim(args: argparse.Namespace) -> int:
 
     scenario = get_scenario(args.scenario, parse_assignments(args.assignments))
     scenario.check_placement()  # before the design check, which takes seconds at large N
+    from zswarm.laws.registry import bind
+
+    bind(scenario, args.potential)  # a law that does not load or answers wrongly: refused here, in one line
     design = verdict(scenario.params, scenario.dt)
-    if not design["ok"]:
+    if design["ok"] is None:  # a law the guidelines do not cover
+        if args.require_design:
+            raise UsageError(design["note"] + " (--require-design)")
+        print(f"note: {design['note']}", file=sys.stderr, flush=True)
+    elif not design["ok"]:
         explain = " ".join(["zswarm design --scenario", args.scenario, *(f"--set {a}" for a in args.assignments)])
         line = warning_line(design, explain)
         if args.require_design:

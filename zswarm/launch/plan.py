@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Sequence
 
+from zswarm.laws.registry import bind
 from zswarm.errors import UsageError
 from zswarm.files import check_run_files
 from zswarm.model.params import parse_assignments
@@ -78,6 +79,7 @@ def plan_from_args(args: argparse.Namespace, cores: int | None = None, memory_mi
     if "agents" in args.role:
         check_capacity(len(ids), args.fork, memory_mib)
     spec.scenario.check_placement()  # every agent would fail to place itself, one by one
+    bind(spec.scenario, spec.combination)  # a law that does not load or answers wrongly: refused here, in one line
     files_note = ""
     if "world" in args.role:
         args.record, args.summary, files_note = run_files(args.record, args.summary, args.force)
@@ -328,7 +330,12 @@ def judge_design(spec: RunSpec, required: bool) -> dict:
     from zswarm.model.design import verdict, warning_line
 
     result = verdict(spec.scenario.params, spec.scenario.dt)
-    if not result["ok"]:
+    if result["ok"] is None:  # a law the guidelines do not cover
+        if required:
+            raise UsageError(result["note"] + " (--require-design)")
+        print(f"note: {result['note']}" + ("" if spec.safety == "barrier" else "; it is off in this run"),
+              file=sys.stderr, flush=True)
+    elif not result["ok"]:
         line = warning_line(result, design_command(spec))
         if required:
             raise UsageError(line + " (--require-design)")

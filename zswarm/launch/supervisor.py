@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from zswarm.laws.bound import EXIT_LAW_FAILED
 from zswarm.errors import UsageError
 from zswarm.launch.chaos import Event, schedule
 from zswarm.launch.configs import agent_config_args, role_configs
@@ -299,7 +300,8 @@ class Launch:
             if (code not in (None, 0) and c.name.startswith("agent") and c.name not in self.crashed
                     and c.name not in self.expected_exits):
                 self.crashed.add(c.name)
-                _say(f"{c.name} exited with code {code}; the others carry on")
+                why = " (its law failed: the traceback is above)" if code == EXIT_LAW_FAILED else ""
+                _say(f"{c.name} exited with code {code}{why}; the others carry on")
 
     def _stage(self, event: Event, t: float) -> None:
         """Carry out one scheduled event (world events only where this machine runs the world)."""
@@ -345,8 +347,13 @@ class Launch:
         if "world" not in self.plan.roles or self.world is None or self.world.alive():
             return
         agent_router = {str(i): self.router_of(i) for i in self.plan.ids} if "agents" in self.plan.roles else {}
+        exits = {int(c.name.split("-")[1]): c.proc.returncode for c in self.kids.named("agent")
+                 if c.proc.returncode not in (0, None) and c.name not in self.expected_exits}
+        crashes = {"crashed_agents": sorted(exits),
+                   "law_failures": sorted(i for i, code in exits.items() if code == EXIT_LAW_FAILED)}
         finish_recording(self.plan, self.world.proc.returncode, self.started_at,
-                         {"routers": self.endpoints, "agent_router": agent_router, **self._migration_summary()}, _say)
+                         {"routers": self.endpoints, "agent_router": agent_router, **crashes,
+                          **self._migration_summary()}, _say)
 
     def _migration_summary(self) -> dict:
         return {} if self.migration is None else {"migration": self.migration.summary(len(self.plan.ids))}

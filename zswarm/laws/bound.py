@@ -15,6 +15,10 @@ from zswarm.errors import ParamError
 from zswarm.laws.contract import Context, NoParams, Observation, Observations, SwarmLaw
 
 
+#: The exit status of an agent process whose law raised or answered with something other than a velocity.
+EXIT_LAW_FAILED = 3
+
+
 class LawError(RuntimeError):
     """A law's answer is not a velocity (wrong length, NaN, infinity, not numbers)."""
 

@@ -279,9 +279,23 @@ def check(params: Params, swarm: bool = True, dt: float | None = None) -> Design
                         guarantee(params, dt))
 
 
+def no_guidelines(params: Params) -> str | None:
+    """For a law other than the paper's: the one line that says the guidelines do not cover it (None
+    for ``apf``, which Propositions 1-5 and the swarm checks are about)."""
+    if params.law.law == "apf":
+        return None
+    return (f"law {params.law.law}: there are no analytical guidelines for it (Propositions 1-5 and the swarm "
+            "checks are the paper's law's, apf); the safety filter is the guarantee (--safety barrier)")
+
+
 def verdict(params: Params, dt: float | None = None) -> dict[str, Any]:
     """What a run records of its own design (``"design"`` in its summary): the verdict for the set it
-    runs (its N, sensing radius and interaction), the failing checks, and the paper's own verdict."""
+    runs (its N, sensing radius and interaction), the failing checks, and the paper's own verdict; for a
+    law other than apf, ``ok`` None and the line of :func:`no_guidelines`."""
+    note = no_guidelines(params)
+    if note is not None:
+        return {"ok": None, "law": params.law.law, "note": note, "failures": [], "paper_failures": [],
+                "interaction": None, "n_agents": params.swarm.n_agents}
     report = check(params, dt=dt)
     return {"ok": report.ok, "failures": report.failures(), "paper_failures": report.paper_failures(),
             "interaction": params.interaction.interaction, "n_agents": params.swarm.n_agents}

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any, Literal
 
-from zswarm.args import add_param_args, seed_arg
+from zswarm.args import add_law_arg, add_param_args, seed_arg
 from zswarm.errors import UsageError
 from zswarm.model.faults import FaultModel, parse_duration
 from zswarm.model.params import parse_assignments
@@ -129,6 +129,7 @@ def add_run_args(parser: argparse.ArgumentParser, run_help: str = f"run id: name
     group.add_argument("--scenario", default="moving-prey", help="scenario name or .toml file (default moving-prey)")
     group.add_argument("--seed", type=seed_arg, default=0, help="random seed of the run (default 0)")
     add_param_args(group)
+    add_law_arg(group)
     group.add_argument("--potential", choices=COMBINATIONS, default=None,
                        help="obstacle-goal combination (default: the scenario's)")
     group.add_argument("--clock", choices=CLOCKS, default="free",
