@@ -7,8 +7,11 @@ The few things a notebook needs, imported on first use (``import zswarm`` itself
 
 - ``zswarm.check(params)``: the design report of a parameter set (Propositions 1-5, formation,
   contact, the swarm squeeze); ``zswarm.DEFAULT_PARAMS``, ``zswarm.PAPER_PARAMS``, ``zswarm.Params``;
-- ``zswarm.load_scenario(name_or_toml, **overrides)``: a scenario, e.g. ``load_scenario("moving-prey",
-  n_agents=12, c_o=2.0)``; ``zswarm.SCENARIOS`` names the registered ones;
+- ``zswarm.load_scenario(name_or_toml, law=None, law_params=None, **overrides)``: a scenario, e.g.
+  ``load_scenario("moving-prey", n_agents=12, c_o=2.0)`` or ``load_scenario("moving-prey", law="boids",
+  law_params={"w_sep": 2.0})`` (``law`` may be a function ``law(obs) -> velocity``, a
+  ``zswarm.SwarmLaw`` class, or a name: ``zswarm.laws()`` lists them); ``zswarm.SCENARIOS`` names the
+  registered ones;
 - ``zswarm.simulate(scenario, seed, ...)``: the reference simulation; its result holds the summary,
   the per-step metrics and (``keep_trajectory=True``) the positions as arrays;
 - ``zswarm.read_recording(path)``: a zswarm ``.rrd`` (and its segments) as its configuration, summary
@@ -40,15 +43,24 @@ _LAZY = {
     "simulate": ("zswarm.sim.simulator", "simulate"),
     "Simulator": ("zswarm.sim.simulator", "Simulator"),
     "read_recording": ("zswarm.record.replay", "load_run"),
+    "SwarmLaw": ("zswarm.laws.contract", "SwarmLaw"),
+    "Observation": ("zswarm.laws.contract", "Observation"),
+    "laws": ("zswarm.laws.registry", "known"),
 }
 
 __all__ = ["__version__", "load_scenario", *_LAZY]
 
 
-def load_scenario(name: str, **overrides: Any) -> Scenario:
-    """A registered scenario (``zswarm.SCENARIOS``) or a ``.toml`` file, with parameter overrides."""
+def load_scenario(name: str, law: Any = None, law_params: dict[str, float] | None = None,
+                  **overrides: Any) -> Scenario:
+    """A registered scenario (``zswarm.SCENARIOS``) or a ``.toml`` file, with parameter overrides and
+    the law its agents run: a name (``zswarm.laws()``), or a function or ``SwarmLaw`` class defined
+    in the notebook (registered under ``module:name`` so every consumer finds it by name)."""
     from zswarm.model.scenarios import get_scenario
 
+    if law is not None:
+        overrides["law"] = law if isinstance(law, str) else f"{law.__module__}:{law.__qualname__}"
+    overrides.update({f"law.{k}": v for k, v in (law_params or {}).items()})
     return get_scenario(name, overrides)
 
 

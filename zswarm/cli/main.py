@@ -25,7 +25,7 @@ def module_command(sub: argparse._SubParsersAction, name: str, text: str, module
 
 
 def build_parser() -> Parser:
-    from zswarm.cli import (bench_bodies, bench_guidelines, bench_interactions, bench_net, bench_placement,
+    from zswarm.cli import (bench_bodies, bench_laws, bench_guidelines, bench_interactions, bench_net, bench_placement,
                             bench_safety, bench_world, certs, design, export, laws, monitor, replay, robot_sim, sim,
                             soak, tune)
 
@@ -66,6 +66,8 @@ def build_parser() -> Parser:
                    bench_guidelines)
     module_command(bench_sub, "interactions", "each interaction on the same scenario, sizes and seeds",
                    bench_interactions)
+    module_command(bench_sub, "laws", "the laws side by side on the same seeds and faults, filter off and on",
+                   bench_laws)
     module_command(bench_sub, "bodies", "what each body costs on the registered scenarios", bench_bodies)
     module_command(bench_sub, "safety", "the safety filter beside the law alone and ORCA, same runs", bench_safety)
     module_command(bench_sub, "placement", "neighbour traffic crossing between routers: space vs round-robin",

@@ -14,7 +14,7 @@ import json
 import sys
 from pathlib import Path
 
-from zswarm.args import add_param_args, non_negative, positive_float, positive_int, seed_arg
+from zswarm.args import add_law_arg, add_param_args, non_negative, positive_float, positive_int, seed_arg
 from zswarm.errors import UsageError
 from zswarm.files import write_json
 from zswarm.model.params import parse_assignments
@@ -42,6 +42,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"a registered scenario ({', '.join(SCENARIOS)}) or a .toml file "
                              "(default moving-prey-blocked)")
     add_param_args(parser)
+    add_law_arg(parser)
     parser.add_argument("--tune", default=",".join(TUNABLE), metavar="NAMES",
                         help=f"comma-separated potential parameters to search (default: all, {','.join(TUNABLE)}); "
                              "the others keep the scenario's (or --set) value")
@@ -92,6 +93,15 @@ def _plan(args: argparse.Namespace):
         raise UsageError("--out needs a directory of its own for the search's files (e.g. --out tune-run)")
     overrides = parse_assignments(args.assignments)
     scenario = get_scenario(args.scenario, overrides)
+    law = scenario.params.law.law
+    if law != "apf":
+        from zswarm.laws.registry import resolve
+
+        ranges = resolve(law)[0].ranges
+        raise UsageError(f"zswarm tune searches apf's potential within the design guidelines; law {law} "
+                         + (f"declares ranges ({', '.join(ranges)}), but searching a law's own parameters is not "
+                            "built yet: sweep them with zswarm bench laws or --set law.NAME" if ranges else
+                            "declares no ranges for its parameters, so there is nothing to tune"))
     if args.duration is not None:
         scenario = dataclasses.replace(scenario, duration=args.duration)
     if scenario.n_agents > MAX_AGENTS:

@@ -43,7 +43,8 @@ def cell_spec(cell: Cell, args: argparse.Namespace, jitter: float) -> RunSpec:
     """The run of one cell: the sweep's scenario under the cell's faults, seed + repeat."""
     seed = args.seed + cell.repeat
     return RunSpec(run=f"sweep-{cell.name}".replace(".", "_"), scenario_name=args.scenario,
-                   overrides=(("n_agents", args.agents),) if args.agents is not None else (), seed=seed,
+                   overrides=tuple(getattr(args, "overrides", {}).items()) or
+                   ((("n_agents", args.agents),) if args.agents is not None else ()), seed=seed,
                    duration=args.duration, faults=FaultModel(latency=cell.latency, jitter=jitter, dropout=cell.dropout,
                                                              burst=args.burst, seed=seed), safety=cell.safety)
 
