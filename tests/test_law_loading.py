@@ -125,3 +125,14 @@ def test_a_notebook_function_runs_in_the_simulator() -> None:
     alone = zswarm.simulate(scenario, 0, duration=4.0).summary
     filtered = zswarm.simulate(scenario, 0, duration=4.0, safety="barrier").summary
     assert alone["collisions"] > 0 and filtered["collisions"] == 0  # it rushes; the filter keeps it apart
+
+
+def test_a_law_that_fails_during_a_simulation_is_said_in_one_line(tmp_path, monkeypatch, capsys) -> None:
+    (tmp_path / "late.py").write_text("calls = 0\n\ndef late(obs):\n    global calls\n    calls += 1\n"
+                                      "    if calls > 50:\n        raise ValueError('tired')\n    return 0 * obs.position\n")
+    monkeypatch.chdir(tmp_path)
+    resolve.cache_clear()
+    assert main(["sim", "--law", "late.py:late", "--duration", "5"]) == 1
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert lines[0].startswith("note: law late.py:late: there are no analytical guidelines")
+    assert len(lines) == 2 and "law late.py:late raised ValueError: tired (late.py:7) at t = 0.20 s" in lines[1], lines

@@ -57,3 +57,38 @@ def test_a_users_law_file_runs_as_lockstep_processes_in_3d(tmp_path) -> None:
     path.write_text(RUSH)
     summary = lockstep_against_reference(tmp_path, "moving-prey-3d", f"{path}:rush", 4, 3.0)
     assert summary["law"]["source"] == f"file {path}"
+
+
+def test_a_law_that_fails_in_a_running_agent_brakes_it_and_the_others_carry_on(tmp_path) -> None:
+    """The law raises in agent 0 only, after 30 ticks: agent 0 brakes, its log holds the law's
+    traceback, it exits 3 and the run records it; the other agents run to the end and report."""
+    from swarm_procs import our_processes, run_launch
+
+    start = get_scenario("moving-prey", {"n_agents": 4}).initial_positions(np.random.default_rng(0))[0]
+    law = tmp_path / "brittle.py"
+    law.write_text(RUSH.replace("def rush(obs):", f"""START = np.array({start.tolist()!r})
+calls, first = 0, None
+
+
+def brittle(obs):
+    global calls, first
+    calls += 1
+    if first is None:
+        first = obs.position.copy()
+    if calls > 30 and np.allclose(first, START):
+        raise RuntimeError("brittle law gave up")
+    return 0.5 * rush(obs)
+
+
+def rush(obs):"""))
+    res = run_launch(tmp_path, "--law", f"{law}:brittle", "--agents", "4", "--duration", "6", "--run", "brittlerun",
+                     "--record", str(tmp_path / "b.rrd"))
+    assert res.returncode == 0, res.stderr
+    assert "agent 0: its law" in res.stderr and "RuntimeError: brittle law gave up" in res.stderr
+    assert 'in brittle\n    raise RuntimeError("brittle law gave up")' in res.stderr  # the law's own traceback
+    assert "agent-0 exited with code 3 (its law failed" in res.stderr
+    summary = load_summary(tmp_path / "b.json")
+    assert summary["law_failures"] == summary["crashed_agents"] == [0]
+    assert summary["agents_final_reports"] == 4 and summary["collisions"] == 0  # it left with its counts
+    assert summary["world_ticks"] == 121  # the others ran to the end
+    assert our_processes("brittlerun") == []

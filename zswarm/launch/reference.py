@@ -20,9 +20,14 @@ def reference_comparison(result: dict[str, Any], spec: RunSpec) -> dict[str, Any
     """``reference`` and ``vs_reference`` for a distributed run's ``result`` (its summary)."""
     from zswarm.sim.simulator import simulate
 
+    from zswarm.errors import Failure
+
     scenario = spec.scenario
-    ref = simulate(scenario, spec.seed, combination=spec.combination, safety=spec.safety,
-                   duration=max(float(result.get("duration") or 0.0), scenario.dt)).summary
+    try:
+        ref = simulate(scenario, spec.seed, combination=spec.combination, safety=spec.safety,
+                       duration=max(float(result.get("duration") or 0.0), scenario.dt)).summary
+    except Failure as exc:  # the law failed in the simulation too: said, and the run's own summary kept
+        return {"reference": {"error": str(exc)}, "vs_reference": None}
     reference = {k: ref[k] for k in COMPARED}
     return {"reference": reference,
             "vs_reference": {k: (None if result.get(k) is None or ref[k] is None else result[k] - ref[k])

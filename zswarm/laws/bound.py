@@ -11,7 +11,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from zswarm.errors import ParamError
+from zswarm.errors import Failure, ParamError
 from zswarm.laws.contract import Context, NoParams, Observation, Observations, SwarmLaw
 
 
@@ -30,6 +30,20 @@ class FunctionLaw(SwarmLaw):
 
     def command(self, obs: Observation) -> Any:
         return type(self).fn(obs)
+
+
+class LawFailed(Failure):
+    """A law raised, or answered with something other than a velocity, while a run went on: one line."""
+
+    @classmethod
+    def of(cls, name: str, exc: BaseException, when: str) -> LawFailed:
+        import traceback
+        from pathlib import Path
+
+        frames = traceback.extract_tb(exc.__traceback__)
+        at = f" ({Path(frames[-1].filename).name}:{frames[-1].lineno})" if frames else ""
+        what = str(exc) if isinstance(exc, LawError) else f"law {name} raised {type(exc).__name__}: {exc}{at}"
+        return cls(f"{what} {when}")
 
 
 def function_law(fn: Callable[[Observation], Any], name: str) -> type[SwarmLaw]:

@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from zswarm.laws.bound import BoundLaw
+from zswarm.laws.bound import BoundLaw, LawFailed
 from zswarm.laws.contract import Observations
 from zswarm.laws.registry import bind, context_of
 from zswarm.model import body as bodies
@@ -310,7 +310,10 @@ class BatchSimulator:
                 obstacle_centre=np.broadcast_to(self.centers[r][:, None], (len(r), n, m, dims)),
                 obstacle_radius=np.broadcast_to(self.radii[r][:, None], (len(r), n, m)), obstacle_mask=sensed_o[r],
                 target=goal[r], v_max=self.v_max[r][:, None], dt=self.dt, state=g.state)
-            v[r], g.state = g.law.decide_batch(obs)
+            try:
+                v[r], g.state = g.law.decide_batch(obs)
+            except Exception as exc:  # noqa: BLE001 - a user's law may raise anything: said in one line
+                raise LawFailed.of(g.law.name, exc, f"at t = {self.step_index * self.dt:.2f} s of a batch") from None
 
     def _filter(self, x: np.ndarray, v: np.ndarray, sensed_o: np.ndarray) -> np.ndarray:
         """The safety filter (:mod:`zswarm.model.safety`) on the commands of the runs that use it, all of

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from zswarm.laws.bound import LawFailed
 from zswarm.laws.contract import Observations
 from zswarm.laws.registry import bind
 from zswarm.model import body as bodies
@@ -121,7 +122,10 @@ class Simulator:
         obs = Observations.of_swarm(positions, velocities, np.broadcast_to(goal, positions.shape),
                                     self.scenario.params.swarm.v_max, self.scenario.dt, self.law_state, pairs,
                                     (a, self.obstacles.centers[m], self.obstacles.radii[m]))
-        v, state = self.bound.decide_batch(obs)
+        try:
+            v, state = self.bound.decide_batch(obs)
+        except Exception as exc:  # noqa: BLE001 - a user's law may raise anything: said in one line
+            raise LawFailed.of(self.bound.name, exc, f"at t = {self.t:.2f} s of the simulation") from None
         v, self.law_state = v[0], state[0]
         if blind is not None:
             v[blind] = 0.0
