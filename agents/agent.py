@@ -141,10 +141,7 @@ class Agent:
         if late:  # nothing it heard can bound anything
             command, done = (0.0,) * len(v_d), Acted(any(v_d), any(v_d), True)
         else:
-            b, lookahead = self.body, self.lookahead
-            point = b.position
-            if lookahead and b.heading is not None:
-                point = (b.x + lookahead * math.cos(b.heading), b.y + lookahead * math.sin(b.heading))
+            point = bodies.tracked_point(self.body.position, self.body.heading, self.lookahead)
             command, done = filter_one(self.safety, point, v_d, guarded, self.sensing.obstacles)
         c = self.counters
         stalled = done is not None and done.stalled

@@ -18,6 +18,7 @@ import time
 
 from agents.cell_view import CellView
 from agents.sensing import Sensing
+from zswarm.model.neighbours import step_reach
 from zswarm.net.bridge import Bridge
 from zswarm.net.keys import cells_in_disc
 
@@ -114,7 +115,7 @@ class Reach:
             expected = [nb for nb in expected if step not in nb.by_step]
         cells = {c for c, since in self.cell_view.since.items() if since >= step}
         for nb in expected:
-            cells |= cells_in_disc(self.keys, nb.latest.position, 2.0 * s.v_max * s.dt)
+            cells |= cells_in_disc(self.keys, nb.latest.position, step_reach(s.v_max, s.dt))
         replies = await asyncio.gather(*(self.bridge.get(f"{self.keys.cell_poses(c)}?step={step}", timeout=1.0)
                                          for c in cells))
         now = time.time()

@@ -23,6 +23,7 @@ import numpy as np
 from agents.counters import Counters
 from agents.obstacle_view import ObstacleView
 from agents.probe import LatencyProbe
+from zswarm.model.body import tracked_point
 from zswarm.model.faults import OBSTACLE_SOURCE, PREY_SOURCE
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Inbound
@@ -391,8 +392,5 @@ class Sensing:
                 if pose.id not in self.members:
                     continue
                 self.doubted.add(pose.id)  # guarded on its member token alone: that token is asked about
-            point = pose.position
-            if lookahead and pose.heading is not None:
-                point = (point[0] + lookahead * math.cos(pose.heading), point[1] + lookahead * math.sin(pose.heading))
-            out.append((point, age))
+            out.append((tracked_point(pose.position, pose.heading, lookahead), age))
         return out

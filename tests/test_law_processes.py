@@ -12,6 +12,7 @@ from zswarm.model.scenarios import get_scenario
 from zswarm.net.procs import start_router
 from zswarm.sim.simulator import simulate
 
+from conftest import ROOT
 from swarm_procs import load_summary, processes, start_agent, start_world, wait_exit
 
 RUSH = '''import numpy as np
@@ -52,11 +53,12 @@ def test_lockstep_processes_run_each_law_as_the_reference_does(tmp_path, law) ->
     assert summary["law"]["name"] == law and summary["law"]["params"]
 
 
-def test_a_users_law_file_runs_as_lockstep_processes_in_3d(tmp_path) -> None:
-    path = tmp_path / "my_law.py"
-    path.write_text(RUSH)
-    summary = lockstep_against_reference(tmp_path, "moving-prey-3d", f"{path}:rush", 4, 3.0)
-    assert summary["law"]["source"] == f"file {path}"
+@pytest.mark.parametrize("law,scenario", [("seek", "moving-prey"), ("Spring", "moving-prey-3d")])
+def test_the_tutorials_laws_run_as_lockstep_processes(tmp_path, law, scenario) -> None:
+    """examples/my_law.py (docs/laws.md): a function in 2-D, a class with a parameter in 3-D."""
+    path = ROOT / "examples" / "my_law.py"
+    summary = lockstep_against_reference(tmp_path, scenario, f"{path}:{law}", 4, 3.0)
+    assert summary["law"]["source"] == f"file {path}" and summary["collisions"] == 0
 
 
 def test_a_law_that_fails_in_a_running_agent_brakes_it_and_the_others_carry_on(tmp_path) -> None:
@@ -92,3 +94,23 @@ def rush(obs):"""))
     assert summary["agents_final_reports"] == 4 and summary["collisions"] == 0  # it left with its counts
     assert summary["world_ticks"] == 121  # the others ran to the end
     assert our_processes("brittlerun") == []
+
+
+def test_a_users_law_runs_in_a_sweep_and_collides_only_without_the_filter(tmp_path) -> None:
+    """``zswarm sweep --law FILE.py:rush``: the reference simulator's cells (a distributed cell of a
+    user's law is the processes test above) with the filter off and on."""
+    import json
+
+    from zswarm.cli.sweep import main as sweep
+
+    law = tmp_path / "my_law.py"
+    law.write_text(RUSH)
+    out = tmp_path / "sweep"
+    assert sweep(["--scenario", "moving-prey", "--law", f"{law}:rush", "--latency", "0,100ms", "--dropout", "0",
+                  "--safety", "off,barrier", "--repeats", "1", "--duration", "5", "--sim-only", "--out", str(out)]) == 0
+    cells = {p.parent.name: json.loads(p.read_text()) for p in (out / "cells").glob("*/sim.json")}
+    assert len(cells) == 4 and all(c["law"]["name"] == f"{law}:rush" for c in cells.values())
+    off = [c for c in cells.values() if c["safety"] == "off"]
+    on = [c for c in cells.values() if c["safety"] == "barrier"]
+    assert all(c["collisions"] > 0 for c in off) and all(c["collisions"] == 0 for c in on)
+    assert (out / "results.md").exists()

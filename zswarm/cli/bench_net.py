@@ -39,6 +39,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="also write the curves (cost and latency against N) as a Rerun recording")
     p.add_argument("--safety", choices=("off", "barrier"), default="barrier",
                    help="the agents' safety filter (default barrier, as runs): compare both for its cost")
+    p.add_argument("--law", default="apf", help="the agents' control law (default apf; zswarm laws lists them)")
     p.add_argument("--json", action="store_true")
 
 
@@ -47,7 +48,12 @@ def run(args: argparse.Namespace) -> int:
 
     if args.record is not None:
         check_writable(args.record, (".rrd",))
-    results = [measure(n, args.duration, args.floor, args.routers, args.repeat, args.safety) for n in args.agents]
+    from zswarm.laws.registry import bind
+    from zswarm.model.scenarios import get_scenario
+
+    bind(get_scenario("bench-field", {"law": args.law}))  # a law that does not load: refused here, in one line
+    results = [measure(n, args.duration, args.floor, args.routers, args.repeat, args.safety, args.law)
+               for n in args.agents]
     if args.record is not None:
         record_curves(results, args.record, {"agents": args.agents, "duration_s": args.duration, "floor": args.floor,
                                              "routers": args.routers, "repeat": args.repeat,
@@ -56,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(results[0] if len(results) == 1 else {"runs": results, "machine": machine()}))
         return 0
     for r in results:
-        print(f"N={r['n_agents']:>4}  safety {r.get('safety')}  latency p50 {r['latency_ms']['p50']} ms  p99 {r['latency_ms']['p99']} ms  "
+        print(f"N={r['n_agents']:>4}  law {r.get('law')}  safety {r.get('safety')}  latency p50 {r['latency_ms']['p50']} ms  p99 {r['latency_ms']['p99']} ms  "
               f"age at use p99 {r['age_at_use_ms']['p99']} ms  on time {figure(r['on_time_ratio'], '.4f')}  "
               f"received/agent/s {figure(r['received_per_agent_per_s'], '.1f')} (in reach "
               f"{figure(r.get('in_reach_per_agent_per_s'), '.1f')})  startup {figure(r['startup_s'], '.2f')} s")

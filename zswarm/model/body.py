@@ -104,6 +104,22 @@ def step(spec: BodySpec, state: BodyState, v_d: np.ndarray, dt: float) -> BodySt
     return BodyState(state.position + dt * v, v, state.heading)
 
 
+def tracked_point(position, heading, lookahead: float):
+    """Where a headed body is steered and guarded: P + l (cos theta, sin theta), the unicycle's point
+    ``lookahead`` ahead of its axle (P itself without a heading or a look-ahead). The one home of that
+    point: the reference simulator's filter takes it for the whole swarm (arrays with any leading
+    axes), an agent for itself and each neighbour it guards (a tuple in, a tuple out)."""
+    if heading is None or not lookahead:
+        return position
+    if isinstance(position, tuple):
+        return (position[0] + lookahead * math.cos(heading), position[1] + lookahead * math.sin(heading),
+                *position[2:])
+    out = np.array(position, dtype=float, copy=True)
+    out[..., 0] += lookahead * np.cos(heading)
+    out[..., 1] += lookahead * np.sin(heading)
+    return out
+
+
 def wrap(angle: np.ndarray) -> np.ndarray:
     """An angle in [-pi, pi)."""
     return (angle + math.pi) % (2.0 * math.pi) - math.pi

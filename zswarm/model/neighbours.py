@@ -17,6 +17,18 @@ import numpy as np
 _OFFSET = {2: np.int64(1 << 30), 3: np.int64(1 << 20)}
 
 
+def step_reach(v_max, dt):
+    """2 v_max dt: how much closer two agents can come in one step (each moves v_max dt)."""
+    return 2.0 * v_max * dt
+
+
+def subscription_radius(sensing_radius, v_max, dt):
+    """R + 2 v_max dt: the disc about an agent whose cells it listens to, so that whoever can enter its
+    sensing disc by the next step is heard already. The one home of that disc: the agents' cells, the
+    simulated channel's, the benchmarks' and the world's count of poses in reach (numbers or arrays)."""
+    return sensing_radius + step_reach(v_max, dt)
+
+
 def _keys(cells: np.ndarray) -> np.ndarray:
     off = _OFFSET[cells.shape[1]]
     key = cells[:, 0] + off

@@ -278,16 +278,6 @@ def _active_set_projections(u_hat: np.ndarray, A: np.ndarray, B: np.ndarray, val
     return out
 
 
-def lookahead_points(positions: np.ndarray, headings: np.ndarray | None, lookahead: float) -> np.ndarray:
-    """Where the filter acts: the body's position, or a unicycle's tracked point P + l (cos th, sin th)."""
-    if headings is None or lookahead == 0.0:
-        return positions
-    out = np.array(positions, dtype=float, copy=True)
-    out[..., 0] += lookahead * np.cos(headings)
-    out[..., 1] += lookahead * np.sin(headings)
-    return out
-
-
 def swarm_rows(safety: Safety, obstacles, points: np.ndarray,
                pairs: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> Rows:
     """The rows of every agent of a swarm at ``points``: its sensed obstacles (an

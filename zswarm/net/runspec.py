@@ -20,6 +20,7 @@ from typing import Any, Literal
 from zswarm.args import add_law_arg, add_param_args, seed_arg
 from zswarm.errors import UsageError
 from zswarm.model.faults import FaultModel, parse_duration
+from zswarm.model.neighbours import subscription_radius
 from zswarm.model.params import parse_assignments
 from zswarm.model.potentials import COMBINATIONS, Combination
 from zswarm.model.safety import MODES
@@ -83,7 +84,7 @@ class RunSpec:
         """R + 2 v_max dt: an agent listens to the cells this disc about it meets, so whoever can
         enter its sensing disc by the next step is already heard."""
         swarm = self.scenario.params.swarm
-        return swarm.sensing_radius + 2.0 * swarm.v_max * self.scenario.dt
+        return subscription_radius(swarm.sensing_radius, swarm.v_max, self.scenario.dt)
 
     @property
     def period(self) -> float:

@@ -232,7 +232,8 @@ class BatchSimulator:
             self.motions.setdefault(s.prey, np.zeros(b, dtype=bool))[r] = True
         self.faulty = np.flatnonzero([m.faulty for m in members])
         self.channel = (BatchChannel(self.n, [members[r].faults for r in self.faulty], self.dt,
-                                     self.radius[self.faulty], self.v_max[self.faulty], dims=self.dims)
+                                     self.radius[self.faulty], self.v_max[self.faulty], dims=self.dims,
+                                     velocities=bool(self.contract))
                         if len(self.faulty) else None)
         self.off_diagonal = ~np.eye(self.n, dtype=bool)
         self.step_index = 0
@@ -256,7 +257,8 @@ class BatchSimulator:
             f_idx = self.faulty
             believed, sensed, heard_goal = self.channel.step(self.step_index, x[f_idx], self.prey[f_idx],
                                                              self.state.velocity[f_idx])
-            heard = (f_idx, believed, *self.channel.heard_motion(self.step_index))
+            if self.contract:
+                heard = (f_idx, believed, *self.channel.heard_motion(self.step_index))
             blind = np.zeros(x.shape[:2], dtype=bool)
             blind[f_idx] = np.isnan(heard_goal[..., 0])
             goal = goal.copy()

@@ -15,6 +15,7 @@ import math
 import numpy as np
 
 from zswarm.model.faults import FaultModel
+from zswarm.model.neighbours import subscription_radius
 
 BLOCK = 32  # steps of uniforms drawn per generator call, at most
 BLOCK_BYTES = 64 * 2**20  # and at most this much memory for them (N = 2000 draws 96 MB a step: one at a time)
@@ -22,9 +23,12 @@ BLOCK_BYTES = 64 * 2**20  # and at most this much memory for them (N = 2000 draw
 
 class BatchChannel:
     def __init__(self, n: int, models: list[FaultModel], dt: float, sensing_radius: np.ndarray,
-                 v_max: np.ndarray, staleness: float = 0.5, dims: int = 2) -> None:
+                 v_max: np.ndarray, staleness: float = 0.5, dims: int = 2, velocities: bool = False) -> None:
         """``sensing_radius``, ``v_max``: of each run (B,). An agent's cells cover the disc
-        R + 2 v_max dt about it (:attr:`zswarm.net.runspec.RunSpec.subscription_radius`)."""
+        R + 2 v_max dt about it (:attr:`zswarm.net.runspec.RunSpec.subscription_radius`).
+        ``velocities``: carry each pose's velocity with it (a law that uses its neighbours' velocities;
+        apf does not, and its runs do not pay for them)."""
+        self.velocities = velocities
         b = len(models)
         self.n, self.dt = n, dt
         self.rngs = [np.random.default_rng([m.seed, 0x5EED]) for m in models]
@@ -37,13 +41,14 @@ class BatchChannel:
         self.p_bad = np.where(self.gilbert, self.dropout * self.r_bad / (1.0 - self.dropout), 0.0)
         self.radius = np.asarray(sensing_radius, dtype=float)[:, None, None]
         self.v_max = np.asarray(v_max, dtype=float)[:, None, None]
-        self.cells = self.radius + 2.0 * self.v_max * dt
+        self.cells = subscription_radius(self.radius, self.v_max, dt)
         max_delay = max(int(math.ceil((m.latency + m.jitter) / dt)) + 1 for m in models)
         self.slots = max_delay + 1  # a ring longer than any run's delay: the same arrivals as its own ring
         s = n + 1  # column n is the prey
         self.history = np.zeros((b, self.slots, s, dims))
-        self.history_velocity = np.zeros((b, self.slots, n, dims))  # what each pose says of its velocity
-        self.belief_velocity = np.zeros((b, n, n, dims))
+        motion = (b, self.slots, n, dims) if velocities else (b, 1, n, dims)
+        self.history_velocity = np.zeros(motion)  # what each pose says of its velocity
+        self.belief_velocity = np.zeros((b, n, n, dims) if velocities else (b, 1, n, dims))
         self.incoming = np.full((b, self.slots, n, s), -1, dtype=np.int64)
         self.belief_stamp = np.full((b, n, s), -1, dtype=np.int64)
         self.belief_pos = np.zeros((b, n, s, dims))
@@ -72,7 +77,7 @@ class BatchChannel:
         n = self.n
         sources = np.concatenate([positions, prey[:, None, :]], axis=1)
         self.history[:, k % self.slots] = sources
-        if velocities is not None:
+        if self.velocities:
             self.history_velocity[:, k % self.slots] = velocities
         u = self._draws(k)
         self.bad = np.where(self.bad, u[:, 0] >= self.r_bad, u[:, 0] < self.p_bad)
@@ -96,9 +101,10 @@ class BatchChannel:
         stamp = now[br, bi, bj]
         self.belief_stamp[br, bi, bj] = stamp
         self.belief_pos[br, bi, bj] = self.history[br, stamp % self.slots, bj]
-        pose = bj < n
-        self.belief_velocity[br[pose], bi[pose], bj[pose]] = self.history_velocity[br[pose], stamp[pose] % self.slots,
-                                                                                 bj[pose]]
+        if self.velocities:
+            pose = bj < n
+            self.belief_velocity[br[pose], bi[pose], bj[pose]] = self.history_velocity[
+                br[pose], stamp[pose] % self.slots, bj[pose]]
         self.incoming[:, k % self.slots] = -1
         fresh = (self.belief_stamp >= 0) & (k - self.belief_stamp <= self.stale_steps)
         goal = np.where(fresh[:, :, n, None], self.belief_pos[:, :, n], np.nan)

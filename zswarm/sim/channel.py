@@ -25,12 +25,12 @@ class FaultyChannel:
     (the same rules, the same draws), plus the counters a run's summary reports."""
 
     def __init__(self, n: int, model: FaultModel, dt: float, sensing_radius: float, v_max: float,
-                 staleness: float = 0.5, seed: int = 0, dims: int = 2) -> None:
+                 staleness: float = 0.5, seed: int = 0, dims: int = 2, velocities: bool = False) -> None:
         if n > MAX_AGENTS:
             raise ValueError(f"faults in the simulator handle at most {MAX_AGENTS} agents (got {n})")
         self.n, self.dt = n, dt
         self.batch = BatchChannel(n, [dataclasses.replace(model, seed=seed)], dt, np.array([sensing_radius]),
-                                  np.array([v_max]), staleness, dims)
+                                  np.array([v_max]), staleness, dims, velocities)
         self.sent = 0
 
     def step(self, k: int, positions: np.ndarray, prey: np.ndarray, velocities: np.ndarray | None = None):

@@ -61,7 +61,8 @@ class Simulator:
         self.obstacles = ObstacleIndex(centers, radii, p.swarm.sensing_radius)
         self.step_index = 0
         self.channel = (FaultyChannel(len(self.positions), faults, scenario.dt, p.swarm.sensing_radius,
-                                      p.swarm.v_max, seed=faults.seed, dims=scenario.dimensions)
+                                      p.swarm.v_max, seed=faults.seed, dims=scenario.dimensions,
+                                      velocities=not self.bound.is_apf)
                         if faults is not None and faults.active else None)
         self.safety = safety_of(scenario, safety, faulted=self.channel is not None)
         self.filtered: sf.Filtered | None = None  # what the filter did at the last step
@@ -141,7 +142,7 @@ class Simulator:
         faulty channel, the newest it heard and its age."""
         if self.channel is not None:
             pairs = self.channel.known(self.step_index, positions)
-        points = sf.lookahead_points(positions, self.headings, self.body.lookahead if self.body.headed else 0.0)
+        points = bodies.tracked_point(positions, self.headings, self.body.lookahead if self.body.headed else 0.0)
         self.filtered = sf.apply(v, sf.swarm_rows(self.safety, self.obstacles, points, pairs))
         return self.filtered.command
 
