@@ -136,3 +136,15 @@ def test_a_law_that_fails_during_a_simulation_is_said_in_one_line(tmp_path, monk
     lines = capsys.readouterr().err.strip().splitlines()
     assert lines[0].startswith("note: law late.py:late: there are no analytical guidelines")
     assert len(lines) == 2 and "law late.py:late raised ValueError: tired (late.py:7) at t = 0.20 s" in lines[1], lines
+
+
+def test_design_and_tune_say_what_they_cover_for_another_law(tmp_path, capsys) -> None:
+    assert main(["design", "--law", "vasarhelyi", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["ok"] is None and "no analytical guidelines" in out["note"] and "safety filter" in out["note"]
+    assert main(["design"]) == 0 and "Prop" in capsys.readouterr().out  # apf: the guidelines as before
+    assert main(["tune", "--law", "boids", "--out", str(tmp_path / "t")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "law boids declares ranges (w_sep, w_ali, w_coh, w_tgt)" in err
+    assert main(["sim", "--law", "boids", "--duration", "1", "--require-design"]) == 2
+    assert "no analytical guidelines" in capsys.readouterr().err

@@ -85,7 +85,7 @@ def _plan(args: argparse.Namespace):
     from zswarm.net.runspec import faults_from_args
     from zswarm.sim.batch import MAX_AGENTS
     from zswarm.tune.objective import Task
-    from zswarm.tune.space import Space
+    from zswarm.tune.space import only_apf, Space
 
     if args.popsize is not None and args.popsize < 2:
         raise UsageError(f"--popsize must be >= 2: CMA-ES ranks candidates against each other (got {args.popsize})")
@@ -93,15 +93,7 @@ def _plan(args: argparse.Namespace):
         raise UsageError("--out needs a directory of its own for the search's files (e.g. --out tune-run)")
     overrides = parse_assignments(args.assignments)
     scenario = get_scenario(args.scenario, overrides)
-    law = scenario.params.law.law
-    if law != "apf":
-        from zswarm.laws.registry import resolve
-
-        ranges = resolve(law)[0].ranges
-        raise UsageError(f"zswarm tune searches apf's potential within the design guidelines; law {law} "
-                         + (f"declares ranges ({', '.join(ranges)}), but searching a law's own parameters is not "
-                            "built yet: sweep them with zswarm bench laws or --set law.NAME" if ranges else
-                            "declares no ranges for its parameters, so there is nothing to tune"))
+    only_apf(scenario.params)
     if args.duration is not None:
         scenario = dataclasses.replace(scenario, duration=args.duration)
     if scenario.n_agents > MAX_AGENTS:

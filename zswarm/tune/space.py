@@ -52,3 +52,18 @@ class Space:
 
     def params(self, x: np.ndarray) -> Params:
         return self.base.with_values(self.values(x))
+
+
+def only_apf(params: Params) -> None:
+    """The search is apf's (its potential, within the design guidelines): another law is refused in one
+    line that says whether it declares ranges a search could use."""
+    law = params.law.law
+    if law == "apf":
+        return
+    from zswarm.laws.registry import resolve
+
+    ranges = resolve(law)[0].ranges
+    raise UsageError(f"zswarm tune searches apf's potential within the design guidelines; law {law} "
+                     + (f"declares ranges ({', '.join(ranges)}), but searching a law's own parameters is not "
+                        "built yet: compare settings with zswarm bench laws --set law.NAME=VALUE" if ranges else
+                        "declares no ranges for its parameters, so there is nothing to tune"))
