@@ -143,8 +143,30 @@ def test_design_and_tune_say_what_they_cover_for_another_law(tmp_path, capsys) -
     out = json.loads(capsys.readouterr().out)
     assert out["ok"] is None and "no analytical guidelines" in out["note"] and "safety filter" in out["note"]
     assert main(["design"]) == 0 and "Prop" in capsys.readouterr().out  # apf: the guidelines as before
-    assert main(["tune", "--law", "boids", "--out", str(tmp_path / "t")]) == 2
+    assert main(["tune", "--law", "boids", "--tune", "c_o", "--out", str(tmp_path / "t")]) == 2
     err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and "law boids declares ranges (w_sep, w_ali, w_coh, w_tgt)" in err
+    assert len(err.splitlines()) == 1 and "law boids declares ranges for w_sep, w_ali, w_coh, w_tgt" in err
+    (tmp_path / "rush.py").write_text(LAWS["ok.py"])
+    assert main(["tune", "--law", f"{tmp_path / 'rush.py'}:rush", "--out", str(tmp_path / "t")]) == 2
+    assert "declares no ranges for its parameters, so there is nothing to tune" in capsys.readouterr().err
     assert main(["sim", "--law", "boids", "--duration", "1", "--require-design"]) == 2
     assert "no analytical guidelines" in capsys.readouterr().err
+
+
+def test_tune_searches_a_laws_own_ranges_behind_the_filter(tmp_path, capsys) -> None:
+    """A law that declares ranges is tuned within them, simulated behind the safety filter (no
+    guidelines to reject a set); best.toml holds a [law] table that every command reads back."""
+    out = tmp_path / "t"
+    assert main(["tune", "--law", "boids", "--scenario", "moving-prey", "--tune", "w_sep,w_tgt", "--budget", "6",
+                 "--seeds", "2", "--validate", "2", "--holdout", "2", "--finalists", "2", "--duration", "8",
+                 "--popsize", "3", "--out", str(out), "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["law"] == "boids" and result["safety"] == "barrier" and result["rejected"] == 0
+    best = result["best"]["values"]
+    assert set(best) == {"w_sep", "w_tgt"} and 0.5 <= best["w_sep"] <= 4.0 and 0.2 <= best["w_tgt"] <= 4.0
+    assert best != {"w_sep": 1.5, "w_tgt": 1.0}
+    assert main(["sim", "--scenario", "moving-prey", "--params", str(out / "best.toml"), "--duration", "2",
+                 "--json"]) == 0
+    law = json.loads(capsys.readouterr().out)["law"]
+    assert law["name"] == "boids" and law["settings"] == pytest.approx(best)
+    assert "no analytical guidelines" in (out / "design.txt").read_text()

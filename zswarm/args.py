@@ -71,7 +71,7 @@ def read_params_file(path: str) -> list[str]:
 
     data = read_toml(path, "parameter file")
     table = dict(data.get("params", data) if isinstance(data.get("params"), dict) else data)
-    law = table.pop("law", None)
+    law = table.pop("law", None) or data.get("law")  # a [law] table beside [params], or a law = NAME
     out = []
     if isinstance(law, dict):  # [law]: name = "boids", and the law's own parameters
         law = dict(law)

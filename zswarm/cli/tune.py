@@ -43,9 +43,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(default moving-prey-blocked)")
     add_param_args(parser)
     add_law_arg(parser)
-    parser.add_argument("--tune", default=",".join(TUNABLE), metavar="NAMES",
-                        help=f"comma-separated potential parameters to search (default: all, {','.join(TUNABLE)}); "
-                             "the others keep the scenario's (or --set) value")
+    parser.add_argument("--tune", default=None, metavar="NAMES",
+                        help=f"comma-separated parameters to search (apf: potential ones, default all, "
+                             f"{','.join(TUNABLE)}; another law: those it declares ranges for, default all, "
+                             "zswarm laws); the others keep the scenario's (or --set) value")
     parser.add_argument("--seeds", type=positive_int, default=4, metavar="K",
                         help="runs per candidate, seeds SEED..SEED+K-1 (default 4)")
     parser.add_argument("--holdout", type=positive_int, default=8, metavar="H",
@@ -85,7 +86,7 @@ def _plan(args: argparse.Namespace):
     from zswarm.net.runspec import faults_from_args
     from zswarm.sim.batch import MAX_AGENTS
     from zswarm.tune.objective import Task
-    from zswarm.tune.space import only_apf, Space
+    from zswarm.tune.space import Space
 
     if args.popsize is not None and args.popsize < 2:
         raise UsageError(f"--popsize must be >= 2: CMA-ES ranks candidates against each other (got {args.popsize})")
@@ -93,16 +94,16 @@ def _plan(args: argparse.Namespace):
         raise UsageError("--out needs a directory of its own for the search's files (e.g. --out tune-run)")
     overrides = parse_assignments(args.assignments)
     scenario = get_scenario(args.scenario, overrides)
-    only_apf(scenario.params)
     if args.duration is not None:
         scenario = dataclasses.replace(scenario, duration=args.duration)
     if scenario.n_agents > MAX_AGENTS:
         raise UsageError(f"tune simulates at most {MAX_AGENTS} agents per run (got {scenario.n_agents})")
-    names = [n.strip() for n in args.tune.split(",") if n.strip()]
+    names = [n.strip() for n in args.tune.split(",") if n.strip()] if args.tune else None
     space = Space.build(names, scenario.params)
     faults = faults_from_args(args)
-    plan = Plan.of(args.scenario, overrides, names, args.seed, args.seeds, args.validate, args.holdout, args.out)
-    return plan, space, Task(scenario, plan.seeds, faults, args.potential, args.miss_penalty), faults
+    plan = Plan.of(args.scenario, overrides, list(space.names), args.seed, args.seeds, args.validate, args.holdout, args.out)
+    safety = "off" if scenario.params.law.law == "apf" else "barrier"  # no guidelines: the filter is the guarantee
+    return plan, space, Task(scenario, plan.seeds, faults, args.potential, args.miss_penalty, safety), faults
 
 
 def run(args: argparse.Namespace) -> int:

@@ -61,12 +61,16 @@ def amounts(report: DesignReport) -> dict[str, float]:
 class Verdict:
     violation: float  # 0: passes every check that is not waived
     failures: tuple[str, ...]  # every failed check, waived ones included
-    report: DesignReport
+    report: DesignReport | None  # None: a law the guidelines do not cover
     squeezed: bool  # whether the swarm squeeze ran
 
 
 def judge(params: Params, waived: frozenset[str] = frozenset()) -> Verdict:
-    """Check ``params`` (the squeeze only when everything else that counts passes)."""
+    """Check ``params`` (the squeeze only when everything else that counts passes). A law other than
+    apf has no guidelines: every set of it is feasible, and the safety filter and the objective's
+    disqualifications are what keep it apart."""
+    if params.law.law != "apf":
+        return Verdict(violation=0.0, failures=(), report=None, squeezed=False)
     report = check(params, swarm=False)
     counted = {k: v for k, v in amounts(report).items() if k not in waived and k != "swarm"}
     squeezed = False

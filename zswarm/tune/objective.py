@@ -33,6 +33,7 @@ class Task:
     faults: FaultModel = FaultModel()
     combination: Combination | None = None
     miss_penalty: float = 30.0
+    safety: str = "off"  # apf: its guidelines keep it apart; another law runs behind the filter, as it is deployed
 
     @property
     def steps(self) -> int:
@@ -45,7 +46,7 @@ class Task:
     def members(self, params: Params, seeds: tuple[int, ...] | None = None) -> list[Member]:
         scenario = self.scenario.with_params(params)
         return [Member(scenario, s, dataclasses.replace(self.faults, seed=s) if self.faults.active else None,
-                       self.combination) for s in (seeds or self.seeds)]
+                       self.combination, self.safety) for s in (seeds or self.seeds)]
 
 
 def disqualified(collisions: int, contacts: int, clearance: float | None, params: Params) -> str | None:

@@ -102,12 +102,13 @@ def search_phase(plan: Plan, space, task, faults, args: argparse.Namespace, prog
     finally:
         history.close()
     start_params = space.base
-    start_failures = check(start_params).failures()  # the whole report, the squeeze included
+    start_failures = design_failures(start_params)  # the whole report, the squeeze included
     start_objective = evaluate(task, [start_params])[0][0]
     qualified_below = 10.0 * (task.duration + task.miss_penalty)
     p = result.progress
     out: dict[str, Any] = {
-        "scenario": plan.scenario_name, "tuned": plan.names, "budget": args.budget,
+        "scenario": plan.scenario_name, "law": task.scenario.params.law.law, "safety": task.safety,
+        "tuned": plan.names, "budget": args.budget,
         "evaluated": p.evaluated, "checked": p.checked, "replayed": p.evaluated - p.computed,
         "rejected": p.rejected, "generations": p.generation, "stop": result.stop,
         "seconds": time.monotonic() - started, "faults": faults.requested(), "waived": sorted(set(args.waive)),
@@ -154,21 +155,34 @@ def choose(s: Searched, plan: Plan, space, task, faults, command: str,
     comparison = {"as_tuned": held_out(task, sets, plan.holdout)}
     tuned_wins = beats(comparison["as_tuned"]["tuned"], comparison["as_tuned"]["start"])
     recommended = best_params if tuned_wins else s.start_params
-    report = check(recommended)  # the full report, waived checks included, for the reader
     write_best_toml(plan.out / "best.toml", recommended, plan, best["validation_objective"], command,
                     kept_start=not tuned_wins)
-    write_json(plan.out / "design.json", report.to_json())
-    (plan.out / "design.txt").write_text(render(report) + "\n")
+    if recommended.law.law == "apf":
+        report = check(recommended)  # the full report, waived checks included, for the reader
+        write_json(plan.out / "design.json", report.to_json())
+        (plan.out / "design.txt").write_text(render(report) + "\n")
+    else:
+        from zswarm.model.design import verdict
+
+        write_json(plan.out / "design.json", verdict(recommended))
+        (plan.out / "design.txt").write_text(verdict(recommended)["note"] + "\n")
     if faults.active:
         fault_free = dataclasses.replace(faults, latency=0.0, jitter=0.0, dropout=0.0, distance_loss=0.0)
         comparison["fault_free"] = held_out(dataclasses.replace(task, faults=fault_free), sets, plan.holdout)
     write_json(plan.out / "comparison.json", comparison)
     s.out.update(best={"values": best["values"], "objective": best["search_objective"],
                        "validation_objective": best["validation_objective"], "generation": best["gen"],
-                       "slot": best["slot"], "design_failures": list(report.failures())},
+                       "slot": best["slot"], "design_failures": design_failures(recommended)},
                  finalists=[{k: v for k, v in row.items() if k != "x"} for row in validation],
                  comparison=comparison, recommended="tuned" if tuned_wins else "start")
     return sets
+
+
+def design_failures(params: Params) -> list[str]:
+    """The checks ``params`` fails (none for a law the guidelines do not cover)."""
+    from zswarm.model.design import check
+
+    return list(check(params).failures()) if params.law.law == "apf" else []
 
 
 def finish(s: Searched, plan: Plan) -> None:
@@ -183,7 +197,9 @@ def finish(s: Searched, plan: Plan) -> None:
 def write_best_toml(path: Path, params: Params, plan: Plan, objective: float, command: str,
                     kept_start: bool = False) -> None:
     flat = params.flat()
-    keep = [n for n in TUNABLE] + [n for n in plan.overrides if FIELDS[n].group != "potential"]
+    law = params.law.law != "apf"  # its own parameters go in a [law] table
+    keep = ([] if law else list(TUNABLE)) + [n for n in plan.overrides if n in FIELDS and n != "law"
+                                             and FIELDS[n].group != "potential"]
     swarm = " ".join(f"--set {n}={flat[n]:g}" for n in ("n_agents", "sensing_radius", "v_max", "robot_radius"))
     what = (f"the START set for {plan.scenario_name}: the best set found (validation objective {objective:.4g} s) did "
             "not beat it on the held-out seeds (comparison.json)" if kept_start else
@@ -193,6 +209,8 @@ def write_best_toml(path: Path, params: Params, plan: Plan, objective: float, co
              f"# its design report (design.txt) is: zswarm design --params FILE {swarm}", "",
              "[params]"]
     lines += [f"{n} = {flat[n]!r}" for n in keep]
+    if law:
+        lines += ["", "[law]", f"name = {params.law.law!r}", *(f"{k} = {v!r}" for k, v in params.law.settings)]
     tmp = Path(f"{path}.tmp")
     tmp.write_text("\n".join(lines) + "\n")
     os.replace(tmp, path)
