@@ -27,7 +27,7 @@ from zswarm.model.body import tracked_point
 from zswarm.model.faults import OBSTACLE_SOURCE, PREY_SOURCE
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Inbound
-from zswarm.net.poses import Entry, PoseTable, Rejections
+from zswarm.net.poses import Entry, PoseTable, Rejections, vouched_by
 from zswarm.net.runspec import RunSpec
 
 
@@ -86,6 +86,7 @@ class Sensing:
         self.neighbours = PoseTable(3.0 * self.v_max * self.dt, spec.period)  # 3x slack on a tick's reach
         self.counters = Counters(Rejections(f"agent {agent_id}"))
         self.alive: set[int] = set()  # ids with a liveliness token
+        self.announced: dict[int, float] = {}  # id -> when its liveliness token came (whom to believe first)
         self.last_seq: dict[int, int] = {}
         self.members: dict[int, set[tuple[int, ...]]] = {}  # id -> the cells it listens to that hold its token
         self.member_news: set[tuple[int, tuple[int, ...]]] = set()  # (id, cell) that changed live since subscribed
@@ -137,8 +138,10 @@ class Sensing:
                 return
             if not deleted:
                 self.alive.add(who)
+                self.announced.setdefault(who, received)
                 return
             self.alive.discard(who)
+            self.announced.pop(who, None)
             if self.neighbours.forget(who) is not None:  # departed: forget it at once
                 self.counters.departed.setdefault(who, received)
             self.last_seq.pop(who, None)
@@ -220,6 +223,10 @@ class Sensing:
             if not held:
                 del self.members[who]
 
+    def vouched(self, pose: msg.Pose) -> bool:
+        """The sender's member token is in the cell of ``pose`` (:func:`zswarm.net.poses.vouched_by`)."""
+        return vouched_by(self.members.get(pose.id), self.keys.cell(*pose.position))
+
     def _pose_sample(self, key: str, payload: bytes, received: float) -> None:
         """A sample of the cells it listens to, or an answer of one it asked: a neighbour's pose."""
         self.counters.received += 1
@@ -295,7 +302,7 @@ class Sensing:
             c.crossed += 1
         if not self.latency_from_probe:
             c.add(c.latency, (now - pose.stamp) * 1000.0)
-        reason = self.neighbours.accept(who, pose, now)
+        reason = self.neighbours.accept(who, pose, now, self.vouched, self.announced.get)
         if reason is not None:
             c.rejections.add(reason, f"agent {who} jumped implausibly far")
             return

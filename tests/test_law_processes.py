@@ -89,6 +89,7 @@ def rush(obs):"""))
     assert "agent 0: its law" in res.stderr and "RuntimeError: brittle law gave up" in res.stderr
     assert 'in brittle\n    raise RuntimeError("brittle law gave up")' in res.stderr  # the law's own traceback
     assert "agent-0 exited with code 3 (its law failed" in res.stderr
+    assert "open run (no --secure): it believes any peer" in res.stdout  # said at the start of an open run
     summary = load_summary(tmp_path / "b.json")
     assert summary["law_failures"] == summary["crashed_agents"] == [0]
     assert summary["agents_final_reports"] == 4 and summary["collisions"] == 0  # it left with its counts

@@ -19,7 +19,7 @@ import numpy as np
 from zswarm.model.timed_contacts import TimedContacts
 from zswarm.net import messages as msg
 from zswarm.net.pose_batch import ACCEPTED, REASON, PoseArrays
-from zswarm.net.poses import PoseTable, Rejections
+from zswarm.net.poses import PoseTable, Rejections, vouched_by
 from zswarm.net.runspec import RunSpec
 
 #: From this many agents a free-running world takes a tick's poses in at once (``--intake auto``):
@@ -71,6 +71,28 @@ class PoseIntake:
         self.table = None if self.batched else PoseTable(max_step, spec.period)
         self.arrays = PoseArrays(max_step, spec.period, self.dims) if self.batched else None
         self.record_sizes = msg.POSE_SIZES_BY_DIMS[self.dims]  # this run's records
+        self.members: dict[int, set[tuple[int, ...]]] = {}  # id -> the cells holding its member token
+        self.announced: dict[int, float] = {}  # id -> when its liveliness token came (World._on_liveliness)
+
+    def member(self, key: str, deleted: bool) -> None:
+        """A member token came or went: which cell each agent says it is in (whom to believe when two
+        senders claim one id, :class:`zswarm.net.poses.Contest`)."""
+        parsed = self.keys.member_of(key)
+        if parsed is None:
+            return
+        cell, who = parsed
+        if deleted:
+            held = self.members.get(who)
+            if held is not None:
+                held.discard(cell)
+                if not held:
+                    del self.members[who]
+        else:
+            self.members.setdefault(who, set()).add(cell)
+
+    def vouched(self, pose: msg.Pose) -> bool:
+        """The sender's member token is in the cell of ``pose`` (:func:`zswarm.net.poses.vouched_by`)."""
+        return vouched_by(self.members.get(pose.id), self.keys.cell(*pose.position))
 
     def one(self, key: str, pose: msg.Pose, payload: bytes, received: float) -> bool:
         """A decoded pose of this run's dimension (``payload``: its record); True if accepted."""
@@ -78,7 +100,7 @@ class PoseIntake:
         if self.batched:
             return self._rows(np.array([-1 if who is None else who]),
                               np.frombuffer(payload, dtype=msg.POSE_ROWS[len(payload)]), received) == 1
-        reason = self.table.accept(who, pose, received)
+        reason = self.table.accept(who, pose, received, self.vouched, self.announced.get)
         if reason is not None:
             self.rejected.add(reason)
             return False
@@ -112,7 +134,7 @@ class PoseIntake:
 
     def _rows(self, key_ids: np.ndarray, rows: np.ndarray, received: float) -> int:
         """Records into the arrays and the judge's record, the refused counted by reason; how many taken."""
-        reasons = self.arrays.accept(key_ids, rows, received)
+        reasons = self.arrays.accept(key_ids, rows, received, self.vouched, self.announced.get)
         taken = reasons == ACCEPTED
         for code in reasons[~taken].tolist():
             self.rejected.add(REASON[code])

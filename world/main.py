@@ -79,6 +79,7 @@ async def run_world(args: argparse.Namespace, spec: RunSpec, viewer: Viewer | No
         declared.append(bridge.queryable(keys.obstacles, world.obstacles.answer))
         declared.append(bridge.queryable(keys.positions, world.answer_positions))
         declared.append(bridge.subscribe_liveliness(keys.all_alive, "alive"))  # drained first: who is alive
+        declared.append(bridge.subscribe_liveliness(keys.all_members, "in"))  # which cell each agent is in
         declared.append(bridge.subscribe(keys.all_poses, "pose"))
         declared.append(bridge.subscribe(keys.all_stats, "stats"))
 

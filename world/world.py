@@ -176,6 +176,9 @@ class World:
         if tag == "alive":
             self._on_liveliness(self.keys.agent_of(key), deleted)
             return
+        if tag == "in":
+            self.intake.member(key, deleted)
+            return
         self.received += 1
         if tag == "stats":
             self.stats.add(key, payload)
@@ -209,6 +212,7 @@ class World:
         event = {"id": who, "t": round(self.clock.t, 6), "wall": round(time.time() - self.started_wall, 3)}
         if deleted:
             c.alive.discard(who)
+            self.intake.announced.pop(who, None)
             self.intake.forget(who)
             if self.timed is not None:
                 self.timed.leave(who)
@@ -224,6 +228,7 @@ class World:
                 returning = any(d["id"] == who for d in c.departures)
                 self._event(f"agent {who} {'returned' if returning else 'joined'}")
             c.alive.add(who)
+            self.intake.announced.setdefault(who, time.time())
             c.arrivals.append(event)
             if c.all_alive_after is None and len(c.alive) >= self.scenario.n_agents:
                 c.all_alive_after = time.time() - self.started_wall

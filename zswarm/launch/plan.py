@@ -127,6 +127,8 @@ def plan_from_args(args: argparse.Namespace, cores: int | None = None, memory_mi
         notes.append(pace_note)
     if args.robots is not None:
         notes.append(robots_note(check_robots(args.robots, spec), args.robots, ids))
+    if args.secure is None:
+        notes.append(OPEN_RUN)
     if "agents" in args.role and spec.clock == "free":  # last: a usage error above comes alone
         if pace_load(len(ids), spec.scenario.dt, spec.time_scale, cores) > HOPELESS:
             raise UsageError(pace_warning(len(ids), spec.scenario.dt, spec.time_scale, cores, refused=True,
@@ -316,6 +318,12 @@ def auto_time_scale(args: argparse.Namespace, cores: int) -> str | None:
     return (f"time scale: auto picked {args.time_scale:g} (real time would need {load:.2g} times the CPU "
             f"{n} agents can have on {cores} cores; --time-scale 1 runs at real time, the safety filter keeping "
             f"it safe on stale data)")
+
+
+#: What a run without --secure says at its start (zswarm.net.poses.Contest says what is left to an attacker).
+OPEN_RUN = ("open run (no --secure): it believes any peer that reaches its routers; a forged pose under an "
+            "agent's id is let go within 0.5 s of the agent's own (docs/running.md), but only "
+            "--secure keeps strangers out")
 
 
 def design_command(spec: RunSpec) -> str:

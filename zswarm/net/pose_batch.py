@@ -14,7 +14,9 @@ sequences of poses, batched at random):
   when both poses have them, else by sequence numbers, and capped, for a free-clock pose, by the
   receiver's clock since the last accepted pose was sent (taken in, if its stamp claims later);
 - an accepted pose replaces the latest if its sequence number is newer, or so far behind
-  (``SEQ_RESTART``) that its sender must have restarted.
+  (``SEQ_RESTART``) that its sender must have restarted;
+- a record refused as a jump is offered to the table's :class:`~zswarm.net.poses.Contest`, the one
+  rule of whom to believe when two senders claim an id (a rare path, a record at a time).
 
 Poses of one agent within a batch are taken in arrival order (a batch is split into rounds that hold
 each agent once). Lockstep's poses by step are not kept here: the lockstep world uses the table.
@@ -25,6 +27,8 @@ from __future__ import annotations
 import numpy as np
 
 from zswarm.model.timed_contacts import SEQ_RESTART
+from zswarm.net import messages as msg
+from zswarm.net.poses import Announced, Contest, Vouch
 
 ACCEPTED, SCHEMA, JUMP = 0, 1, 2
 REASON = {SCHEMA: "schema", JUMP: "jump"}
@@ -37,6 +41,7 @@ class PoseArrays:
     def __init__(self, max_step: float, period: float, dims: int) -> None:
         self.max_step, self.period, self.dims = max_step, period, dims
         self.row: dict[int, int] = {}
+        self.contest = Contest(max_step, period)
         self._size(64)
 
     def _size(self, n: int) -> None:
@@ -57,12 +62,14 @@ class PoseArrays:
         self.step = grown(getattr(self, "step", np.zeros(0, dtype=np.int64)), -1)
         self.stamp = grown(getattr(self, "stamp", np.zeros(0)), 0.0)
         self.received = grown(getattr(self, "received", np.zeros(0)), 0.0)
+        self.first = grown(getattr(self, "first", np.zeros(0)), 0.0)
         self.position = grown(getattr(self, "position", np.zeros((0, d))), 0.0)
         self.velocity = grown(getattr(self, "velocity", np.zeros((0, d))), 0.0)
         self.heading = grown(getattr(self, "heading", np.zeros(0)), np.nan)
         self.safety = grown(getattr(self, "safety", np.zeros(0, dtype=np.int64)), 0)
 
     def forget(self, who: int) -> None:
+        self.contest.forget(who)
         row = self.row.get(who)
         if row is not None:
             self.known[row] = False
@@ -77,10 +84,12 @@ class PoseArrays:
                 self.ids[row[who]] = who
         return np.fromiter((row[who] for who in ids), dtype=np.int64, count=len(ids))
 
-    def accept(self, key_ids: np.ndarray, rows: np.ndarray, now: float) -> np.ndarray:
+    def accept(self, key_ids: np.ndarray, rows: np.ndarray, now: float, vouch: Vouch | None = None,
+               announced: Announced | None = None) -> np.ndarray:
         """Take the decoded records ``rows`` (:data:`zswarm.net.messages.POSE_ROWS`, of this table's
         dimension), in arrival order, that arrived under keys naming ``key_ids`` (-1: no id); returns
-        per row :data:`ACCEPTED`, :data:`SCHEMA` or :data:`JUMP`."""
+        per row :data:`ACCEPTED`, :data:`SCHEMA` or :data:`JUMP`. ``vouch``: as
+        :meth:`zswarm.net.poses.PoseTable.accept`'s."""
         ids = rows["id"].astype(np.int64)
         reasons = np.where(ids == key_ids, ACCEPTED, SCHEMA)
         at = self._rows(ids[reasons == ACCEPTED].tolist())
@@ -93,10 +102,11 @@ class PoseArrays:
         where[reasons == ACCEPTED] = at
         for r in range(int(rank.max()) + 1 if len(ids) else 0):
             sel = np.flatnonzero((rank == r) & (reasons == ACCEPTED))
-            reasons[sel] = self._round(where[sel], rows[sel], now)
+            reasons[sel] = self._round(where[sel], rows[sel], now, vouch, announced)
         return reasons
 
-    def _round(self, who: np.ndarray, rows: np.ndarray, now: float) -> np.ndarray:
+    def _round(self, who: np.ndarray, rows: np.ndarray, now: float, vouch: Vouch | None = None,
+               announced: Announced | None = None) -> np.ndarray:
         """Records of distinct agents (``who``: their rows): the jump check against what each row holds,
         then the update."""
         seq, step = rows["seq"], rows["s"]
@@ -109,9 +119,17 @@ class PoseArrays:
         steps = np.where(step < 0, np.minimum(steps, np.maximum(elapsed, 1.0)), steps)
         gap = pos - self.position[who]
         far = np.hypot(gap[:, 0], gap[:, 1]) if self.dims == 2 else np.sqrt(np.einsum("ij,ij->i", gap, gap))
-        jump = known & (seq > old_seq) & (far > self.max_step * steps + 1e-9)
-        newer = ~jump & (~known | (seq > old_seq) | (old_seq - seq > SEQ_RESTART))
+        restart = old_seq - seq > SEQ_RESTART
+        distant = known & ~restart & (far > self.max_step * steps + 1e-9)  # newer or not: PoseTable.accept
+        jump = distant & (seq > old_seq)
+        took = np.zeros(len(who), dtype=bool)
+        for k in np.flatnonzero(distant).tolist():  # another sender's track: may it take the id over?
+            took[k] = self.contest.offer(pose_of(rows[k], self.dims), now, self.held(int(who[k])),
+                                         float(self.received[who[k]]), float(self.first[who[k]]), vouch, announced)
+        jump &= ~took
+        newer = took | (~distant & (~known | (seq > old_seq) | restart))
         w = who[newer]
+        self.first[who[(newer & ~known) | took]] = now  # when the track it now holds was first taken in
         self.known[w] = True
         self.seq[w], self.step[w], self.stamp[w] = seq[newer], step[newer], rows["t"][newer]
         self.received[w] = now
@@ -122,6 +140,14 @@ class PoseArrays:
         self.safety[w] = rows["f"][newer]
         return np.where(jump, JUMP, ACCEPTED)
 
+    def held(self, row: int) -> msg.Pose:
+        """The pose a row holds, as a pose."""
+        p, v, h = self.position[row], self.velocity[row], float(self.heading[row])
+        return msg.Pose(int(self.ids[row]), int(self.seq[row]), float(self.stamp[row]), int(self.step[row]),
+                        float(p[0]), float(p[1]), float(v[0]), float(v[1]), None if np.isnan(h) else h,
+                        float(p[2]) if self.dims == 3 else None, float(v[2]) if self.dims == 3 else None,
+                        int(self.safety[row]))
+
     def latest(self, among: set[int] | None = None) -> tuple[np.ndarray, np.ndarray]:
         """The ids whose latest pose it holds (of those in ``among``, if given), ascending, and their rows."""
         rows = np.flatnonzero(self.known)
@@ -131,3 +157,12 @@ class PoseArrays:
             rows, ids = rows[keep], ids[keep]
         order = np.argsort(ids)
         return ids[order], rows[order]
+
+
+def pose_of(record: np.void, dims: int) -> msg.Pose:
+    """A decoded record (a row of :data:`zswarm.net.messages.POSE_ROWS`) as a pose."""
+    names = record.dtype.names
+    return msg.Pose(int(record["id"]), int(record["seq"]), float(record["t"]), int(record["s"]), float(record["x"]),
+                    float(record["y"]), float(record["vx"]), float(record["vy"]),
+                    float(record["h"]) if "h" in names else None, float(record["z"]) if dims == 3 else None,
+                    float(record["vz"]) if dims == 3 else None, int(record["f"]), int(record["n"]))

@@ -8,7 +8,13 @@ Every pose that arrives passes the same acceptance rules (:meth:`PoseTable.accep
   accepted pose was sent (taken in, if its stamp claims later), so a forged sequence number cannot buy
   a forged pose an arbitrarily long way, and poses that arrive in a burst after a queue are not refused;
 - the newest pose wins (or one so far behind that its sender must have restarted);
-- lockstep poses (step >= 0) are also kept by step, for the last ``keep_steps`` steps.
+- lockstep poses (step >= 0) are also kept by step, for the last ``keep_steps`` steps;
+- whom to believe first (:class:`Contest`): poses refused as jumps that agree among themselves form a
+  rival track of the id; the rival takes the id over once it has sent consistently for
+  :data:`TAKEOVER` seconds, if the track the table holds has fallen silent that long, or if the id's
+  member token is in the cell of the rival's pose and not in the held one's. So a forged first pose for
+  an id not yet heard cannot lock the real agent out for longer than that bound plus the time its
+  member token takes to arrive (tests/test_forged_pose.py).
 
 :class:`Rejections` counts what was refused, by reason, and says so once per reason.
 """
@@ -40,6 +46,94 @@ def implausible_jump(old: msg.Pose, new: msg.Pose, max_step: float, elapsed_step
     if new.z is None or old.z is None:
         return math.hypot(new.x - old.x, new.y - old.y) > max_step * steps + 1e-9
     return math.hypot(new.x - old.x, new.y - old.y, new.z - old.z) > max_step * steps + 1e-9
+
+
+#: Seconds a rival track must have sent consistently before it may take an id over (the staleness limit).
+TAKEOVER = 0.5
+#: ... and the poses it must have sent in that time (one stale duplicate is no track).
+TAKEOVER_POSES = 3
+
+Vouch = Callable[[msg.Pose], bool]  # the id's member token is in the cell of this pose
+Announced = Callable[[int], "float | None"]  # when the id's liveliness token came (None: not heard)
+
+
+def vouched_by(cells: set[tuple[int, ...]] | None, cell: tuple[int, ...]) -> bool:
+    """Whether a sender's member tokens (``cells``: where the receiver knows them, None: nowhere) put
+    it in ``cell``, the cell of a pose under its id. The real agent declares its token in the cell of
+    each pose before it publishes the pose there (:meth:`agents.agent.Agent.publish_pose`)."""
+    return cells is not None and cell in cells
+
+
+@dataclass
+class Rival:
+    """Poses of one id refused as jumps that agree among themselves: another sender's track."""
+
+    latest: msg.Pose
+    received: float
+    first: float
+    count: int = 1
+
+
+class Contest:
+    """Whom to believe when two senders claim one agent id (the one home of that rule, for the pose
+    table and the world's arrays alike).
+
+    Without ``--secure`` anyone on the network can publish a pose under any id. A first pose wins the
+    id; the real sender's poses, far from it, are refused as jumps. They form a rival track (each
+    consistent with the rival's last, by :func:`implausible_jump`). The rival takes the id over once it
+    has sent at least :data:`TAKEOVER_POSES` poses over :data:`TAKEOVER` seconds and either
+
+    - the held track has sent nothing accepted for :data:`TAKEOVER` seconds (a forger that stopped:
+      the real agent is back within the bound whatever the tokens say), or
+    - ``vouch`` says the id's member token (:meth:`zswarm.net.keys.Keys.member`, declared by the real
+      agent in the cell it is in) is in the cell of the rival's pose and not in the held one's (a forger
+      that keeps publishing in another cell), or
+    - neither or both are vouched for, and the held track began before the id's liveliness token came
+      (``announced``: when the receiver heard the agent announce itself) and the rival no sooner than
+      :data:`TAKEOVER` before it (a forger that published before the agent started, in the agent's own
+      cell; the token and the first poses may be taken in in either order).
+
+    What an attacker without ``--secure`` can still do: declare member and liveliness tokens too, and
+    then hold an id for as long as it keeps its poses and tokens up (a tie keeps the track held); start
+    publishing under an id after the agent announced itself, in the agent's cell, and win the id at a
+    receiver that heard the forger first; publish poses close to the real agent's own, which pass every
+    check; flood. ``--secure`` (access control per agent) is the guarantee; every open run says so when it
+    starts.
+    """
+
+    def __init__(self, max_step: float, period: float, takeover: float = TAKEOVER) -> None:
+        self.max_step, self.period, self.takeover = max_step, period, takeover
+        self.rivals: dict[int, Rival] = {}
+        self.takeovers = 0
+
+    def offer(self, pose: msg.Pose, now: float, held: msg.Pose, held_received: float, held_first: float,
+              vouch: Vouch | None = None, announced: Announced | None = None) -> bool:
+        """A pose refused as a jump from ``held`` (accepted last at ``held_received``, its track taken in
+        first at ``held_first``): True if it takes the id over now (the caller then holds it as the
+        latest)."""
+        r = self.rivals.get(pose.id)
+        if r is not None and pose.seq > r.latest.seq:
+            elapsed = (now - min(r.received, r.latest.stamp)) / self.period + 2.0 if pose.step < 0 else None
+            if implausible_jump(r.latest, pose, self.max_step, elapsed):
+                r = None
+        if r is None:
+            self.rivals[pose.id] = Rival(pose, now, now)
+            return False
+        if supersedes(r.latest, pose):
+            r.latest, r.received, r.count = pose, now, r.count + 1
+        if r.received - r.first < self.takeover or r.count < TAKEOVER_POSES:
+            return False
+        mine, theirs = (vouch(r.latest), vouch(held)) if vouch is not None else (False, False)
+        since = announced(pose.id) if announced is not None else None
+        if (now - held_received >= self.takeover or (mine and not theirs)
+                or (mine == theirs and since is not None and held_first < since <= r.first + self.takeover)):
+            del self.rivals[pose.id]
+            self.takeovers += 1
+            return True
+        return False
+
+    def forget(self, who: int) -> None:
+        self.rivals.pop(who, None)
 
 
 def supersedes(old: msg.Pose, new: msg.Pose) -> bool:
@@ -89,16 +183,20 @@ class PoseTable:
     def __init__(self, max_step: float, period: float, keep_steps: int = 3) -> None:
         self.max_step, self.period, self.keep_steps = max_step, period, keep_steps
         self.entries: dict[int, Entry] = {}
+        self.contest = Contest(max_step, period)
 
     def get(self, who: int) -> Entry | None:
         return self.entries.get(who)
 
     def forget(self, who: int) -> Entry | None:
+        self.contest.forget(who)
         return self.entries.pop(who, None)
 
-    def accept(self, key_agent: int | None, pose: msg.Pose, now: float) -> str | None:
+    def accept(self, key_agent: int | None, pose: msg.Pose, now: float, vouch: Vouch | None = None,
+               announced: Announced | None = None) -> str | None:
         """Take ``pose`` (arrived under a key naming ``key_agent``) into the table; returns None when
-        accepted, else the rejection reason."""
+        accepted, else the rejection reason. ``vouch``, ``announced``: what the receiver knows of the
+        id's tokens (:class:`Contest`)."""
         if key_agent != pose.id:
             return "schema"
         old = self.entries.get(pose.id)
@@ -108,9 +206,14 @@ class PoseTable:
             # the receiver's clock since the old pose was sent (or taken in, if its stamp claims a time
             # after that): a pose that waited in a queue does not make the next one an impossible jump
             elapsed = (now - min(old.received, old.latest.stamp)) / self.period + 2.0 if pose.step < 0 else None
-            if pose.seq > old.latest.seq and implausible_jump(old.latest, pose, self.max_step, elapsed):
-                return "jump"
-            if supersedes(old.latest, pose):
+            restart = old.latest.seq - pose.seq > SEQ_RESTART
+            if not restart and implausible_jump(old.latest, pose, self.max_step, elapsed):
+                # far from what it holds, newer or not (a forger ahead in sequence numbers must not make
+                # the real sender's poses merely stale): another sender's track, unless it takes over
+                if not self.contest.offer(pose, now, old.latest, old.received, old.first, vouch, announced):
+                    return "jump" if pose.seq > old.latest.seq else None
+                old.latest, old.received, old.first, old.by_step = pose, now, now, {}  # the rival took it over
+            elif supersedes(old.latest, pose):
                 old.latest, old.received = pose, now
         if pose.step >= 0:
             old.by_step[pose.step] = pose
