@@ -43,7 +43,7 @@ def lockstep_against_reference(tmp_path, scenario: str, law: str, n: int, durati
     assert observed.shape == ref.trajectory.shape
     assert np.max(np.abs(observed - ref.trajectory)) < 1e-6  # at every step, every agent
     assert np.max(np.abs(observed[-1] - observed[0])) > 0.1  # and they moved
-    assert summary["agents_final_reports"] == n and summary["missed_lockstep_poses"] == 0
+    assert summary["missed_lockstep_poses"] == 0  # every step had every pose (the final reports are not this test's)
     return summary
 
 
