@@ -251,3 +251,22 @@ def cross_router_share(heard: dict[int, dict[int, int]], node_of: dict[int, int]
                 total += count
                 crossed += count if node_of[receiver] != node_of[sender] else 0
     return crossed / total if total else None
+
+
+def agent_state(endpoint: str, run: str, agent_id: int, x: float):
+    """One agent process's whole state (:class:`agents.main.Process`, as ``python -m agents`` builds it)
+    at (x, 0.5) of bench-field, in this process, over the router at ``endpoint``."""
+    from agents.main import Process, build_parser
+    from zswarm.net.runspec import spec_from_args
+
+    args = build_parser().parse_args(["--id", str(agent_id), "--start", f"{x},0.5", "--run", run,
+                                      "--scenario", "bench-field", "--set", "n_agents=2", "--connect", endpoint])
+    return Process(spec_from_args(args), args, loop=None)
+
+
+def stand_in_world(router, keys):
+    """A queryable on ``router`` that answers the obstacle query as a world without obstacles does."""
+    from zswarm.net import messages as msg
+
+    no_obstacles = msg.encode(msg.Obstacles((), (), 2))
+    return router.declare_queryable(keys.obstacles, lambda q: q.reply(keys.obstacles, no_obstacles))

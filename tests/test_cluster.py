@@ -216,11 +216,20 @@ FAST_HEALTH = '{"health_check_initial_delay_ms": 0, "health_check_period_ms": 20
 
 def ray_node_env(folder: Path, mark: str) -> dict[str, str]:
     """What docs/cluster.md tells users to give ``ray start``: zswarm's offline settings, a HOME with the
-    bootstrap file (no cloud-metadata probe) and a RAY_TMPDIR of the node's own."""
+    bootstrap file (no cloud-metadata probe), a RAY_TMPDIR of the node's own, and token authentication
+    with the cluster's one token (a file beside the nodes' folders, mode 600)."""
+    import secrets
+
     from zswarm.cluster.ray_env import offline_env
 
+    token = folder.parent / "token"
+    if not token.exists():
+        token.parent.mkdir(parents=True, exist_ok=True)
+        token.write_text(secrets.token_hex(32))
+        token.chmod(0o600)
     env = {k: v for k, v in os.environ.items() if not k.startswith("RAY_")}
-    return dict(offline_env(folder, {**env, "PYTHONPATH": str(ROOT), "ZSWARM_TEST_MARK": mark}))
+    return dict(offline_env(folder, {**env, "PYTHONPATH": str(ROOT), "ZSWARM_TEST_MARK": mark,
+                                     "RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN_PATH": str(token)}))
 
 
 def in_ns(ns: str, *argv: str) -> list[str]:
@@ -403,4 +412,33 @@ def test_a_pace_the_clusters_cores_cannot_hold_is_refused_before_any_agent_start
     assert "500 agents stepping 400 times a second" in lines[0] and f"the cluster has {cores}:" in lines[0], lines
     assert "--time-scale" in lines[0]  # it names a pace that fits
     assert sorted(p.name for p in tmp_path.iterdir()) == ["links.txt", "routes.txt"]  # nothing recorded
+    assert wait_gone(mark, 10.0) == []
+
+
+@pytest.mark.parametrize("mode", ["token", "open"])
+def test_a_head_that_wants_a_token_lets_in_only_the_right_one(tmp_path, mode):
+    """A head started by docs/cluster.md's recipe: without the token, or with a wrong one, zswarm run
+    --cluster ADDRESS is refused in one line with exit 2 within 5 s; with it, the run goes through and
+    its summary says "ray_auth": "token". A head without authentication: the run goes through with one
+    warning line, which --cluster-insecure-ok silences."""
+    mark = uuid.uuid4().hex
+    argv, env = offline(tmp_path, str(ROOT / "tests" / "ray_auth_head.py"), mode, str(tmp_path), mark=mark)
+    res = subprocess.run(argv, env=env, cwd=tmp_path, capture_output=True, text=True, timeout=400)
+    assert res.returncode == 0, res.stderr[-3000:]
+    out = json.loads(res.stdout.strip().splitlines()[-1])
+    assert out["head"] == 0, out
+    if mode == "token":
+        for case in ("none", "wrong"):
+            r = out[case]
+            assert r["rc"] == 2 and r["seconds"] < 5.0 + 3.0, r  # the probe's 5 s, and Python's start
+            assert len(r["stderr"]) == 1 and "wants a token and this driver has" in r["stderr"][0], r
+        assert "no token" in out["none"]["stderr"][0] and "a wrong token" in out["wrong"]["stderr"][0]
+        assert out["right"]["rc"] == 0, out["right"]
+        s = json.loads((tmp_path / "right.json").read_text())
+        assert s["security"] == {"tls": False, "acl": False, "ray_auth": "token"}
+    else:
+        assert out["open"]["rc"] == 0 and any("token authentication off" in line for line in out["open"]["stderr"])
+        assert out["open-ok"]["rc"] == 0 and not any("token authentication off" in line
+                                                     for line in out["open-ok"]["stderr"])
+        assert json.loads((tmp_path / "open.json").read_text())["security"]["ray_auth"] is None
     assert wait_gone(mark, 10.0) == []

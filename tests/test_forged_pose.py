@@ -13,15 +13,13 @@ import pytest
 import zenoh
 
 from agents.free import take_in, wait_for_world
-from agents.main import Process, build_parser
 from zswarm.net import messages as msg
 from zswarm.net.config import zenoh_config
 from zswarm.net.pose_batch import PoseArrays
 from zswarm.net.poses import TAKEOVER, PoseTable
 from zswarm.net.procs import free_port, start_router
-from zswarm.net.runspec import spec_from_args
 
-from swarm_procs import processes, start_agent, start_world, wait_exit
+from swarm_procs import agent_state, processes, stand_in_world, start_agent, start_world, wait_exit
 
 PERIOD, MAX_STEP = 0.05, 0.15
 FORGED, REAL = (500.0, 500.0), (0.0, 0.0)
@@ -86,10 +84,8 @@ def test_a_forger_that_keeps_publishing_loses_the_id_to_the_member_token(make) -
     assert play(make(), forger_until=99.0) is None  # no token heard: the first sender keeps it (the docs say so)
 
 
-def agent(endpoint: str, agent_id: int, x: float) -> Process:
-    args = build_parser().parse_args(["--id", str(agent_id), "--start", f"{x},0.5", "--run", "forged",
-                                      "--scenario", "bench-field", "--set", "n_agents=2", "--connect", endpoint])
-    return Process(spec_from_args(args), args, loop=None)
+def agent(endpoint: str, agent_id: int, x: float):
+    return agent_state(endpoint, "forged", agent_id, x)
 
 
 def test_the_real_agent_is_back_in_its_neighbours_table_within_the_bound() -> None:
@@ -100,8 +96,7 @@ def test_the_real_agent_is_back_in_its_neighbours_table_within_the_bound() -> No
     with zenoh.open(zenoh_config("router", listen=[endpoint])) as router:
         first = agent(endpoint, 0, 0.5)
         keys = first.spec.keys
-        no_obstacles = msg.encode(msg.Obstacles((), (), 2))
-        world = router.declare_queryable(keys.obstacles, lambda q: q.reply(keys.obstacles, no_obstacles))
+        world = stand_in_world(router, keys)
         stop = threading.Event()
         forged = (0.95, 0.1)  # in agent 0's cell, 0.6 from where agent 1 is
 

@@ -14,19 +14,15 @@ import time
 import zenoh
 
 from agents.free import take_in, wait_for_world
-from agents.main import Process, build_parser
 from conftest import free_port
-from zswarm.net import messages as msg
 from zswarm.net.config import zenoh_config
-from zswarm.net.runspec import spec_from_args
+from swarm_procs import agent_state, stand_in_world
 
 RUN = "joining"
 
 
-def agent(endpoint: str, agent_id: int, x: float) -> Process:
-    args = build_parser().parse_args(["--id", str(agent_id), "--start", f"{x},0.5", "--run", RUN,
-                                      "--scenario", "bench-field", "--set", "n_agents=2", "--connect", endpoint])
-    return Process(spec_from_args(args), args, loop=None)
+def agent(endpoint: str, agent_id: int, x: float):
+    return agent_state(endpoint, RUN, agent_id, x)
 
 
 def test_an_agent_that_joins_hears_its_cells_before_its_first_step():
@@ -34,8 +30,7 @@ def test_an_agent_that_joins_hears_its_cells_before_its_first_step():
     with zenoh.open(zenoh_config("router", listen=[endpoint])) as router:
         first = agent(endpoint, 0, 0.5)
         keys = first.spec.keys
-        no_obstacles = msg.encode(msg.Obstacles((), (), 2))
-        world = router.declare_queryable(keys.obstacles, lambda q: q.reply(keys.obstacles, no_obstacles))
+        world = stand_in_world(router, keys)
         try:
             assert wait_for_world(first.agent, None, 10.0, lambda: False)
             first.announce()

@@ -15,7 +15,6 @@ import pytest
 import zswarm
 from zswarm.cli.main import main
 from zswarm.laws.registry import bind, known, resolve
-from zswarm.model.scenarios import get_scenario
 
 from conftest import ROOT
 

@@ -100,6 +100,8 @@ def build_parser(prog: str = "zswarm run") -> Parser:
                    help="run the whole swarm over a Ray cluster (pip install -e \".[cluster]\"): HOST:PORT of its "
                         "head, auto, local (this machine as one node) or local:K (K nodes here); a router and a "
                         "share of the agents on every node, the world and the recording here (docs/cluster.md)")
+    p.add_argument("--cluster-insecure-ok", action="store_true",
+                   help="with --cluster ADDRESS: do not warn that its head has token authentication off")
     p.add_argument("--placement", default="space", choices=("space", "round-robin"),
                    help="with --cluster: agents that start near each other share a node (space, default) or "
                         "ids are dealt in turn (round-robin)")

@@ -34,6 +34,10 @@ class ClusterLaunch(Launch):
         self.lost_seen: set[int] = set()  # nodes whose loss was taken in
         self.rejoin: list[tuple[float, list[int]]] = []  # (when, agents) of lost nodes, with --restart-after
 
+    @property
+    def ray_auth(self) -> str | None:
+        return self.cluster.auth
+
     def run(self) -> int:
         try:
             return super().run()
@@ -115,17 +119,10 @@ class ClusterLaunch(Launch):
             self.node_of[agent] = min(alive, key=lambda k: load[k])
         return self.links[self.node_of[agent]]
 
-    def _finish_recording(self) -> None:
-        if self.world is None or self.world.alive():
-            return
-        from zswarm.launch.ending import finish_recording
-
-        agent_router = {str(i): self.router_of(i) for i in self.plan.ids}
-        routing = {"routers": self.endpoints, "agent_router": agent_router,
-                   "cluster": {"address": self.cluster.address, "placement": self.placement,
-                               "nodes": [{"label": link.label, **link.info, "router": e, "lost": link.lost}
-                                         for link, e in zip(self.links, self.endpoints)],
-                               "agent_node": {str(i): self.links[k].label for i, k in self.placed.items()},
-                               "agent_node_at_end": {str(i): self.links[k].label for i, k in self.node_of.items()}},
-                   **self._migration_summary()}
-        finish_recording(self.plan, self.world.proc.returncode, self.started_at, routing, _say)
+    def _routing(self) -> dict:
+        return {**super()._routing(),
+                "cluster": {"address": self.cluster.address, "placement": self.placement,
+                            "nodes": [{"label": link.label, **link.info, "router": e, "lost": link.lost}
+                                      for link, e in zip(self.links, self.endpoints)],
+                            "agent_node": {str(i): self.links[k].label for i, k in self.placed.items()},
+                            "agent_node_at_end": {str(i): self.links[k].label for i, k in self.node_of.items()}}}

@@ -60,12 +60,15 @@ def import_ray() -> Any:
 
 @dataclass
 class RayCluster:
-    """The driver's connection; ``local`` holds the nodes started here (stopped by :meth:`close`)."""
+    """The driver's connection; ``local`` holds the nodes started here (stopped by :meth:`close`);
+    ``auth``: "token" when the cluster wants a token (one made for a cluster started here), None when
+    anyone who reaches its head may run code on it."""
 
     address: str
     run_dir: Path | None  # a cluster started here: its folder (RAY_TMPDIR, HOME)
     local: Any = None
     nodes: list[dict] = field(default_factory=list)
+    auth: str | None = None
 
     def alive_nodes(self) -> list[dict]:
         """Ray's record of each live node: NodeID, NodeManagerAddress, Resources (CPU)."""
@@ -127,19 +130,84 @@ def reachable(address: str, timeout: float = 5.0) -> tuple[str, str]:
     return address, own
 
 
-def connect(address: str, cores: int) -> RayCluster:
+AUTH_VARS = ("RAY_AUTH_MODE", "RAY_AUTH_TOKEN", "RAY_AUTH_TOKEN_PATH")
+#: Asks the head's GCS for one key, as a Ray node does when it joins: prints "ok", or "auth" when the head
+#: refuses the token (or its absence); a driver in token mode with no token at all makes Ray abort.
+_PROBE = """
+from ray._raylet import GcsClient
+try:
+    GcsClient(address={address!r}).internal_kv_get(b"zswarm", None, timeout=3)
+    print("ok")
+except Exception as exc:
+    print("auth" if type(exc).__name__ == "AuthenticationError" else "error " + str(exc)[:160])
+"""
+AUTH_TIMEOUT = 5.0
+
+
+def _probe(address: str, env: dict[str, str]) -> str:
+    """"ok", "auth" or "error ..." for the head at ``address`` asked with ``env``'s token settings."""
+    try:
+        out = subprocess.run([sys.executable, "-c", _PROBE.format(address=address)], env=env, capture_output=True,
+                             text=True, timeout=AUTH_TIMEOUT, stdin=subprocess.DEVNULL)
+    except subprocess.TimeoutExpired:
+        return f"error no answer in {AUTH_TIMEOUT:g} s"
+    lines = out.stdout.strip().splitlines()
+    return lines[-1] if lines else "auth"  # Ray aborted: token mode without a token
+
+
+def head_auth(address: str) -> str | None:
+    """Whether the head at ``address`` wants a token ("token") or lets anyone in (None), and, when it
+    wants one, that this driver holds the right one (``RAY_AUTH_TOKEN``, ``RAY_AUTH_TOKEN_PATH`` or
+    ``~/.ray/auth_token``, as Ray reads it): UsageError in one line, within seconds, otherwise. Ray's
+    own driver fails at once without a token but only after about 20 s with a wrong one."""
+    bare = {k: v for k, v in os.environ.items() if k not in AUTH_VARS}
+    answer = _probe(address, bare)
+    if answer == "ok":
+        return None
+    if answer != "auth":
+        raise UsageError(f"cannot reach the Ray cluster at {address}: {answer[6:]} (is its head running?)")
+    has = any(os.environ.get(k) for k in AUTH_VARS[1:]) or (Path.home() / ".ray" / "auth_token").is_file()
+    if has and _probe(address, {**os.environ, "RAY_AUTH_MODE": "token"}) == "ok":
+        os.environ["RAY_AUTH_MODE"] = "token"  # for ray.init below
+        return "token"
+    why = "a wrong token" if has else "no token"
+    raise UsageError(f"the Ray cluster at {address} wants a token and this driver has {why}: set RAY_AUTH_TOKEN_PATH "
+                     "(or RAY_AUTH_TOKEN) to the cluster's token, the one ray get-auth-token prints on its head "
+                     "(docs/cluster.md)")
+
+
+def connect(address: str, cores: int, insecure_ok: bool = False) -> RayCluster:
     """Start or join the cluster at ``address`` (:func:`parse_cluster`); ``cores``: this machine's, shared
-    by the nodes of ``local:K``. UsageError (one line) when it cannot be reached."""
-    ray = import_ray()
+    by the nodes of ``local:K``. UsageError (one line) when it cannot be reached or will not let this
+    driver in. A cluster started here wants a token made for the run (``RAY_AUTH_MODE=token``, the token
+    in the environment of every Ray process it starts, never in a file); joining one that wants none
+    is said in one line (``insecure_ok``: not)."""
     own = "127.0.0.1"
+    auth = "token"
     if not address.startswith("local"):
         address, own = reachable(address)
+        auth = head_auth(address)
+        if auth is None and not insecure_ok:
+            print(f"warning: the Ray cluster at {address} has token authentication off: anyone who can reach its "
+                  "head can run code on every node (docs/cluster.md sets it up; --cluster-insecure-ok silences "
+                  "this)", file=sys.stderr, flush=True)
+    else:
+        import secrets
+
+        os.environ.update(RAY_AUTH_MODE="token", RAY_AUTH_TOKEN=secrets.token_hex(32))
+        os.environ.pop("RAY_AUTH_TOKEN_PATH", None)
+    ray = import_ray()
+    if auth is not None:  # Ray reads the mode and caches the token when it is imported: read them again
+        from ray._raylet import AuthenticationTokenLoader, Config
+
+        Config.initialize("")
+        AuthenticationTokenLoader.instance().reset_cache()
     local = address.startswith("local")
     # a cluster started here gets a folder of its own; short: Ray's socket paths are limited
     run_dir = Path(tempfile.mkdtemp(prefix="zs-ray-", dir="/tmp")) if local else None
     offline_env(run_dir)
     quiet = {"configure_logging": True, "logging_level": "ERROR", "log_to_driver": False}
-    cluster = RayCluster(address, run_dir)
+    cluster = RayCluster(address, run_dir, auth=auth)
     if local:  # a guard that kills the nodes started here if this driver dies
         subprocess.Popen([sys.executable, "-m", "zswarm.cluster.reaper", str(os.getpid()), str(run_dir)],
                          stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, start_new_session=True,

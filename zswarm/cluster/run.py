@@ -49,7 +49,7 @@ def cluster_run(args: argparse.Namespace) -> int:
     check_flags(args)
     if address.startswith("local"):  # its cores and memory are this machine's: refused before a node starts
         plan_from_args(copy.copy(args), cores=local_cores(address, available_cores()), memory_mib=available_mib())
-    cluster = connect(address, available_cores())
+    cluster = connect(address, available_cores(), getattr(args, "cluster_insecure_ok", False))
     links: list[NodeLink] = []
     try:
         driver = cluster.driver_node()

@@ -346,14 +346,23 @@ class Launch:
         """Every run ends with a recording and a summary (:func:`zswarm.launch.ending.finish_recording`)."""
         if "world" not in self.plan.roles or self.world is None or self.world.alive():
             return
+        finish_recording(self.plan, self.world.proc.returncode, self.started_at, self._routing(), _say)
+
+    def _routing(self) -> dict:
+        """What the launcher adds to the summary: the routers and each agent's, the agents that exited
+        with an error (their law failed, or not), how the run was secured, the migration."""
         agent_router = {str(i): self.router_of(i) for i in self.plan.ids} if "agents" in self.plan.roles else {}
         exits = {int(c.name.split("-")[1]): c.proc.returncode for c in self.kids.named("agent")
                  if c.proc.returncode not in (0, None) and c.name not in self.expected_exits}
-        crashes = {"crashed_agents": sorted(exits),
-                   "law_failures": sorted(i for i, code in exits.items() if code == EXIT_LAW_FAILED)}
-        finish_recording(self.plan, self.world.proc.returncode, self.started_at,
-                         {"routers": self.endpoints, "agent_router": agent_router, **crashes,
-                          **self._migration_summary()}, _say)
+        secure = self.plan.secure is not None
+        return {"routers": self.endpoints, "agent_router": agent_router, "crashed_agents": sorted(exits),
+                "law_failures": sorted(i for i, code in exits.items() if code == EXIT_LAW_FAILED),
+                "security": {"tls": secure, "acl": secure, "ray_auth": self.ray_auth}, **self._migration_summary()}
+
+    @property
+    def ray_auth(self) -> str | None:
+        """How the Ray cluster the run used lets drivers in ("token"; None: no cluster, or an open one)."""
+        return None
 
     def _migration_summary(self) -> dict:
         return {} if self.migration is None else {"migration": self.migration.summary(len(self.plan.ids))}

@@ -85,7 +85,6 @@ class Searched:
 def search_phase(plan: Plan, space, task, faults, args: argparse.Namespace, progress: Callable,
                  command: str) -> Searched:
     """Run (or resume) the search and judge the starting set; ``out`` holds what result.json reports."""
-    from zswarm.model.design import check
     from zswarm.provenance import versions
     from zswarm.tune.finalists import finalists
     from zswarm.tune.history import History
