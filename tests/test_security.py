@@ -74,13 +74,14 @@ def probe(sender: zenoh.Session, key: str, arrived, timeout: float = 20.0) -> No
         time.sleep(0.05)
 
 
-def exchange(certs: Path, endpoint: str) -> dict:
+def exchange(certs: Path, endpoint: str, agent_at: str | None = None, guest_at: str | None = None) -> dict:
     """Every role tries to publish a pose and the prey and to answer obstacle queries; an agent
-    listens, queries, and the guest listens too."""
+    listens, queries, and the guest listens too. ``agent_at``, ``guest_at``: the routers the sending
+    agent and the guest connect to (default ``endpoint``, the listener's and the world's)."""
     keys = Keys(RUN, 1.0)
     heard, guest_heard = [], []
-    with (session(certs, "agent", endpoint) as listener, session(certs, "agent", endpoint) as agent,
-          session(certs, "world", endpoint) as world, session(certs, "guest", endpoint) as guest):
+    with (session(certs, "agent", endpoint) as listener, session(certs, "agent", agent_at or endpoint) as agent,
+          session(certs, "world", endpoint) as world, session(certs, "guest", guest_at or endpoint) as guest):
         subs = [listener.declare_subscriber(f"{keys.root}/**",
                                             lambda s: heard.append((str(s.key_expr), s.payload.to_bytes()))),
                 guest.declare_subscriber(f"{keys.root}/**", lambda s: guest_heard.append(s.payload.to_bytes()))]
@@ -118,6 +119,39 @@ def test_rights_follow_the_certificate(certs):
                                      ("prey", "agent"), ("prey", "world"), ("prey", "guest")])
     assert open_["obstacle_answers"] == ["agent", "guest", "world"]
     assert open_["guest_heard"] == sorted(["agent", "world", "guest"] * 2)
+
+
+def start_secure_mesh(kids, certs: Path, open_last: bool = False) -> list[str]:
+    """Three routers meshed over mutual TLS (``zswarm run --routers 3 --secure``), the last one's
+    access control off with ``open_last`` (a node's router widened)."""
+    from zswarm.net.procs import start_mesh
+
+    endpoints = [f"tls/127.0.0.1:{free_port()}" for _ in range(3)]
+    start_mesh(kids, endpoints[:2], extra=["--config", str(certs / "router.json5")])
+    config = certs / "router.json5"
+    if open_last:
+        conf = json.loads(config.read_text())
+        conf["access_control"]["enabled"] = False
+        config = certs / "router-open.json5"
+        config.write_text(json.dumps(conf))
+    start_mesh(kids, endpoints[2:], join=endpoints[0], extra=["--config", str(config)])
+    return endpoints
+
+
+@pytest.mark.parametrize("open_last", [False, True], ids=["every router checks", "one router widened"])
+def test_a_guest_on_any_router_of_a_mesh_reaches_nobody(certs, open_last):
+    """A multi-router secure run: the listener and the world on router 0, an agent on router 1, a
+    guest (a valid certificate, no rights) on router 2. The guest gets no pose, prey or answer to
+    anyone; with router 2's access control off it does (so the check can fail)."""
+    with processes() as kids:
+        e = start_secure_mesh(kids, certs, open_last)
+        got = exchange(certs, e[0], agent_at=e[1], guest_at=e[2])
+    if not open_last:
+        assert got["heard"] == [("5", "agent"), ("prey", "world")]
+        assert got["obstacle_answers"] == ["world"]
+    else:
+        assert ("5", "guest") in got["heard"] and ("prey", "guest") in got["heard"]
+        assert "guest" in got["obstacle_answers"]
 
 
 def test_no_certificate_or_a_foreign_ca_cannot_connect(certs, tmp_path):
@@ -239,6 +273,23 @@ def test_launch_passes_full_zenoh_configs_through(certs, tmp_path):
     assert res.returncode == 0, res.stderr
     s = load_summary(record.with_suffix(".json"))
     assert s["agents_reporting"] == 3 and s["steps"] > 50
+
+
+def test_a_secure_run_over_three_routers_says_so_in_its_summary(tmp_path):
+    """zswarm run --routers 3 --secure DIR (an empty DIR: the CA, one identity per agent and the
+    routers' configs made there): the agents on every router reach the world, and the summary's
+    security block says TLS and access control."""
+    record = tmp_path / "mesh.rrd"
+    res = subprocess.run([sys.executable, str(ROOT / "launch.py"), "--routers", "3", "--secure", str(tmp_path / "pki"),
+                          "--agents", "6", "--duration", "6", "--run", "securemesh", "--record", str(record)],
+                         cwd=tmp_path, capture_output=True, text=True, timeout=180)
+    assert res.returncode == 0, res.stderr[-3000:]
+    assert "open run" not in res.stdout  # a secure run does not say it believes any peer
+    s = load_summary(record.with_suffix(".json"))
+    assert s["security"] == {"tls": True, "acl": True, "ray_auth": None}
+    assert len(s["routers"]) == 3 and all(e.startswith("tls/") for e in s["routers"])
+    assert len(set(s["agent_router"].values())) == 3  # agents on every router
+    assert s["agents_reporting"] == 6 and s["collisions"] == 0 and s["cross_router_heard"] > 0
 
 
 def test_launch_refuses_agents_without_an_identity(per_agent, cli):

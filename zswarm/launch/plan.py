@@ -105,8 +105,11 @@ def plan_from_args(args: argparse.Namespace, cores: int | None = None, memory_mi
     if args.routers > 1 and "router" not in args.role:
         raise UsageError("--routers K starts K routers: give the router role too (or leave --role alone)")
     if args.routers > 1 and args.secure is not None:
-        raise UsageError("--routers K with --secure is not supported yet: run one secure router, or several "
-                         "without --secure")
+        from zswarm.net.security import is_secure_dir, meshes
+
+        if is_secure_dir(args.secure) and not meshes(args.secure):
+            raise UsageError(f"the routers of {args.secure} do not let each other forward (made by an older zswarm): "
+                             "make the directory again with zswarm certs, or give an empty one")
     if args.connect_timeout is not None and not 0 < args.connect_timeout <= 3600:
         raise UsageError(f"--connect-timeout must be between 0 and 3600 seconds (got {args.connect_timeout})")
     if args.restart_after is not None and not args.restart_after >= 0:

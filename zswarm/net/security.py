@@ -14,6 +14,8 @@ agent-I   (made with ``agents=N``, instead of the shared ``agent``) the same, bu
 world     ``zswarm/*/prey``, ``zswarm/*/tick``, ``zswarm/*/control`` (put), and answers
           ``zswarm/*/obstacles`` (queryable, reply)
 both      subscribe, query and watch liveliness anywhere under ``zswarm/**``, and receive from it
+router    (another router of the mesh, ``--routers K``, holding the ``router`` certificate) forward
+          anything under ``zswarm/**``: what it forwards its own access control let in
 anyone    nothing: the default is deny, so a session with another name (``guest``) is connected
           but cannot publish, subscribe, query or answer
 ========  ==========================================================================================
@@ -60,8 +62,12 @@ def access_control(agents: int = 0) -> dict:
         {"id": "world-started", "permission": "allow", "flows": ["ingress"], "messages": ["liveliness_token"],
          "key_exprs": [ANY_RUN.world_started]},
     ]
-    subjects = [{"id": "world", "cert_common_names": ["world"]}]
-    policies = [{"rules": ["world-send", "world-started"], "subjects": ["world"]}]
+    rules.append({"id": "router-forward", "permission": "allow", "flows": ["ingress", "egress"],
+                  "messages": [*RECEIVE, "declare_liveliness_subscriber", "liveliness_query"],
+                  "key_exprs": ["zswarm/**"]})
+    subjects = [{"id": "world", "cert_common_names": ["world"]}, {"id": "routers", "cert_common_names": ["router"]}]
+    policies = [{"rules": ["world-send", "world-started"], "subjects": ["world"]},
+                {"rules": ["router-forward"], "subjects": ["routers"]}]
     if agents == 0:
         rules.append({"id": "agent-send", "permission": "allow", "flows": ["ingress"], "messages": AGENT_SEND,
                       "key_exprs": [ANY_RUN.all_poses, ANY_RUN.all_stats, ANY_RUN.all_alive, ANY_RUN.all_members]})
@@ -134,3 +140,12 @@ def agent_config(directory: Path, agent: int) -> Path:
 
 def is_secure_dir(directory: Path) -> bool:
     return all((Path(directory) / f"{name}.json5").is_file() for name in ROLES)
+
+
+def meshes(directory: Path) -> bool:
+    """Whether the directory's router lets the other routers of a mesh forward (made by this version)."""
+    try:
+        control = json.loads((Path(directory) / "router.json5").read_text()).get("access_control", {})
+    except (OSError, ValueError):
+        return False
+    return any(rule.get("id") == "router-forward" for rule in control.get("rules", []))
