@@ -442,3 +442,21 @@ def test_a_head_that_wants_a_token_lets_in_only_the_right_one(tmp_path, mode):
                                                      for line in out["open-ok"]["stderr"])
         assert json.loads((tmp_path / "open.json").read_text())["security"]["ray_auth"] is None
     assert wait_gone(mark, 10.0) == []
+
+
+def test_a_guest_on_a_secure_clusters_node_reaches_nobody(tmp_path):
+    """zswarm run --cluster local:2 --secure DIR: TLS and access control on every node's router, Ray with
+    a token; a guest with a valid certificate on the second node's router publishes a far pose of agent
+    1, a far prey and a final tick for 5 s: nobody takes any of them (the prey is caught where the world
+    put it, no pose is refused, the run lasts its whole duration), and nothing is left behind."""
+    mark = uuid.uuid4().hex
+    argv, env = offline(tmp_path, str(ROOT / "tests" / "cluster_guest.py"), str(tmp_path), mark=mark)
+    res = subprocess.run(argv, env=env, cwd=tmp_path, capture_output=True, text=True, timeout=400)
+    assert res.returncode == 0, res.stderr[-3000:]
+    out = json.loads(res.stdout.strip().splitlines()[-1])
+    assert out["rc"] == 0 and len(out["routers"]) == 2 and out["puts"] > 100, out
+    s = json.loads((tmp_path / "g.json").read_text())
+    assert s["security"] == {"tls": True, "acl": True, "ray_auth": "token"}
+    assert s["messages_rejected"] == 0 and s["capture_time"] is not None and s["collisions"] == 0, s
+    assert s["world_ticks"] == 401 and s["agents_final_reports"] == 8  # no agent took the guest's final tick
+    assert wait_gone(mark, 10.0) == []

@@ -52,7 +52,8 @@ class ClusterLaunch(Launch):
         for link in self.links:  # the first node is the driver's: the world joins its router
             join = self.endpoints[0] if self.endpoints else None
             try:
-                self.endpoints.append(link.call("start_router", link.info["address"], join, extra))
+                self.endpoints.append(link.call("start_router", link.info["address"], join, extra,
+                                                "tls" if plan.secure is not None else "tcp"))
             except Exception as exc:  # noqa: BLE001 (Ray wraps what the node raised)
                 raise UsageError(f"node {link.label}: its router did not start ({str(exc).splitlines()[-1][:160]})") \
                     from None

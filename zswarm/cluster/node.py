@@ -51,10 +51,11 @@ class NodeHost:
         return {"address": node_address(), "cores": len(os.sched_getaffinity(0)), "hostname": socket.gethostname(),
                 "version": zswarm.__version__, "pid": os.getpid()}
 
-    def start_router(self, host: str, join: str | None, extra: Sequence[str] = ()) -> str:
-        """This node's router on a free port of ``host``, joined to ``join`` (the first node's router)."""
+    def start_router(self, host: str, join: str | None, extra: Sequence[str] = (), proto: str = "tcp") -> str:
+        """This node's router on a free port of ``host``, joined to ``join`` (the first node's router);
+        ``proto`` tls with ``extra`` naming its configuration (``--secure``)."""
         args = [*extra, *(["--connect", join] if join else [])]
-        endpoint = start_router(self.kids, host, extra=args, name="router", stderr=subprocess.PIPE)
+        endpoint = start_router(self.kids, host, proto=proto, extra=args, name="router", stderr=subprocess.PIPE)
         self._follow(self.kids.named("router")[-1].proc.stderr, "router")
         return endpoint
 

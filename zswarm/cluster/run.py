@@ -22,7 +22,9 @@ REFUSED = {
     "ids": "--cluster places every agent itself (--placement); --ids is for machines started by hand",
     "routers": "--cluster runs one router per node",
     "robots": "--robots over a cluster is not supported yet: run robots' agents on their machines by hand",
-    "secure": "--secure over a cluster is not supported yet (zswarm certs would need every node's address)",
+    "secure": "--secure over a cluster of other machines is not supported yet (their routers' certificates would "
+              "need each node's address, handed over securely): use --cluster local or local:K, or run by hand "
+              "with --role and zswarm certs (docs/running.md)",
     "listen": "--cluster picks each node's router endpoint itself",
     "connect": "--cluster joins the routers itself; --connect names a router for machines started by hand",
     "tracks": "--tracks over a cluster is not supported yet (each node would write its agents' tracks on its own disk)",
@@ -31,7 +33,8 @@ REFUSED = {
 
 def check_flags(args: argparse.Namespace) -> None:
     given = {"role": args.role != ["router", "world", "agents"], "ids": args.ids is not None,
-             "routers": args.routers != 1, "robots": args.robots is not None, "secure": args.secure is not None,
+             "routers": args.routers != 1, "robots": args.robots is not None,
+             "secure": args.secure is not None and not args.cluster.startswith("local"),
              "listen": args.listen is not None, "connect": args.connect is not None, "tracks": args.tracks is not None}
     for flag, set_ in given.items():
         if set_:
