@@ -49,11 +49,14 @@ class ClusterLaunch(Launch):
         plan = self.plan
         extra = self.configs.get("router", [])
         self.endpoints = []
+        # every node of a local cluster is this machine: its routers listen on loopback, the address a
+        # --secure run's certificates name (Ray may know the nodes by the machine's own address)
+        local = self.cluster.address.startswith("local")
         for link in self.links:  # the first node is the driver's: the world joins its router
             join = self.endpoints[0] if self.endpoints else None
             try:
-                self.endpoints.append(link.call("start_router", link.info["address"], join, extra,
-                                                "tls" if plan.secure is not None else "tcp"))
+                self.endpoints.append(link.call("start_router", "127.0.0.1" if local else link.info["address"], join,
+                                                extra, "tls" if plan.secure is not None else "tcp"))
             except Exception as exc:  # noqa: BLE001 (Ray wraps what the node raised)
                 raise UsageError(f"node {link.label}: its router did not start ({str(exc).splitlines()[-1][:160]})") \
                     from None
