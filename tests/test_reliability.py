@@ -264,3 +264,20 @@ def test_the_world_repeats_the_final_tick_until_every_agent_has_said_goodbye(tmp
         assert len(finals) >= 6, finals  # about 12 in its 3 s wait; a world that says it once sends 1
         assert finals[-1] - finals[0] > 2.0
     assert load_summary(summary_path)["agents_reporting"] == 0  # the stand-in never reported
+
+
+def test_a_machine_that_cannot_reach_its_router_stops_in_one_line_within_the_timeout(tmp_path):
+    """--role agents (and --role world) started by hand against a router that is not there: one line,
+    exit 1, within --connect-timeout, and no agent or world process started."""
+    port = free_port()  # nobody listens there
+    for role in ("agents", "world"):
+        began = time.monotonic()
+        res = subprocess.run([sys.executable, str(ROOT / "launch.py"), "--role", role, "--connect",
+                              f"tcp/127.0.0.1:{port}", "--agents", "3", "--connect-timeout", "2", "--run", "unreached"],
+                             cwd=tmp_path, capture_output=True, text=True, timeout=60)
+        took = time.monotonic() - began
+        lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
+        assert res.returncode == 1 and len(lines) == 1, res.stderr
+        assert f"cannot reach the router at tcp/127.0.0.1:{port} within 2 s" in lines[0]
+        assert 2.0 <= took < 2.0 + 10.0, took  # the wait, and Python's start
+        assert "agent" not in res.stdout and "Traceback" not in res.stderr

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from zswarm.laws.bound import EXIT_LAW_FAILED
-from zswarm.errors import UsageError
+from zswarm.errors import Failure, UsageError
 from zswarm.launch.chaos import Event, schedule
 from zswarm.launch.configs import agent_config_args, role_configs
 from zswarm.launch.ending import finish_recording
@@ -35,8 +35,11 @@ from zswarm.net.procs import (
     local_host,
     port_in_use,
     start_mesh,
+    wait_for_port,
     world_argv,
 )
+
+ROUTER_WAIT = 15.0  # seconds a machine started by hand waits for the router of --connect (the processes' default)
 
 
 #: How long a world waits for its agents: 30 s, and 0.1 s more per agent (a large swarm forks its
@@ -108,6 +111,8 @@ class Launch:
     def _start(self) -> None:
         plan = self.plan
         self.endpoints = [self.endpoint]
+        if "router" not in plan.roles:  # a machine started by hand: its router is another machine's
+            self._reach_router()
         if "router" in plan.roles:
             proto = self.endpoint.split("/", 1)[0]
             self.endpoints += [f"{proto}/127.0.0.1:{free_port()}" for _ in range(plan.routers - 1)]
@@ -341,6 +346,15 @@ class Launch:
     def _dead_routers(self) -> list[str]:
         """The routers of this run that died (a run stops when one does: its agents are cut off)."""
         return [c.name for c in self.kids.named("router") if not c.alive()]
+
+    def _reach_router(self) -> None:
+        """The router of ``--connect`` answers within the connect timeout, or the run stops here with one
+        line (exit 1), before a world or an agent starts (each would say so in a line of its own)."""
+        host, port = endpoint_host_port(self.endpoint)
+        wait = self.plan.connect_timeout if self.plan.connect_timeout is not None else ROUTER_WAIT
+        if not wait_for_port(local_host(host), port, wait):
+            raise Failure(f"cannot reach the router at {self.endpoint} within {wait:g} s: is it running, and its port "
+                          "open to this machine? (--connect, --connect-timeout)")
 
     def _finish_recording(self) -> None:
         """Every run ends with a recording and a summary (:func:`zswarm.launch.ending.finish_recording`)."""
