@@ -71,3 +71,10 @@ def test_export_refuses_to_overwrite_and_names_what_is_missing(tmp_path):
     assert res.returncode == 2 and "exists; give another path or --force" in res.stderr
     res = run_cli("-m", "zswarm", "export", str(tmp_path / "none.rrd"), "--mcap", str(tmp_path / "y.mcap"), cwd=tmp_path)
     assert res.returncode == 2 and "does not exist" in res.stderr and "Traceback" not in res.stderr
+
+
+def test_export_to_a_folder_it_may_not_write_is_one_line(tmp_path):
+    """A new user's 33-line double traceback: now one line, exit 2, before the recording is read."""
+    res = run_cli("-m", "zswarm", "export", str(tmp_path / "none.rrd"), "--mcap", "/sys/run.mcap", cwd=tmp_path)
+    lines = res.stderr.strip().splitlines()
+    assert res.returncode == 2 and len(lines) == 1 and "cannot write /sys/run.mcap" in lines[0], res.stderr

@@ -207,6 +207,13 @@ def test_replay_reproduces_the_simulator_summary_and_compare_prints_both(cli, tm
     both = json.loads(cmp.stdout)
     assert both[str(a)]["min_pair_distance"] == direct["min_pair_distance"]
     assert both[str(a)]["min_pair_distance"] != both[str(b)]["min_pair_distance"]
+    assert "differ" not in cmp.stderr  # the same scenario, seeds apart: like for like
+    c = tmp_path / "c.rrd"  # a 3-D run of another law beside a 2-D one: said in one line
+    assert cli("-m", "zswarm", "sim", "--scenario", "moving-prey-3d", "--law", "boids", "--duration", "1",
+               "--record", str(c)).returncode == 0
+    odd = cli("-m", "zswarm", "compare", str(a), str(c))
+    assert odd.returncode == 0 and "warning: the two runs differ in scenario static-goal and moving-prey-3d, " \
+        "dimensions 2 and 3, law apf and boids" in odd.stderr, odd.stderr
     missing = cli("-m", "zswarm", "replay", str(tmp_path / "nope.rrd"))
     assert missing.returncode == 2 and "does not exist" in missing.stderr
     (tmp_path / "junk.rrd").write_bytes(b"not a recording")

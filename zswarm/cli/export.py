@@ -30,6 +30,9 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"{args.mcap} exists; give another path or --force")
     if not args.mcap.parent.is_dir():
         raise UsageError(f"the folder of --mcap {args.mcap} does not exist")
+    from zswarm.files import check_writable
+
+    check_writable(args.mcap, (".mcap",))  # a folder it may not write (/sys): one line, before any work
     run = load_run(args.recording)
     counts = export_mcap(run, scenario_of(run), observer_of(run), args.mcap, args.distro)
     agents = sum(1 for topic in counts if topic.startswith("/swarm/agent_"))

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import math
 from pathlib import Path
 from typing import Any
@@ -46,11 +47,26 @@ def run_replay(args: argparse.Namespace) -> int:
     return 0 if not mismatches else 1
 
 
+def differences(a: dict, b: dict) -> list[str]:
+    """What two recordings' configurations were asked to do differently, in words ("dimensions 2 and 3")."""
+    def facts(c: dict) -> dict:
+        law = c.get("law")
+        return {"scenario": c.get("scenario"), "agents": c.get("n_agents"),
+                "dimensions": (c.get("scenario_definition") or {}).get("params", {}).get("dimensions"),
+                "law": law.get("name") if isinstance(law, dict) else "apf"}
+    fa, fb = facts(a), facts(b)
+    return [f"{k} {fa[k]} and {fb[k]}" for k in fa if fa[k] != fb[k] and None not in (fa[k], fb[k])]
+
+
 def run_compare(args: argparse.Namespace) -> int:
     from zswarm.record.replay import load_run, recompute
 
     runs = [(Path(p), load_run(p)) for p in (args.a, args.b)]
     cols = [(p, {**(r.summary or {}), **recompute(r)}) for p, r in runs]
+    differ = differences(runs[0][1].config or {}, runs[1][1].config or {})
+    if differ:  # said, not refused: comparing two settings is what compare is for, but it must be seen
+        print(f"warning: the two runs differ in {', '.join(differ)}: their metrics are not like for like",
+              file=sys.stderr)
     if args.json:
         print(json.dumps({str(p): {k: s.get(k) for k in COMPARED} for p, s in cols}))
         return 0

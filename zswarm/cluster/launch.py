@@ -75,8 +75,8 @@ class ClusterLaunch(Launch):
                 break
             self._spawn_agent(i)
         if not plan.quiet:
-            _say(f"run {self.spec.run!r}, {len(self.plan.ids)} agents on {len(self.links)} nodes "
-                 f"(placement {self.placement})", err=False)
+            nodes = f"{len(self.links)} node{'s' if len(self.links) != 1 else ''}"
+            _say(f"run {self.spec.run!r}, {len(self.plan.ids)} agents on {nodes} (placement {self.placement})", err=False)
             for note in plan.notes:
                 _say(note, err=False)
 
