@@ -150,3 +150,19 @@ def test_a_contact_across_a_lost_pose_is_uncertain_not_a_collision() -> None:
     judge.judge(now=2.0)
     assert judge.collisions == 1 and judge.uncertain == 1  # the onset at 0.2 s is not counted as certain
     assert judge.result()["uncertain_contacts_at_one_time"] == 1
+
+
+def test_a_run_where_no_pair_came_near_says_how_near_at_least() -> None:
+    """No pair within twice the collision distance at one instant: the closest is not walked, and the
+    summary says it was at least that far (a bare null beside a real min_pair_distance read as missing)."""
+    judge = TimedContacts(D)
+    feed(judge, 0, line(0.0, 0.0, 0.0, 1.0, 10))
+    feed(judge, 1, line(3.0, 3.0, 0.0, 1.0, 10))
+    judge.judge(now=1.0)
+    out = judge.result()
+    assert out["closest_at_one_time"] is None and out["closest_at_one_time_at_least"] == 2 * D
+    near = TimedContacts(D)
+    feed(near, 0, line(0.0, 0.0, 0.0, 1.0, 10))
+    feed(near, 1, line(0.3, 0.3, 0.0, 1.0, 10))
+    near.judge(now=1.0)
+    assert near.result()["closest_at_one_time"] == 0.3 and near.result()["closest_at_one_time_at_least"] is None

@@ -131,8 +131,12 @@ def _main(argv: Sequence[str] | None) -> int:
         raise UsageError("--resume works with the free clock only (a lockstep run cannot re-issue its ticks)")
     result = asyncio.run(run_world(args, spec, viewer))
     keys = ("capture_time", "collisions", "min_pair_distance", "final_components", "messages_rejected")
-    timed = ("collisions_at_one_time", "closest_at_one_time") if "collisions_at_one_time" in result else ()
-    print("world: done " + json.dumps({k: result.get(k) for k in keys + timed}), flush=True)
+    done = {k: result.get(k) for k in keys}
+    if "collisions_at_one_time" in result:
+        done["collisions_at_one_time"] = result["collisions_at_one_time"]
+        closest, least = result.get("closest_at_one_time"), result.get("closest_at_one_time_at_least")
+        done["closest_at_one_time"] = closest if closest is not None else f">= {least:g}"  # no pair came that near
+    print("world: done " + json.dumps(done), flush=True)
     return 0
 
 

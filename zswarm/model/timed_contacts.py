@@ -220,8 +220,11 @@ class TimedContacts:
 
     def result(self) -> dict[str, Any]:
         """The summary keys (``*_at_one_time``), judged up to the last instant every pose was in."""
+        walked = math.isfinite(self.closest)
         return {"collisions_at_one_time": self.collisions,
-                "closest_at_one_time": self.closest if math.isfinite(self.closest) else None,
+                # None when no pair ever came within twice the collision distance: then it is at least that
+                "closest_at_one_time": self.closest if walked else None,
+                "closest_at_one_time_at_least": None if walked else 2.0 * self.distance,
                 "judged_at_one_time_s": (self.judged - self.first) if self.first is not None else None,
                 "uncertain_contacts_at_one_time": self.uncertain,
                 "pose_gaps": self.gaps, "poses_too_late_to_judge": self.late,
