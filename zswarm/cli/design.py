@@ -30,6 +30,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--figure", metavar="FILE.png|svg|pdf", type=Path,
                         help="write Fig 9 (Prop 1), the Prop 2 bound and the pair force as plots with labelled "
                              "axes, each bound marked with its exact value, and the verdicts as a table")
+    parser.add_argument("--force", action="store_true", help="overwrite an existing --figure or --save file")
     parser.add_argument("--nearest", action="store_true",
                         help="also search the closest passing set (changing one or two potential values)")
 
@@ -62,6 +63,8 @@ def run(args: argparse.Namespace) -> int:
 
     for path, suffixes in ((args.save, (".rrd",)), (args.figure, FORMATS)):
         if path is not None:
+            if path.is_file() and not args.force:
+                raise UsageError(f"{path} exists; give another path or --force")
             check_writable(path, suffixes)
     report = check(params, dt=dt)
     out: dict[str, Any] = report.to_json()

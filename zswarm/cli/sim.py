@@ -24,7 +24,10 @@ def add_sim_arguments(parser: argparse.ArgumentParser) -> None:
                         help="obstacle-goal combination: additive (eq 12) or multiplicative (eq 14); "
                              "default: the scenario's")
     parser.add_argument("--duration", type=positive_float, default=None, help="simulated seconds")
+    parser.add_argument("--agents", type=positive_int, default=None, metavar="N",
+                        help="N agents (the same as --set n_agents=N, and zswarm run's --agents)")
     parser.add_argument("--record", type=Path, metavar="FILE.rrd", help="write a Rerun recording")
+    parser.add_argument("--force", action="store_true", help="overwrite an existing --record file")
     parser.add_argument("--record-every", type=positive_int, default=1, metavar="K",
                         help="log every K-th step to the recording (default 1)")
     parser.add_argument("--sensing-discs", action="store_true", help="draw each agent's sensing disc")
@@ -50,7 +53,10 @@ def run_sim(args: argparse.Namespace) -> int:
     from zswarm.args import UsageError
     from zswarm.model.design import verdict, warning_line
 
-    scenario = get_scenario(args.scenario, parse_assignments(args.assignments))
+    if args.record is not None and args.record.is_file() and not args.force:
+        raise UsageError(f"{args.record} exists; give another path or --force")
+    agents = {"n_agents": args.agents} if args.agents is not None else {}
+    scenario = get_scenario(args.scenario, {**parse_assignments(args.assignments), **agents})
     scenario.check_placement()  # before the design check, which takes seconds at large N
     from zswarm.laws.registry import bind
 
