@@ -51,27 +51,19 @@ def run_sim(args: argparse.Namespace) -> int:
     from zswarm.sim.simulator import simulate
 
     from zswarm.args import UsageError
-    from zswarm.model.design import verdict, warning_line
+    from zswarm.laws.registry import bind
+    from zswarm.model.design import judged
 
     if args.record is not None and args.record.is_file() and not args.force:
         raise UsageError(f"{args.record} exists; give another path or --force")
     agents = {"n_agents": args.agents} if args.agents is not None else {}
     scenario = get_scenario(args.scenario, {**parse_assignments(args.assignments), **agents})
     scenario.check_placement()  # before the design check, which takes seconds at large N
-    from zswarm.laws.registry import bind
-
     bind(scenario, args.potential)  # a law that does not load or answers wrongly: refused here, in one line
-    design = verdict(scenario.params, scenario.dt)
-    if design["ok"] is None:  # a law the guidelines do not cover
-        if args.require_design:
-            raise UsageError(design["note"] + " (--require-design)")
-        print(f"note: {design['note']}", file=sys.stderr, flush=True)
-    elif not design["ok"]:
-        explain = " ".join(["zswarm design --scenario", args.scenario, *(f"--set {a}" for a in args.assignments)])
-        line = warning_line(design, explain)
-        if args.require_design:
-            raise UsageError(line + " (--require-design)")
-        print(f"warning: {line}", file=sys.stderr, flush=True)
+    explain = " ".join(["zswarm design --scenario", args.scenario, *(f"--set {a}" for a in args.assignments)])
+    design, line = judged(scenario.params, scenario.dt, explain, args.require_design)
+    if line is not None:
+        print(line, file=sys.stderr, flush=True)
     faults = faults_from_args(args)
     safety = safety_mode(scenario, args.safety, faults.active)
     viewer = viewer_from_args(args)

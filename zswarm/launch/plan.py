@@ -336,21 +336,15 @@ def design_command(spec: RunSpec) -> str:
 
 
 def judge_design(spec: RunSpec, required: bool) -> dict:
-    """The design verdict of the set the run will use; one warning line when it fails, or (with
-    ``required``) a usage error before anything starts."""
-    from zswarm.model.design import verdict, warning_line
+    """The design verdict of the set the run will use; one line when it fails, or when the law has no
+    guidelines (then whether the filter is on), or (with ``required``) a usage error before anything
+    starts."""
+    from zswarm.model.design import judged
 
-    result = verdict(spec.scenario.params, spec.scenario.dt)
-    if result["ok"] is None:  # a law the guidelines do not cover
-        if required:
-            raise UsageError(result["note"] + " (--require-design)")
-        print(f"note: {result['note']}" + ("" if spec.safety == "barrier" else "; it is off in this run"),
-              file=sys.stderr, flush=True)
-    elif not result["ok"]:
-        line = warning_line(result, design_command(spec))
-        if required:
-            raise UsageError(line + " (--require-design)")
-        print(f"warning: {line}", file=sys.stderr, flush=True)
+    result, line = judged(spec.scenario.params, spec.scenario.dt, design_command(spec), required)
+    if line is not None:
+        off = result["ok"] is None and spec.safety != "barrier"
+        print(line + ("; it is off in this run" if off else ""), file=sys.stderr, flush=True)
     return result
 
 

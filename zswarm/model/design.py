@@ -301,6 +301,24 @@ def verdict(params: Params, dt: float | None = None) -> dict[str, Any]:
             "interaction": params.interaction.interaction, "n_agents": params.swarm.n_agents}
 
 
+def judged(params: Params, dt: float | None, explain: str, required: bool) -> tuple[dict[str, Any], str | None]:
+    """A run's own check before it starts: its verdict, and the line to print (``note: ...`` for a law
+    the guidelines do not cover, ``warning: ...`` for a failing set; None when it passes); with
+    ``required`` (``--require-design``) either is a :class:`UsageError` instead."""
+    from zswarm.errors import UsageError
+
+    result = verdict(params, dt)
+    if result["ok"] is None:
+        line = result["note"]
+    elif not result["ok"]:
+        line = warning_line(result, explain)
+    else:
+        return result, None
+    if required:
+        raise UsageError(line + " (--require-design)")
+    return result, ("note: " if result["ok"] is None else "warning: ") + line
+
+
 def warning_line(verdict_: dict[str, Any], explain: str) -> str:
     """One line for a run whose set fails: which checks, and the command that explains them."""
     return (f"the design fails for this run ({', '.join(verdict_['failures'])} at N = {verdict_['n_agents']}, "

@@ -275,7 +275,7 @@ class BatchSimulator:
         sensed_o = self.has_obstacle[:, None, :] & (dist - self.radii[:, None, :] <= self.radius[:, None, None])
         psi_o = obstacle_offsets(x[:, :, None, :], self.centers[:, None, :, :], self.radii[:, None, :])
         psi_g = x - goal
-        f = np.empty_like(x)
+        f = np.zeros_like(x)  # runs of another law are filled below; no garbage through saturate
         for g in self.laws:
             r = g.rows
             f[r] = field(psi_g[r], DensePairs(sensed_o[r]), psi_o[r], DensePairs(near[r]), psi_f[r], g.per_agent,
