@@ -39,6 +39,9 @@ from zswarm.net.procs import (
     world_argv,
 )
 
+#: No agent is moved (--migrate-every) in the run's last MOVE_WALL_S wall seconds (or its last simulated
+#: second): a taker process started then, on a loaded machine, may not have the agent when the run ends.
+MOVE_WALL_S = 3.0
 ROUTER_WAIT = 15.0  # seconds a machine started by hand waits for the router of --connect (the processes' default)
 
 
@@ -263,8 +266,9 @@ class Launch:
                 self._stage(self.pending.pop(0), time.monotonic() - t0)
             run_t = None if t0 is None else (time.monotonic() - t0) * self.spec.time_scale
             if (run_t is not None and self.migration is not None and self.world is not None and self.world.alive()
-                    and self.migration.due(run_t) and run_t < self.spec.steps * self.spec.scenario.dt - 1.0):
-                self._migrate(run_t)  # not in the run's last second: a move must be over before it ends
+                    and self.migration.due(run_t)
+                    and run_t < self.spec.steps * self.spec.scenario.dt - max(1.0, MOVE_WALL_S * self.spec.time_scale)):
+                self._migrate(run_t)  # not near the run's end: a move must be over before it ends
             self._note_crashes()
             if self.world is not None and not self.world.alive() and not self.world_down:
                 break
