@@ -71,5 +71,3 @@ def table(rows: list[dict[str, Any]]) -> list[str]:
                    f"{r['closest_pair']:.3f} | {r['reached']}/{r['runs']} | {cap} | {order} | {r['groups']} | "
                    f"{r['stalls']} | {r['interventions']} |")
     return out
-
-

@@ -15,8 +15,6 @@ import hashlib
 import importlib
 import importlib.util
 import inspect
-
-
 import traceback
 from importlib.metadata import entry_points
 from pathlib import Path
@@ -208,5 +206,3 @@ def describe(name: str) -> dict[str, Any]:
             "batched": cls.has_batch(), "state": state, "tunable": bool(cls.ranges) or name == "apf",
             "guidelines": name == "apf",
             "params": params if name != "apf" else "the scenario's potential and interaction (zswarm design)"}
-
-
