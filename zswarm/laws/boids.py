@@ -25,8 +25,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from zswarm.laws.contract import Observations, SwarmLaw, limit, masked_sum, norm, param, unit
+from zswarm.laws.contract import Observations, SwarmLaw, masked_sum, norm, param, unit
 from zswarm.laws.scale import Units
+from zswarm.model.potentials import saturate
 
 
 @dataclass(frozen=True)
@@ -58,7 +59,7 @@ class Boids(SwarmLaw):
         top_b = np.broadcast_to(top, r.shape[:-1])[..., None]
 
         def steer(desired: np.ndarray) -> np.ndarray:
-            return limit(desired - v, p.f_max)
+            return saturate(desired - v, p.f_max)
 
         away = r[..., None, :] - law.neighbour_position
         dist = norm(away)
@@ -74,4 +75,4 @@ class Boids(SwarmLaw):
         a += p.w_ali * np.where(some, steer(top_b * unit(ali)), 0.0)
         a += p.w_coh * np.where(some, steer(top_b * unit(centre - r)), 0.0)
         a += p.w_tgt * steer(top_b * unit(law.target - r))
-        return limit(v + a * law.dt, top) * self.units.speed
+        return saturate(v + a * law.dt, top) * self.units.speed

@@ -245,14 +245,6 @@ def unit(x: np.ndarray) -> np.ndarray:
     return np.divide(x, n, out=np.zeros_like(x), where=n > 0.0)
 
 
-def limit(x: np.ndarray, top: np.ndarray | float) -> np.ndarray:
-    """x scaled down to magnitude ``top`` where longer (``top`` broadcasts against x's leading axes)."""
-    n = norm(x)
-    top = np.broadcast_to(np.asarray(top, dtype=float), n.shape)
-    scale = np.divide(top, n, out=np.ones_like(n), where=n > top)
-    return x * scale[..., None]
-
-
 def masked_sum(values: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """Sum over the slot axis (-2 for vectors (L, K, D), -1 for scalars (L, K)) of the masked-in slots."""
     if values.ndim == mask.ndim + 1:

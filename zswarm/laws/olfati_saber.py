@@ -37,8 +37,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from zswarm.laws.contract import Observations, SwarmLaw, limit, masked_sum, norm, param
+from zswarm.laws.contract import Observations, SwarmLaw, masked_sum, norm, param
 from zswarm.laws.scale import Units
+from zswarm.model.potentials import saturate
 
 
 @dataclass(frozen=True)
@@ -127,7 +128,7 @@ class OlfatiSaber(SwarmLaw):
         last, known = law_state(obs, self.units)
         p_r = np.where(known[..., None], (law.target - last) / dt, 0.0)
         u += -p.c1_gamma * vector_sigma_1(q - law.target) - p.c2_gamma * (v - p_r)
-        command = limit(v + u * dt, law.v_max) * self.units.speed
+        command = saturate(v + u * dt, law.v_max) * self.units.speed
         state = np.concatenate([obs.target, np.ones(obs.lead + (1,))], axis=-1)
         return command, state
 

@@ -29,8 +29,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from zswarm.laws.contract import Observations, SwarmLaw, limit, masked_sum, norm, param, unit
+from zswarm.laws.contract import Observations, SwarmLaw, masked_sum, norm, param, unit
 from zswarm.laws.scale import Units
+from zswarm.model.potentials import saturate
 
 
 @dataclass(frozen=True)
@@ -89,4 +90,4 @@ class Vasarhelyi(SwarmLaw):
         shill_diff = norm(ds)
         shill = np.maximum(shill_diff - braking(gap - p.r0_shill, p.a_shill, p.p_shill), 0.0)[..., None] * unit(ds)
         v_new += masked_sum(shill, obs.obstacle_mask)
-        return limit(v_new, law.v_max) * self.units.speed
+        return saturate(v_new, law.v_max) * self.units.speed
