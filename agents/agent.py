@@ -30,6 +30,7 @@ from zswarm.model import body as bodies
 from zswarm.laws.bound import BoundLaw
 from zswarm.laws.contract import Neighbour, Observation, Obstacle
 from zswarm.model.agent_law import point_step
+from zswarm.model.metrics import obstacle_clearance
 from zswarm.model.safety import Acted, Safety, filter_one
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Bridge
@@ -181,7 +182,7 @@ class Agent:
                      for p in neighbours if b.distance(p) <= radius)
         position = np.array(b.position)
         centers, radii = s.obstacle_arrays
-        gap = np.sqrt(((centers - position) ** 2).sum(axis=1)) - radii if len(radii) else radii
+        gap = obstacle_clearance(position, centers, radii)
         obstacles = tuple(Obstacle(c, float(r)) for c, r, g in zip(centers, radii, gap) if g <= radius)
         return Observation(position, np.array(b.velocity), seen, obstacles, np.array(goal, dtype=float),
                            self.law.context.v_max, self.dt, self.law_state)

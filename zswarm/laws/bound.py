@@ -32,17 +32,21 @@ class FunctionLaw(SwarmLaw):
         return type(self).fn(obs)
 
 
+def raised_at(exc: BaseException) -> str:
+    """`` (file.py:LINE)``: where ``exc`` was raised, for a one-line message ("" without a traceback)."""
+    import traceback
+    from pathlib import Path
+
+    frames = traceback.extract_tb(exc.__traceback__)
+    return f" ({Path(frames[-1].filename).name}:{frames[-1].lineno})" if frames else ""
+
+
 class LawFailed(Failure):
     """A law raised, or answered with something other than a velocity, while a run went on: one line."""
 
     @classmethod
     def of(cls, name: str, exc: BaseException, when: str) -> LawFailed:
-        import traceback
-        from pathlib import Path
-
-        frames = traceback.extract_tb(exc.__traceback__)
-        at = f" ({Path(frames[-1].filename).name}:{frames[-1].lineno})" if frames else ""
-        what = str(exc) if isinstance(exc, LawError) else f"law {name} raised {type(exc).__name__}: {exc}{at}"
+        what = str(exc) if isinstance(exc, LawError) else f"law {name} raised {type(exc).__name__}: {exc}{raised_at(exc)}"
         return cls(f"{what} {when}")
 
 

@@ -15,7 +15,6 @@ import hashlib
 import importlib
 import importlib.util
 import inspect
-import traceback
 from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Any
@@ -23,8 +22,9 @@ from typing import Any
 import numpy as np
 
 from zswarm.errors import ParamError, UsageError
-from zswarm.laws.bound import BoundLaw, LawError, function_law, law_params
+from zswarm.laws.bound import BoundLaw, LawError, function_law, law_params, raised_at
 from zswarm.laws.contract import Context, Neighbour, Obstacle, Observation, Observations, SwarmLaw
+from zswarm.model.metrics import obstacle_clearance
 
 GROUP = "zswarm.laws"
 BUILTIN: dict[str, str] = {
@@ -45,9 +45,7 @@ def _attr(module: Any, attr: str, where: str) -> Any:
 
 
 def _import_failed(where: str, exc: BaseException) -> UsageError:
-    last = traceback.extract_tb(exc.__traceback__)[-1] if exc.__traceback__ else None
-    at = f" ({Path(last.filename).name}:{last.lineno})" if last else ""
-    return UsageError(f"law {where} does not import: {type(exc).__name__}: {exc}{at}")
+    return UsageError(f"law {where} does not import: {type(exc).__name__}: {exc}{raised_at(exc)}")
 
 
 @functools.lru_cache(maxsize=64)
@@ -167,7 +165,7 @@ def probe_observation(scenario, state_size: int) -> Observation:
     if not near:
         near = [me + np.eye(len(me))[0] * radius * 0.5]
     centres, radii = scenario.obstacle_arrays()
-    gap = np.linalg.norm(centres - me, axis=1) - radii if len(radii) else np.zeros(0)
+    gap = obstacle_clearance(me, centres, radii)
     obstacles = tuple(Obstacle(c.copy(), float(r)) for c, r, g in zip(centres, radii, gap) if g <= radius)
     return Observation(position=me.copy(), velocity=np.zeros_like(me),
                        neighbours=tuple(Neighbour(q.copy(), np.zeros_like(me), 0.1) for q in near),
@@ -186,9 +184,8 @@ def _probe(bound: BoundLaw, scenario) -> None:
     except LawError as exc:
         raise UsageError(f"{exc} (on a probe observation from {scenario.name})") from None
     except Exception as exc:  # noqa: BLE001 - the user's code may raise anything
-        last = traceback.extract_tb(exc.__traceback__)[-1]
-        raise UsageError(f"law {bound.name} raised {type(exc).__name__}: {exc} ({Path(last.filename).name}:"
-                         f"{last.lineno}) on a probe observation from {scenario.name}") from None
+        raise UsageError(f"law {bound.name} raised {type(exc).__name__}: {exc}{raised_at(exc)} on a probe "
+                         f"observation from {scenario.name}") from None
 
 
 def describe(name: str) -> dict[str, Any]:
