@@ -24,7 +24,7 @@ from zswarm.launch.hosts import Host, LocalHost
 from zswarm.launch.migration import Migration
 from zswarm.launch.placement import place
 from zswarm.launch.plan import Plan
-from zswarm.net.config import endpoint_host_port
+from zswarm.net.config import CONNECT_TIMEOUT, endpoint_host_port
 from zswarm.launch.world_lines import DONE, forward_lines
 from zswarm.launch.world_watch import WorldWatch
 from zswarm.net.procs import (
@@ -42,7 +42,6 @@ from zswarm.net.procs import (
 #: No agent is moved (--migrate-every) in the run's last MOVE_WALL_S wall seconds (or its last simulated
 #: second): a taker process started then, on a loaded machine, may not have the agent when the run ends.
 MOVE_WALL_S = 3.0
-ROUTER_WAIT = 15.0  # seconds a machine started by hand waits for the router of --connect (the processes' default)
 
 
 #: How long a world waits for its agents: 30 s, and 0.1 s more per agent (a large swarm forks its
@@ -292,8 +291,7 @@ class Launch:
     def _agents_verdict(self) -> int:
         """The exit status of a machine that runs agents and no world: 1, said in the last line, when any
         of its agents exited with an error (none could reach the router, an id had no spawn position...)."""
-        failed = sorted(int(c.name.split("-")[1]) for c in self.kids.named("agent")
-                        if c.proc.returncode not in (0, None) and c.name not in self.expected_exits)
+        failed = sorted(self._agent_errors())
         if not failed:
             return 0
         from zswarm.launch.plan import id_ranges
@@ -355,7 +353,7 @@ class Launch:
         """The router of ``--connect`` answers within the connect timeout, or the run stops here with one
         line (exit 1), before a world or an agent starts (each would say so in a line of its own)."""
         host, port = endpoint_host_port(self.endpoint)
-        wait = self.plan.connect_timeout if self.plan.connect_timeout is not None else ROUTER_WAIT
+        wait = self.plan.connect_timeout if self.plan.connect_timeout is not None else CONNECT_TIMEOUT
         if not wait_for_port(local_host(host), port, wait):
             raise Failure(f"cannot reach the router at {self.endpoint} within {wait:g} s: is it running, and its port "
                           "open to this machine? (--connect, --connect-timeout)")
@@ -366,12 +364,16 @@ class Launch:
             return
         finish_recording(self.plan, self.world.proc.returncode, self.started_at, self._routing(), _say)
 
+    def _agent_errors(self) -> dict[int, int]:
+        """The agents whose processes exited with an error nobody asked for: id -> exit status."""
+        return {int(c.name.split("-")[1]): c.proc.returncode for c in self.kids.named("agent")
+                if c.proc.returncode not in (0, None) and c.name not in self.expected_exits}
+
     def _routing(self) -> dict:
         """What the launcher adds to the summary: the routers and each agent's, the agents that exited
         with an error (their law failed, or not), how the run was secured, the migration."""
         agent_router = {str(i): self.router_of(i) for i in self.plan.ids} if "agents" in self.plan.roles else {}
-        exits = {int(c.name.split("-")[1]): c.proc.returncode for c in self.kids.named("agent")
-                 if c.proc.returncode not in (0, None) and c.name not in self.expected_exits}
+        exits = self._agent_errors()
         secure = self.plan.secure is not None
         return {"routers": self.endpoints, "agent_router": agent_router, "crashed_agents": sorted(exits),
                 "law_failures": sorted(i for i, code in exits.items() if code == EXIT_LAW_FAILED),

@@ -16,6 +16,11 @@ from zswarm.args import DEFAULT_VIEWER_URL, ConnectAction
 from zswarm.errors import UsageError
 
 
+#: How long a process keeps trying to reach its router at start (``--connect-timeout``), and a machine
+#: started by hand waits for the router of its ``--connect``.
+CONNECT_TIMEOUT = 15.0
+
+
 def add_zenoh_args(parser: argparse.ArgumentParser, default_mode: str = "client", viewer: bool = False) -> None:
     """The standard Zenoh arguments of the zenoh-python examples. ``viewer``: ``--connect`` also takes
     a Rerun viewer URL (``rerun+http://...``, or no value), for a program that records."""
@@ -39,8 +44,8 @@ def add_zenoh_args(parser: argparse.ArgumentParser, default_mode: str = "client"
     parser.set_defaults(default_mode=default_mode)
     group.add_argument("--scout", action="store_true",
                        help="enable multicast scouting (off by default so runs never meet by accident)")
-    group.add_argument("--connect-timeout", type=float, default=15.0, metavar="S",
-                       help="keep trying to reach the router this long at start (default 15 s)")
+    group.add_argument("--connect-timeout", type=float, default=CONNECT_TIMEOUT, metavar="S",
+                       help=f"keep trying to reach the router this long at start (default {CONNECT_TIMEOUT:g} s)")
 
 
 def zenoh_config(mode: str | None = "client", connect: Iterable[str] = (), listen: Iterable[str] = (),

@@ -51,7 +51,7 @@ class Simulator:
         p = scenario.params
         self.law = compile_law(p, self.combination, scenario.formation)  # once, shared with the observer
         self.bound = bind(scenario, self.combination)  # the law the agents run (apf: self.law, on flat pairs)
-        self.law_state = self.bound.start_state((len(scenario.initial_positions(np.random.default_rng(seed))),))
+        self.law_state = self.bound.start_state((scenario.n_agents,))
         self.rng = np.random.default_rng(seed)
         self.body = bodies.body_spec(p)
         self.state = bodies.start(self.body, scenario.initial_positions(self.rng), np.asarray(scenario.prey_start))
