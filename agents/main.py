@@ -32,9 +32,6 @@ from zswarm.net.rings import CELL_CAPACITY
 from zswarm.net.runspec import RunSpec, add_run_args, spec_from_args
 from zswarm.stopping import stop_on_signals
 
-#: The longest an agent waits, at its end, for the world to have its final report (Process.flush).
-FLUSH_TIMEOUT = 2.0
-
 if TYPE_CHECKING:
     from agents.robot_link import RobotLink
     from zswarm.ros.robots import RobotsFile
@@ -174,19 +171,7 @@ class Process:
         if final_stats:  # the run's totals: blocked rather than dropped on a congested link, sent at once
             self.session.put(self.spec.keys.stats(self.id), self.agent.stats(final=True), encoding=msg.ENCODING,
                              congestion_control=zenoh.CongestionControl.BLOCK, express=True)
-            self.flush()
         teardown(self.bridge, self.declared, self.session)
-
-    def flush(self, timeout: float = FLUSH_TIMEOUT) -> None:
-        """Until the world has the final report: a query to the world after it, on the same link, comes
-        back only once the report went before it (closing the session at once could drop a report still
-        queued on a loaded machine, and withdraw the agent's token before it: the world then stopped
-        waiting for it). Bounded by ``timeout``; a world that is gone answers at once with nothing."""
-        try:
-            for _ in self.session.get(self.spec.keys.positions, timeout=timeout):
-                pass
-        except Exception:  # noqa: BLE001 - a lost router: nothing more can be done for the report
-            pass
         if self.tracks is not None and self.agent.track:
             write_track(self.tracks, self.id, self.agent.track, self.spec.scenario.dimensions)
 
