@@ -94,3 +94,29 @@ def test_every_law_runs_in_a_batch_as_alone_with_faults_and_a_law_without_a_batc
         assert batch.outcomes[r].collisions == alone.summary["collisions"]
         assert batch.outcomes[r].safety_interventions == alone.summary.get("safety_interventions", 0), r
     assert np.ptp(batch.trajectory[-1, :, :, 0]) > 0.1  # the laws moved the swarms differently
+
+
+def test_the_tally_counts_onsets_per_run_and_a_single_run_is_a_batch_of_one() -> None:
+    """The one tally: a pair in contact for three steps is one collision, of its own run only; the same
+    pair index in another run is another pair. And run_outcome (the grid simulator as a batch of one)
+    gives the outcome the batched simulator gives that run."""
+    from zswarm.sim.outcome import run_outcome
+    from zswarm.sim.tally import OutcomeTally, Sensed
+
+    tally = OutcomeTally(2, 3, 0.1, np.array([0.5, 0.5]), np.array([0.1, 0.1]))
+    none = np.zeros(0, dtype=np.intp)
+    x, prey = np.zeros((2, 3, 2)), np.ones((2, 2))
+    for step, (runs, dist) in enumerate((([0, 1], [0.15, 0.5]), ([0, 1], [0.1, 0.15]), ([0, 1], [0.12, 0.1]),
+                                         ([0, 1], [0.5, 0.1]), ([0, 1], [0.1, 0.1]))):
+        runs = np.array(runs)
+        tally.observe(step, x, prey, Sensed(runs, np.zeros(len(runs), dtype=np.intp), np.ones(len(runs), dtype=np.intp),
+                                            np.array(dist), none, none, none, np.zeros(0)))
+    assert tally.collisions.tolist() == [2, 1]  # run 0: steps 0 and 4; run 1: from step 1 on, never apart
+    assert tally.min_pair.tolist() == [0.1, 0.1]
+
+    scenario = get_scenario("moving-prey", {"c_a": 5.0})  # an attraction that crushes two pairs
+    alone, batched = run_outcome(scenario, 0), simulate_batch([Member(scenario, 0)], scenario.steps).outcomes[0]
+    assert alone.collisions == batched.collisions > 0 and alone.capture_time == batched.capture_time
+    assert alone.final_components == batched.final_components
+    assert alone.min_pair_distance == pytest.approx(batched.min_pair_distance, abs=1e-9)
+    assert alone.final_median_nearest == pytest.approx(batched.final_median_nearest, abs=1e-9)

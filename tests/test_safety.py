@@ -339,10 +339,11 @@ def test_under_a_common_delay_a_quiet_neighbour_deep_inside_stays_guarded_in_age
 
     channel = BatchChannel(4, [FaultModel()], 0.05, np.array([1.0]), np.array([1.0]))
     k = 100
-    for who, ((x, y), age, _) in late.items():
+    for who, ((x, y), age, received) in late.items():  # the same poses, sent and received at the same steps
         channel.belief_stamp[0, 0, who] = k - int(round(age / 0.05))
+        channel.belief_received[0, 0, who] = k - int(round((now - received) / 0.05))
         channel.belief_pos[0, 0, who] = (x, y)
-    positions = np.array([[[0.0, 0.0], [0.5, 0.0], [0.0, -0.3], [-2.0, 0.0]]])  # 3 has left the cells
+    positions = np.array([[[0.0, 0.0], [0.5, 0.0], [0.0, -0.3], [-2.5, 0.0]]])  # 3 has left the cells
     channel.history[0, k % channel.slots, :4] = positions[0]  # where the member tokens say they are
     mask, _, ages = channel.known(k, positions)
     assert mask[0, 0].tolist() == [False, True, True, False]
@@ -437,6 +438,7 @@ def test_a_quiet_neighbour_whose_member_token_is_in_the_cells_is_guarded_whateve
     k = 100
     channel.belief_stamp[0, 0, 1], channel.belief_pos[0, 0, 1] = k, (0.5, 0.0)
     channel.belief_stamp[0, 0, 3], channel.belief_pos[0, 0, 3] = k - 40, (-0.9, 0.0)  # quiet 2 s
+    channel.belief_received[0, 0, [1, 3]] = k, k - 40
     positions = np.array([[[0.0, 0.0], [0.5, 0.0], [5.0, 5.0], [-0.9, 0.0]]])
     for then, three in ((k - 2, (-0.9, 0.0)), (k, (-3.0, 0.0))):  # tokens lag by the latency (2 steps)
         channel.history[0, then % channel.slots, :4] = [*positions[0, :3], three]
@@ -471,6 +473,20 @@ def test_a_quiet_neighbour_whose_poses_came_through_a_slower_path_is_given_that_
     got = dict(sensing.sense(None, 0.5, 1.0, 0.05)[1])
     assert set(got) == {(0.5, 0.0), (-0.9, 0.0)}
     assert got[(-0.9, 0.0)] == pytest.approx(5.05, abs=0.01)  # guarded with its whole age
+
+    # the simulators let them go by the same rule, in steps (their tokens far outside the cells)
+    from zswarm.model.faults import FaultModel
+    from zswarm.sim.batch_channel import BatchChannel
+
+    channel, k = BatchChannel(6, [FaultModel()], 0.05, np.array([1.0]), np.array([1.0])), 200
+    for who, (p, sent, received) in heard.items():
+        channel.belief_stamp[0, 0, who] = k - int(round(sent / 0.05))
+        channel.belief_received[0, 0, who] = k - int(round(received / 0.05))
+        channel.belief_pos[0, 0, who] = p
+    positions = np.zeros((1, 6, 2))
+    positions[0, 1:] = 50.0
+    channel.history[0, k % channel.slots, :6] = positions[0]
+    assert np.flatnonzero(channel.known(k, positions)[0][0, 0]).tolist() == [1, 3]
 
 
 def test_poses_that_waited_in_a_queue_are_not_refused_as_jumps_but_a_forged_leap_is():

@@ -95,6 +95,26 @@ def touching(clearance: np.ndarray, robot_radius: np.ndarray | float) -> np.ndar
     return clearance < np.asarray(robot_radius)
 
 
+def pair_keys(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """One int64 key per pair (a, b) of non-negative integers below 2^31 (agent ids, obstacle indices)."""
+    return (np.asarray(a, dtype=np.int64) << 32) | np.asarray(b, dtype=np.int64)
+
+
+class Onsets:
+    """Contacts counted as onsets: a pair (two agents, or an agent and an obstacle) counts when it is in
+    contact now and was not at the previous observation. The one rule of every collision count."""
+
+    def __init__(self) -> None:
+        self.was = np.empty(0, dtype=np.int64)
+
+    def fresh(self, keys: np.ndarray) -> np.ndarray:
+        """Which of this observation's contacts (:func:`pair_keys`) began since the last one."""
+        keys = np.asarray(keys, dtype=np.int64)
+        out = ~np.isin(keys, self.was)
+        self.was = keys
+        return out
+
+
 def median_nearest(nearest: np.ndarray) -> float:
     """The median nearest-neighbour distance over the agents that have one within R (inf: none); NaN
     when no agent has one."""
@@ -181,18 +201,16 @@ class Summary:
     series: dict[str, array] = field(default_factory=lambda: {k: array("d") for k in METRIC_NAMES})
     collisions: int = 0
     obstacle_collisions: int = 0
-    _pairs: set[tuple[int, int]] = field(default_factory=set)
-    _contacts: set[tuple[int, int]] = field(default_factory=set)
+    _pairs: Onsets = field(default_factory=Onsets)
+    _contacts: Onsets = field(default_factory=Onsets)
 
     def add(self, t: float, metrics: dict[str, float], colliding: np.ndarray, contacts: np.ndarray) -> None:
         self.times.append(float(t))
         for k in METRIC_NAMES:
             self.series[k].append(metrics[k])
-        pairs = {(int(a), int(b)) for a, b in colliding}
-        touch = {(int(a), int(b)) for a, b in contacts}
-        self.collisions += len(pairs - self._pairs)
-        self.obstacle_collisions += len(touch - self._contacts)
-        self._pairs, self._contacts = pairs, touch
+        colliding, contacts = np.asarray(colliding).reshape(-1, 2), np.asarray(contacts).reshape(-1, 2)
+        self.collisions += int(self._pairs.fresh(pair_keys(colliding[:, 0], colliding[:, 1])).sum())
+        self.obstacle_collisions += int(self._contacts.fresh(pair_keys(contacts[:, 0], contacts[:, 1])).sum())
 
     def capture_time(self) -> float | None:
         d = np.asarray(self.series["centroid_goal_distance"])

@@ -29,6 +29,16 @@ def subscription_radius(sensing_radius, v_max, dt):
     return sensing_radius + step_reach(v_max, dt)
 
 
+def cell_meets(point: np.ndarray, other: np.ndarray, r, cell_size) -> np.ndarray:
+    """Whether the cell (a square, in 3-D a cube, of side ``cell_size`` on the grid through the origin)
+    that holds ``other`` meets the disc (ball) of radius ``r`` about ``point``, broadcast over leading
+    axes: the one home of which cells an agent listens to, as a test on positions
+    (:func:`zswarm.net.keys.cells_in_disc` lists the same cells by key)."""
+    lo = np.floor(np.asarray(other, dtype=float) / cell_size) * cell_size
+    gap = np.clip(point, lo, lo + cell_size) - point
+    return np.einsum("...k,...k->...", gap, gap) <= np.square(r)
+
+
 def _keys(cells: np.ndarray) -> np.ndarray:
     off = _OFFSET[cells.shape[1]]
     key = cells[:, 0] + off

@@ -28,6 +28,7 @@ from typing import Sequence
 import numpy as np
 
 from zswarm.errors import UsageError
+from zswarm.model.neighbours import cell_meets
 
 RUN_ID = re.compile(r"^[A-Za-z0-9_.-]{1,64}$")
 
@@ -192,9 +193,7 @@ def in_reach(positions: np.ndarray, r: float, cell_size: float) -> np.ndarray:
     radius r meets (:func:`cells_in_disc`), so a lossless transport hands i every pose of j."""
     p = np.asarray(positions, dtype=float)
     p = p.reshape(-1, p.shape[-1] if p.ndim > 1 else 2)
-    lo = np.floor(p / cell_size) * cell_size  # each agent's cell
-    nearest = np.clip(p[:, None, :], lo[None, :, :], lo[None, :, :] + cell_size)  # [i, j]: of j's cell to i
-    meets = ((nearest - p[:, None, :]) ** 2).sum(axis=2) <= r * r
+    meets = cell_meets(p[:, None, :], p[None, :, :], r, cell_size)  # [i, j]: j's cell meets i's disc
     np.fill_diagonal(meets, False)
     return meets
 

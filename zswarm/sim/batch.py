@@ -17,19 +17,14 @@ hundred) one dense program over all runs costs far less than B grid searches. Fa
 seeded generator, so each run is the run :func:`zswarm.sim.simulator.simulate` makes alone, up to the
 order of floating-point sums (``tests/test_batch.py`` holds every position within 1e-9 at every step).
 
-Only the metrics a search needs are kept per run (:class:`BatchOutcome`): capture time, the closest
-two agents came, collisions (onsets, as :class:`zswarm.model.metrics.Summary` counts them), the
-closest an agent came to an obstacle, obstacle contacts and the final distance to the prey, each
-with the definition :mod:`zswarm.model.metrics` gives it.
+Each run's outcome is folded by the one step loop and tally (:mod:`zswarm.sim.tally`) that a single
+run of :func:`zswarm.sim.outcome.run_outcome` goes through as a batch of one.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass
-from typing import Any
-
 import numpy as np
 
 from zswarm.laws.bound import BoundLaw, LawFailed
@@ -49,6 +44,7 @@ from zswarm.model.prey import PreyMotion
 from zswarm.model.safety_tally import safety_of
 from zswarm.model.scenarios import Scenario
 from zswarm.sim.batch_channel import BatchChannel
+from zswarm.sim.tally import Outcome, OutcomeTally, Sensed, drive
 
 #: Dense pairs cost B N^2 memory per step; beyond this N use :func:`zswarm.sim.simulator.simulate`.
 MAX_AGENTS = 1000
@@ -67,26 +63,6 @@ class Member:
     @property
     def faulty(self) -> bool:
         return self.faults is not None and self.faults.active
-
-
-@dataclass(frozen=True)
-class BatchOutcome:
-    """What one run of a batch measured (the matching keys of ``simulate(...).summary``)."""
-
-    capture_time: float | None
-    min_pair_distance: float
-    collisions: int
-    min_obstacle_clearance: float | None
-    obstacle_collisions: int
-    final_centroid_goal_distance: float
-    final_components: int  # groups of the sensing graph at the end
-    final_median_nearest: float | None  # median distance to the nearest neighbour within R, at the end
-    safety_interventions: int = 0  # agent-steps the safety filter changed (zswarm.model.safety_tally)
-    safety_stalled_ticks: int = 0
-    safety_braked_ticks: int = 0
-
-    def to_dict(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
 
 
 def _column(values: list[float], dims: int) -> np.ndarray:
@@ -236,9 +212,10 @@ class BatchSimulator:
                                      velocities=bool(self.contract))
                         if len(self.faulty) else None)
         self.off_diagonal = ~np.eye(self.n, dtype=bool)
+        self.upper = np.triu(np.ones((self.n, self.n), dtype=bool), 1)
         self.step_index = 0
         self.filters = _safety_groups(members)
-        self.safety_counts = np.zeros((b, 3), dtype=np.int64)  # interventions, stalled, braked (agent-steps)
+        self.counts = np.zeros((b, 3), dtype=np.int64)  # interventions, stalled, braked (agent-steps)
         self._pending_counts: np.ndarray | None = None
 
     # -- the control law -------------------------------------------------------------------------------
@@ -353,7 +330,7 @@ class BatchSimulator:
         """Move each run's prey (from the agents' current positions), then the agents' bodies under the
         commands ``v``."""
         if self._pending_counts is not None:  # counted when applied, as the simulator and the agents do
-            self.safety_counts += self._pending_counts
+            self.counts += self._pending_counts
             self._pending_counts = None
         self.prey = self._prey_step()
         x, u, h = self.state.position.copy(), self.state.velocity.copy(), self.state.heading.copy()
@@ -363,6 +340,21 @@ class BatchSimulator:
         self.state = bodies.BodyState(x, u, h)
         self.step_index += 1
 
+    def safety_counts(self) -> np.ndarray:
+        """(B, 3): the agent-steps each run's filter changed, stalled and braked (applied steps)."""
+        return self.counts
+
+    def sensed(self) -> Sensed:
+        """What every run senses now, for the tally: the pairs of its sensing graph (dense) and its
+        sensed obstacles."""
+        x = self.positions
+        d = x[:, :, None, :] - x[:, None, :, :]
+        dist = np.sqrt(np.einsum("bijk,bijk->bij", d, d))
+        r, i, j = np.nonzero((dist <= self.radius[:, None, None]) & self.upper)
+        clearance = metrics.obstacle_clearance(x[:, :, None, :], self.centers[:, None, :, :], self.radii[:, None, :])
+        ro, a, m = np.nonzero(self.has_obstacle[:, None, :] & (clearance <= self.radius[:, None, None]))
+        return Sensed(r, i, j, dist[r, i, j], ro, a, m, clearance[ro, a, m])
+
     def _prey_step(self) -> np.ndarray:
         """:func:`zswarm.model.prey.step` for every run, one call per motion the runs share."""
         out = self.prey.copy()
@@ -371,90 +363,25 @@ class BatchSimulator:
         return out
 
 
-class _Tally:
-    """The per-run metrics of :class:`BatchOutcome`, folded step by step (as Summary folds them)."""
-
-    def __init__(self, sim: BatchSimulator) -> None:
-        b, n = sim.positions.shape[:2]
-        self.sim = sim
-        self.capture_radius = np.array([m.scenario.capture_radius for m in sim.members])
-        self.robot = np.array([m.scenario.params.swarm.robot_radius for m in sim.members])
-        self.capture_step = np.full(b, -1)
-        self.min_pair = np.full(b, np.inf)
-        self.min_clearance = np.full(b, np.inf)
-        self.collisions = np.zeros(b, dtype=np.int64)
-        self.contacts = np.zeros(b, dtype=np.int64)
-        self.upper = np.triu(np.ones((n, n), dtype=bool), 1)
-        self.was_close = np.zeros((b, n, n), dtype=bool)
-        self.was_touching = np.zeros(sim.radii.shape[:1] + (n,) + sim.radii.shape[1:], dtype=bool)
-        self.centroid_distance = np.zeros(b)
-
-    def observe(self) -> None:
-        sim, x = self.sim, self.sim.positions
-        self.centroid_distance = metrics.centroid_goal_distance(x, sim.prey)
-        now = (self.capture_step < 0) & metrics.caught(self.centroid_distance, self.capture_radius)
-        self.capture_step[now] = sim.step_index
-        d = x[:, :, None, :] - x[:, None, :, :]
-        dist = np.sqrt(np.einsum("bijk,bijk->bij", d, d))
-        self.min_pair = np.minimum(self.min_pair, np.where(self.upper, dist, np.inf).min(axis=(1, 2)))
-        within = dist <= sim.radius[:, None, None]  # Summary counts pairs of the sensing graph
-        close = within & self.upper & metrics.too_close(dist, self.robot[:, None, None])
-        self.collisions += (close & ~self.was_close).sum(axis=(1, 2))
-        self.was_close = close
-        clearance = metrics.obstacle_clearance(x[:, :, None, :], sim.centers[:, None, :, :], sim.radii[:, None, :])
-        sensed = sim.has_obstacle[:, None, :] & (clearance <= sim.radius[:, None, None])
-        clearance = np.where(sensed, clearance, np.inf)
-        self.min_clearance = np.minimum(self.min_clearance, clearance.min(axis=(1, 2), initial=np.inf))
-        touch = metrics.touching(clearance, self.robot[:, None, None])
-        self.contacts += (touch & ~self.was_touching).sum(axis=(1, 2))
-        self.was_touching = touch
-
-    def final_shape(self) -> tuple[list[int], list[float | None]]:
-        """Groups of the sensing graph and median nearest-neighbour distance of each run, now."""
-        x, radius = self.sim.positions, self.sim.radius
-        groups, nearest = [], []
-        for r in range(len(x)):
-            d = np.linalg.norm(x[r][:, None] - x[r][None], axis=-1)
-            np.fill_diagonal(d, np.inf)
-            i, j = np.nonzero(d <= radius[r])
-            groups.append(len(np.unique(metrics.components(len(d), i, j))))
-            median = metrics.median_nearest(np.where(d <= radius[r], d, np.inf).min(axis=1))
-            nearest.append(None if math.isnan(median) else median)
-        return groups, nearest
-
-    def outcomes(self) -> list[BatchOutcome]:
-        dt = self.sim.dt
-        groups, nearest = self.final_shape()
-        return [BatchOutcome(
-            capture_time=None if s < 0 else s * dt, min_pair_distance=float(self.min_pair[r]),
-            collisions=int(self.collisions[r]),
-            min_obstacle_clearance=float(self.min_clearance[r]) if math.isfinite(self.min_clearance[r]) else None,
-            obstacle_collisions=int(self.contacts[r]),
-            final_centroid_goal_distance=float(self.centroid_distance[r]),
-            final_components=groups[r], final_median_nearest=nearest[r],
-            safety_interventions=int(self.sim.safety_counts[r, 0]), safety_stalled_ticks=int(self.sim.safety_counts[r, 1]),
-            safety_braked_ticks=int(self.sim.safety_counts[r, 2]))
-            for r, s in enumerate(self.capture_step)]
-
-
 @dataclass
 class BatchResult:
-    outcomes: list[BatchOutcome]
-    trajectory: np.ndarray | None = None  # (steps + 1, B, N, 2) when kept
-    prey_trajectory: np.ndarray | None = None  # (steps + 1, B, 2)
+    outcomes: list[Outcome]
+    trajectory: np.ndarray | None = None  # (steps + 1, B, N, D) when kept
+    prey_trajectory: np.ndarray | None = None  # (steps + 1, B, D)
 
 
 def simulate_batch(members: list[Member], steps: int, keep_trajectory: bool = False) -> BatchResult:
-    """Run every member for ``steps`` steps (the loop of :func:`zswarm.sim.simulator.simulate`)."""
+    """Run every member for ``steps`` steps through the one step loop (:func:`zswarm.sim.tally.drive`)."""
     sim = BatchSimulator(members)
-    tally = _Tally(sim)
-    traj = np.empty((steps + 1, *sim.positions.shape)) if keep_trajectory else None
-    prey_traj = np.empty((steps + 1, *sim.prey.shape)) if keep_trajectory else None
-    for k in range(steps + 1):
-        v = sim.velocities()
-        if traj is not None:
-            traj[k], prey_traj[k] = sim.positions, sim.prey
-        tally.observe()
-        if k < steps:
-            sim.advance(v)
-    return BatchResult(tally.outcomes(), traj, prey_traj)
+    tally = OutcomeTally(len(members), sim.n, sim.dt, np.array([m.scenario.capture_radius for m in members]),
+                         np.array([m.scenario.params.swarm.robot_radius for m in members]))
+    if not keep_trajectory:
+        drive(sim, steps, tally)
+        return BatchResult(tally.outcomes(sim.safety_counts()))
+    traj, prey_traj = np.empty((steps + 1, *sim.positions.shape)), np.empty((steps + 1, *sim.prey.shape))
+
+    def keep(k: int, v: np.ndarray) -> None:
+        traj[k], prey_traj[k] = sim.positions, sim.prey
+
+    drive(sim, steps, tally, watch=keep)
+    return BatchResult(tally.outcomes(sim.safety_counts()), traj, prey_traj)

@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 from zswarm.model.faults import FaultModel
-from zswarm.model.neighbours import subscription_radius
+from zswarm.model.neighbours import cell_meets, subscription_radius
 
 BLOCK = 32  # steps of uniforms drawn per generator call, at most
 BLOCK_BYTES = 64 * 2**20  # and at most this much memory for them (N = 2000 draws 96 MB a step: one at a time)
@@ -51,6 +51,7 @@ class BatchChannel:
         self.belief_velocity = np.zeros((b, n, n, dims) if velocities else (b, 1, n, dims))
         self.incoming = np.full((b, self.slots, n, s), -1, dtype=np.int64)
         self.belief_stamp = np.full((b, n, s), -1, dtype=np.int64)
+        self.belief_received = np.full((b, n, n), -1, dtype=np.int64)  # the step each newest pose arrived
         self.belief_pos = np.zeros((b, n, s, dims))
         self.bad = np.zeros((b, n, s), dtype=bool)
         self.stale_steps = int(round(staleness / dt))
@@ -100,9 +101,10 @@ class BatchChannel:
         br, bi, bj = np.nonzero(newer)
         stamp = now[br, bi, bj]
         self.belief_stamp[br, bi, bj] = stamp
+        pose = bj < n
+        self.belief_received[br[pose], bi[pose], bj[pose]] = k
         self.belief_pos[br, bi, bj] = self.history[br, stamp % self.slots, bj]
         if self.velocities:
-            pose = bj < n
             self.belief_velocity[br[pose], bi[pose], bj[pose]] = self.history_velocity[
                 br[pose], stamp[pose] % self.slots, bj[pose]]
         self.incoming[:, k % self.slots] = -1
@@ -118,31 +120,34 @@ class BatchChannel:
         return self.belief_velocity, (k - self.belief_stamp[:, :, : self.n]) * self.dt
 
     def known(self, k: int, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """After :meth:`step` k, what the safety filter guards against, as an agent process does
-        (:meth:`agents.sensing.Sensing.sense`): every neighbour an agent has heard whose newest
-        position may be within the sensing radius of it by now (no farther than v_max times its age
-        beyond it), unless that is older than the staleness limit beyond its freshest neighbour's and
-        it can have left the agent's cells (its newest position plus what it can have moved while the
-        freshest was still heard, v_max times its age beyond the freshest's, reaches past the
-        subscription disc) and its member token does not say it is in the agent's cells (tokens are
-        not lost: where it was ``latency`` ago, within the subscription disc); as (mask (B, N, N),
-        believed positions (B, N, N, D), ages in seconds (B, N, N))."""
+        """After :meth:`step` k, what the safety filter guards against, by an agent process's own rule
+        (:meth:`agents.sensing.Sensing.sense` and ``_guarded``, in steps): every neighbour an agent has
+        heard whose newest position may be within the sensing radius of it by now (no farther than
+        v_max times its age beyond it), less the ones that have gone quiet and can have left. Quiet:
+        nothing came from it for the staleness limit longer than from the one heard last, beyond its
+        own path's extra delay (how much later its newest pose arrived after it was sent than the
+        promptest neighbour's). Can have left: its newest position plus what it can have moved while
+        the freshest was still heard (v_max times its age beyond the freshest's) reaches past the
+        subscription disc. Kept all the same when its member token, ``latency`` old (tokens are not
+        lost), is in a cell the agent listens to. As (mask (B, N, N), believed positions (B, N, N, D),
+        ages in seconds (B, N, N))."""
         stamp = self.belief_stamp[:, :, : self.n]
         believed = self.belief_pos[:, :, : self.n]
         age = (k - stamp) * self.dt
         d = np.linalg.norm(positions[:, :, None, :] - believed, axis=-1)
         heard = (stamp >= 0) & (d - self.v_max * age <= self.radius)
-        newest = np.where(heard, stamp, -1).max(axis=-1, keepdims=True)
-        beyond = (newest - stamp) * self.dt  # its age beyond the freshest neighbour's
-        can_have_left = d + self.v_max * beyond > self.cells
-        heard &= (stamp >= newest - self.stale_steps) | ~can_have_left | self._members(k, positions)
+        quiet, lag = k - self.belief_received, self.belief_received - stamp  # steps
+        least = lambda a: np.where(heard, a, np.iinfo(np.int64).max).min(axis=-1, keepdims=True)  # noqa: E731
+        gone_quiet = quiet - np.maximum(lag - least(lag), 0) > least(quiet) + self.stale_steps
+        can_have_left = d + self.v_max * (stamp.max(axis=-1, keepdims=True, initial=-1, where=heard) - stamp) * self.dt > self.cells
+        heard &= ~(gone_quiet & can_have_left) | self._members(k, positions)
         return heard, believed, age
 
     def _members(self, k: int, positions: np.ndarray) -> np.ndarray:
-        """(B, N, N): j's member token, ``latency`` old, in the cells agent i listens to (approximated by
-        its subscription disc, which its cells cover)."""
+        """(B, N, N): j's member token, ``latency`` old, in a cell agent i listens to (the cells, of side
+        the sensing radius, that its subscription disc meets)."""
         lag = np.rint(self.latency[:, 0, 0] / self.dt).astype(np.int64)  # (B,): tokens have no jitter
         then = k - lag
         where = self.history[np.arange(len(lag)), then % self.slots, : self.n]  # (B, N, D)
-        gap = np.linalg.norm(positions[:, :, None, :] - where[:, None, :, :], axis=-1)
-        return (then >= 0)[:, None, None] & (gap <= self.cells)
+        meets = cell_meets(positions[:, :, None, :], where[:, None, :, :], self.cells, self.radius[..., None])
+        return (then >= 0)[:, None, None] & meets

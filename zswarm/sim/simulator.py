@@ -18,7 +18,7 @@ from __future__ import annotations
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -31,6 +31,7 @@ from zswarm.model.faults import FaultModel
 from zswarm.model.metrics import Summary
 from zswarm.model.law import compile_law, swarm_field
 from zswarm.model.neighbours import ObstacleIndex, pairs_within
+from zswarm.model.safety import judged
 from zswarm.model.observer import SwarmObserver
 from zswarm.model.potentials import Combination, saturate
 from zswarm.model import safety as sf
@@ -38,6 +39,7 @@ from zswarm.model.safety_tally import SafetyTally, safety_of
 from zswarm.model.scenarios import Scenario
 from zswarm.provenance import versions
 from zswarm.sim.channel import FaultyChannel
+from zswarm.sim.tally import Sensed, drive
 
 
 class Simulator:
@@ -161,6 +163,59 @@ class Simulator:
         self.step_index += 1
 
 
+Shield = Callable[["Simulator", np.ndarray], np.ndarray]
+
+
+class OneRun:
+    """The reference simulator seen as a batch of one (:class:`zswarm.sim.tally.Engine`): (1, N, D)
+    arrays, its sensing graph from the cell grid. ``shield``: another filter of the commands, whose
+    changes are counted as the filter's are."""
+
+    def __init__(self, sim: Simulator, shield: Shield | None = None) -> None:
+        self.sim, self.shield = sim, shield
+        self.dt = sim.scenario.dt
+        self.shielded = SafetyTally(self.dt) if shield is not None else None
+        self.energy: np.ndarray | None = None  # each agent's U_i at the last command (apf)
+
+    @property
+    def step_index(self) -> int:
+        return self.sim.step_index
+
+    @property
+    def positions(self) -> np.ndarray:
+        return self.sim.positions[None]
+
+    @property
+    def prey(self) -> np.ndarray:
+        return self.sim.prey[None]
+
+    def velocities(self) -> np.ndarray:
+        self.energy, v = self.sim.potential_and_velocity(self.sim.positions, self.sim.prey)
+        if self.shield is not None:
+            wanted, v = v, self.shield(self.sim, v)
+            self.shielded.add(judged(wanted, v, np.zeros(len(v), dtype=bool)))
+        return v[None]
+
+    def advance(self, v: np.ndarray) -> None:
+        self.sim.advance(v[0])
+
+    def sensed(self) -> Sensed:
+        x, radius = self.sim.positions, self.sim.scenario.params.swarm.sensing_radius
+        i, j = pairs_within(x, radius)
+        keep = i < j
+        i, j = i[keep], j[keep]
+        d = x[i] - x[j]
+        a, m = self.sim.obstacles.sensed(x)
+        clearance = np.linalg.norm(x[a] - self.sim.obstacles.centers[m], axis=1) - self.sim.obstacles.radii[m]
+        zero = np.zeros(len(i), dtype=np.intp)
+        return Sensed(zero, i, j, np.sqrt(np.einsum("ij,ij->i", d, d)), np.zeros(len(a), dtype=np.intp), a, m,
+                      clearance)
+
+    def safety_counts(self) -> np.ndarray:
+        t = self.shielded if self.shielded is not None else self.sim.tally
+        return np.array([[t.interventions, t.stalled_steps, t.braked_steps]], dtype=np.int64)
+
+
 @dataclass
 class RunResult:
     summary: dict[str, Any]
@@ -206,21 +261,22 @@ def simulate(scenario: Scenario, seed: int, *, combination: Combination | None =
         series, labels = swarm_log.Series(rec), swarm_log.Labels()
     graph = sensing_graph if sensing_graph is not None else len(sim.positions) <= 100
     trail: list[np.ndarray] = []
-    for k in range(steps + 1):
-        u, command = sim.potential_and_velocity(sim.positions, sim.prey)
-        v = sim.moving(command)
+    run = OneRun(sim)
+
+    def watch(k: int, command: np.ndarray) -> None:
+        v = sim.moving(command[0])
         if traj is not None:
             traj[k], prey_traj[k] = sim.positions, sim.prey
         if k % metrics_every == 0 or k == steps:
             # the energy of the true configuration: the agents' own sum when they sense it exactly
-            energy = float(u.sum()) if sim.channel is None and u is not None else None
+            energy = float(run.energy.sum()) if sim.channel is None and run.energy is not None else None
             metrics = observer.observe(sim.t, sim.ids, sim.positions, v, sim.prey, energy)
             if rec is not None and (k % record_every == 0 or k == steps):
                 _log_step(rec, series, labels, sim, v, metrics, trail,
                           p.swarm.sensing_radius if sensing_discs else None, observer.thresholds(),
                           p.swarm.sensing_radius if graph else None)
-        if k < steps:
-            sim.advance(command)
+
+    drive(run, steps, watch=watch)
     result = {**header, **observer.summary.result(), **sim.tally.result()}
     if sim.channel is not None:
         result["requested_faults"] = faults.requested()

@@ -19,7 +19,8 @@ from zswarm.model.faults import FaultModel
 from zswarm.model.params import Params
 from zswarm.model.potentials import Combination
 from zswarm.model.scenarios import Scenario
-from zswarm.sim.batch import BatchOutcome, Member, simulate_batch
+from zswarm.sim.batch import Member, simulate_batch
+from zswarm.sim.tally import Outcome
 
 INFEASIBLE = 1e6
 
@@ -60,12 +61,12 @@ def disqualified(collisions: int, contacts: int, clearance: float | None, params
     return None
 
 
-def run_score(outcome: BatchOutcome, task: Task) -> float:
+def run_score(outcome: Outcome, task: Task) -> float:
     """Capture time, or the duration plus the miss penalty."""
     return outcome.capture_time if outcome.capture_time is not None else task.duration + task.miss_penalty
 
 
-def objective(outcomes: list[BatchOutcome], params: Params, task: Task) -> tuple[float, list[str | None]]:
+def objective(outcomes: list[Outcome], params: Params, task: Task) -> tuple[float, list[str | None]]:
     """(objective, disqualification of each run); see the module doc."""
     reasons = [disqualified(o.collisions, o.obstacle_collisions, o.min_obstacle_clearance, params) for o in outcomes]
     bad = sum(r is not None for r in reasons)
@@ -76,7 +77,7 @@ def objective(outcomes: list[BatchOutcome], params: Params, task: Task) -> tuple
 
 
 def evaluate(task: Task, candidates: list[Params], seeds: tuple[int, ...] | None = None
-             ) -> list[tuple[float, list[BatchOutcome], list[str | None]]]:
+             ) -> list[tuple[float, list[Outcome], list[str | None]]]:
     """Simulate every candidate on every seed in one batch; (objective, outcomes, reasons) each."""
     if not candidates:
         return []

@@ -1,0 +1,170 @@
+"""The one step loop and the one per-step tally of a study's runs: B runs, a single run being B = 1.
+
+:func:`drive` steps an engine (the batched simulator, or the reference simulator seen as a batch of one
+by :class:`zswarm.sim.outcome.OneRun`) and folds, at every step, the outcome a study of many runs needs
+into :class:`OutcomeTally`, with each key as :class:`zswarm.model.metrics.Summary` defines it:
+
+- collisions: onsets of pairs of the sensing graph closer than 2 d^r; obstacle contacts: onsets of a
+  sensed obstacle's clearance below d^r (:class:`zswarm.model.metrics.Onsets`, the rule Summary uses);
+- the closest pair of the sensing graph, the closest clearance to a sensed obstacle;
+- capture: the first step the centroid is within the capture radius;
+- at the end, the groups of the sensing graph and the median nearest-neighbour distance.
+
+An engine gives, each step, its agents' positions (B, N, D), its prey (B, D) and what each run senses
+(:class:`Sensed`): the pairs of the sensing graph as run-indexed lists, from a cell grid for one large run
+or from dense blocks for a batch. Nothing per step a recording needs (the Fiedler value alone is an
+N^3 eigensolve) is computed here.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable, Protocol
+
+import numpy as np
+
+from zswarm.model import metrics
+
+
+@dataclass(frozen=True)
+class Sensed:
+    """What every run senses now: pairs (run, i, j) with i < j within the sensing radius and their
+    distance; sensed obstacles (run, agent, obstacle) with the clearance |P - C| - rho."""
+
+    run: np.ndarray
+    i: np.ndarray
+    j: np.ndarray
+    distance: np.ndarray
+    obstacle_run: np.ndarray
+    agent: np.ndarray
+    obstacle: np.ndarray
+    clearance: np.ndarray
+
+
+class Engine(Protocol):
+    """What :func:`drive` steps: the batched simulator, or one run seen as a batch of one."""
+
+    step_index: int
+    dt: float
+
+    @property
+    def positions(self) -> np.ndarray: ...  # (B, N, D)
+
+    @property
+    def prey(self) -> np.ndarray: ...  # (B, D)
+
+    def velocities(self) -> np.ndarray: ...  # (B, N, D): every agent's command from what it senses now
+
+    def advance(self, v: np.ndarray) -> None: ...
+
+    def sensed(self) -> Sensed: ...
+
+    def safety_counts(self) -> np.ndarray: ...  # (B, 3): interventions, stalled, braked agent-steps
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What one run measured (the matching keys of ``simulate(...).summary``)."""
+
+    capture_time: float | None
+    min_pair_distance: float
+    collisions: int
+    min_obstacle_clearance: float | None
+    obstacle_collisions: int
+    final_centroid_goal_distance: float
+    final_components: int  # groups of the sensing graph at the end
+    final_median_nearest: float | None  # median distance to the nearest neighbour within R, at the end
+    safety_interventions: int = 0  # agent-steps the safety filter changed (zswarm.model.safety_tally)
+    safety_stalled_ticks: int = 0
+    safety_braked_ticks: int = 0
+
+    def to_dict(self) -> dict:
+        from dataclasses import asdict
+
+        return asdict(self)
+
+
+class OutcomeTally:
+    """The per-run outcome of B runs of N agents, folded step by step."""
+
+    def __init__(self, b: int, n: int, dt: float, capture_radius: np.ndarray, robot_radius: np.ndarray) -> None:
+        self.b, self.n, self.dt = b, n, dt
+        self.capture_radius = np.asarray(capture_radius, dtype=float)
+        self.robot = np.asarray(robot_radius, dtype=float)
+        self.capture_step = np.full(b, -1)
+        self.min_pair = np.full(b, np.inf)
+        self.min_clearance = np.full(b, np.inf)
+        self.collisions = np.zeros(b, dtype=np.int64)
+        self.contacts = np.zeros(b, dtype=np.int64)
+        self.close, self.touch = metrics.Onsets(), metrics.Onsets()
+        self.centroid_distance = np.zeros(b)
+        self.last: Sensed | None = None
+
+    def observe(self, step: int, positions: np.ndarray, prey: np.ndarray, s: Sensed) -> None:
+        self.last = s
+        self.centroid_distance = metrics.centroid_goal_distance(positions, prey)
+        now = (self.capture_step < 0) & metrics.caught(self.centroid_distance, self.capture_radius)
+        self.capture_step[now] = step
+        np.minimum.at(self.min_pair, s.run, s.distance)
+        np.minimum.at(self.min_clearance, s.obstacle_run, s.clearance)
+        close = metrics.too_close(s.distance, self.robot[s.run])
+        fresh = self.close.fresh(metrics.pair_keys((s.run * self.n + s.i)[close], s.j[close]))
+        self.collisions += np.bincount(s.run[close][fresh], minlength=self.b)
+        touch = metrics.touching(s.clearance, self.robot[s.obstacle_run])
+        fresh = self.touch.fresh(metrics.pair_keys((s.obstacle_run * self.n + s.agent)[touch], s.obstacle[touch]))
+        self.contacts += np.bincount(s.obstacle_run[touch][fresh], minlength=self.b)
+
+    @property
+    def collided(self) -> bool:
+        return bool(self.collisions.any())
+
+    def final_shape(self) -> tuple[list[int], list[float | None]]:
+        """Groups of the sensing graph and median nearest-neighbour distance of each run, at the last
+        observed step."""
+        s, n = self.last, self.n
+        node_i, node_j = s.run * n + s.i, s.run * n + s.j
+        labels = metrics.components(self.b * n, np.concatenate([node_i, node_j]), np.concatenate([node_j, node_i]))
+        nearest = np.full(self.b * n, np.inf)
+        np.minimum.at(nearest, node_i, s.distance)
+        np.minimum.at(nearest, node_j, s.distance)
+        groups, medians = [], []
+        for r in range(self.b):
+            groups.append(len(np.unique(labels[r * n:(r + 1) * n])))
+            median = metrics.median_nearest(nearest[r * n:(r + 1) * n])
+            medians.append(None if math.isnan(median) else median)
+        return groups, medians
+
+    def outcomes(self, safety_counts: np.ndarray) -> list[Outcome]:
+        groups, nearest = self.final_shape()
+        return [Outcome(
+            capture_time=None if s < 0 else float(s * self.dt), min_pair_distance=float(self.min_pair[r]),
+            collisions=int(self.collisions[r]),
+            min_obstacle_clearance=float(self.min_clearance[r]) if math.isfinite(self.min_clearance[r]) else None,
+            obstacle_collisions=int(self.contacts[r]),
+            final_centroid_goal_distance=float(self.centroid_distance[r]),
+            final_components=groups[r], final_median_nearest=nearest[r],
+            safety_interventions=int(safety_counts[r, 0]), safety_stalled_ticks=int(safety_counts[r, 1]),
+            safety_braked_ticks=int(safety_counts[r, 2]))
+            for r, s in enumerate(self.capture_step)]
+
+
+def drive(engine: Engine, steps: int, tally: OutcomeTally | None = None, stop_at_collision: bool = False,
+          watch: Callable[[int, np.ndarray], None] | None = None) -> None:
+    """The one step loop of every simulation: at each step k = 0..steps, the tally of the positions,
+    every agent's command from what it senses, ``watch(k, commands)`` (a recording, the trajectories),
+    then (k < steps) the move. ``stop_at_collision``: end at the first step any run collides (a study
+    that only asks whether a set collides need not simulate a crushed swarm to its end). Without a
+    watcher, the last step's commands, which move nothing, are not computed."""
+    for k in range(steps + 1):
+        if tally is not None:
+            tally.observe(engine.step_index, engine.positions, engine.prey, engine.sensed())
+            if stop_at_collision and tally.collided:
+                return
+        if k == steps and watch is None:
+            return
+        v = engine.velocities()
+        if watch is not None:
+            watch(k, v)
+        if k < steps:
+            engine.advance(v)
