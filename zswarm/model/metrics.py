@@ -110,9 +110,17 @@ class Onsets:
     def fresh(self, keys: np.ndarray) -> np.ndarray:
         """Which of this observation's contacts (:func:`pair_keys`) began since the last one."""
         keys = np.asarray(keys, dtype=np.int64)
-        out = ~np.isin(keys, self.was)
+        out = ~np.isin(keys, self.was) if len(keys) and len(self.was) else np.ones(len(keys), dtype=bool)
         self.was = keys
         return out
+
+    def count(self, pairs: np.ndarray) -> int:
+        """How many of this observation's contacts, rows (a, b) of ``pairs``, began since the last one."""
+        if not len(pairs):  # most steps: nobody in contact (nothing to look up)
+            self.was = self.was[:0]
+            return 0
+        pairs = np.asarray(pairs)
+        return int(self.fresh(pair_keys(pairs[:, 0], pairs[:, 1])).sum())
 
 
 def median_nearest(nearest: np.ndarray) -> float:
@@ -208,9 +216,8 @@ class Summary:
         self.times.append(float(t))
         for k in METRIC_NAMES:
             self.series[k].append(metrics[k])
-        colliding, contacts = np.asarray(colliding).reshape(-1, 2), np.asarray(contacts).reshape(-1, 2)
-        self.collisions += int(self._pairs.fresh(pair_keys(colliding[:, 0], colliding[:, 1])).sum())
-        self.obstacle_collisions += int(self._contacts.fresh(pair_keys(contacts[:, 0], contacts[:, 1])).sum())
+        self.collisions += self._pairs.count(colliding)
+        self.obstacle_collisions += self._contacts.count(contacts)
 
     def capture_time(self) -> float | None:
         d = np.asarray(self.series["centroid_goal_distance"])

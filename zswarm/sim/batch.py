@@ -349,11 +349,11 @@ class BatchSimulator:
         sensed obstacles."""
         x = self.positions
         d = x[:, :, None, :] - x[:, None, :, :]
-        dist = np.sqrt(np.einsum("bijk,bijk->bij", d, d))
-        r, i, j = np.nonzero((dist <= self.radius[:, None, None]) & self.upper)
+        r2 = np.einsum("bijk,bijk->bij", d, d)
+        r, i, j = np.nonzero((r2 <= np.square(self.radius)[:, None, None]) & self.upper)
         clearance = metrics.obstacle_clearance(x[:, :, None, :], self.centers[:, None, :, :], self.radii[:, None, :])
         ro, a, m = np.nonzero(self.has_obstacle[:, None, :] & (clearance <= self.radius[:, None, None]))
-        return Sensed(r, i, j, dist[r, i, j], ro, a, m, clearance[ro, a, m])
+        return Sensed(r, i, j, np.sqrt(r2[r, i, j]), ro, a, m, clearance[ro, a, m])
 
     def _prey_step(self) -> np.ndarray:
         """:func:`zswarm.model.prey.step` for every run, one call per motion the runs share."""

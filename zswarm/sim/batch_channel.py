@@ -101,10 +101,10 @@ class BatchChannel:
         br, bi, bj = np.nonzero(newer)
         stamp = now[br, bi, bj]
         self.belief_stamp[br, bi, bj] = stamp
-        pose = bj < n
-        self.belief_received[br[pose], bi[pose], bj[pose]] = k
+        self.belief_received[newer[:, :, :n]] = k
         self.belief_pos[br, bi, bj] = self.history[br, stamp % self.slots, bj]
         if self.velocities:
+            pose = bj < n
             self.belief_velocity[br[pose], bi[pose], bj[pose]] = self.history_velocity[
                 br[pose], stamp[pose] % self.slots, bj[pose]]
         self.incoming[:, k % self.slots] = -1
