@@ -19,7 +19,7 @@ N^3 eigensolve) is computed here.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from typing import Callable, Protocol
 
 import numpy as np
@@ -80,8 +80,6 @@ class Outcome:
     safety_braked_ticks: int = 0
 
     def to_dict(self) -> dict:
-        from dataclasses import asdict
-
         return asdict(self)
 
 
