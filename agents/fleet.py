@@ -29,7 +29,7 @@ import select
 import signal
 import sys
 
-from zswarm.net.procs import die_with_parent, one_blas_thread
+from zswarm.process import die_with_parent, one_blas_thread
 
 
 def _child(argv: list[str]) -> None:

@@ -13,7 +13,8 @@ import time
 from pathlib import Path
 from typing import Iterator
 
-from zswarm.net.procs import Children, Fleet, agent_argv, world_argv
+from zswarm.host.local import LocalHost
+from zswarm.host.procs import Children, agent_argv
 from zswarm.net.runspec import RunSpec, add_run_args, spec_from_args
 
 
@@ -24,7 +25,7 @@ def processes() -> Iterator[Children]:
         yield kids
     finally:
         kids.stop_all(grace=3.0)
-        _FLEETS.pop(id(kids), None)
+        _HOSTS.pop(id(kids), None)
 
 
 def split_spec(run: str, scenario: str, *args: str) -> tuple[RunSpec, list[str]]:
@@ -39,23 +40,24 @@ def start_world(kids: Children, endpoint: str, run: str, scenario: str, tmp: Pat
                 name: str = "world") -> tuple:
     summary, record, traj = tmp / f"{run}.json", tmp / f"{run}.rrd", tmp / f"{run}.npz"
     spec, rest = split_spec(run, scenario, *extra)
-    child = kids.spawn(name, world_argv(spec, endpoint, *rest, "--summary", str(summary), "--record", str(record),
-                                        "--trajectory", str(traj), "--progress", "0"), stdout=subprocess.DEVNULL)
+    child = host_of(kids).spawn_world(spec, endpoint, *rest, "--summary", str(summary), "--record", str(record),
+                                      "--trajectory", str(traj), "--progress", "0", name=name)
     return child, summary, record, traj
 
 
-#: The agent fleet of each set of children (``zswarm run`` forks its agents the same way): the agent
-#: program is imported once, and each agent is forked from it in milliseconds, still its own process
-#: with its own process group and pid, instead of a fresh interpreter importing numpy and Zenoh again.
-_FLEETS: dict[int, Fleet] = {}
+#: The host of each set of children, which starts its processes as ``zswarm run``'s does: its agents
+#: forked from one fleet (the agent program imported once, each agent forked from it in milliseconds,
+#: still its own process with its own process group and pid).
+_HOSTS: dict[int, LocalHost] = {}
+
+
+def host_of(kids: Children) -> LocalHost:
+    return _HOSTS.setdefault(id(kids), LocalHost(kids))
 
 
 def start_agent(kids: Children, endpoint: str, run: str, scenario: str, agent: int, *extra: str):
     spec, rest = split_spec(run, scenario, *extra)
-    fleet = _FLEETS.get(id(kids))
-    if fleet is None or not fleet.child.alive():
-        fleet = _FLEETS[id(kids)] = Fleet(kids)
-    return fleet.spawn(f"agent-{agent}", agent_argv(spec, agent, endpoint, *rest)[2:])  # without "-m agents"
+    return host_of(kids).spawn_agent(f"agent-{agent}", agent_argv(spec, agent, endpoint, *rest)[2:])
 
 
 def with_reference(summary_path: Path, run: str, scenario: str, *extra: str) -> dict:

@@ -5,7 +5,8 @@ through others (a circle).
     cli            every command: arguments in, a report out      may import anything; no module over 150 lines
     bench          the benchmarks' measurements (net, soak, ...)   cluster, launch, net, sim, record, model, base
     cluster        a run over a Ray cluster (nodes, placement)    launch, net, sim, record, model, base
-    launch         starting and supervising runs (plan, chaos)     net, sim, record, model, base
+    launch         starting and supervising runs (plan, chaos)     host, net, sim, record, model, base
+    host           starting processes: routers, the world, agents  net, model, base
     tune           searching parameter sets (zswarm tune)         sim, record, model, base
     agents, world  the two process programs                       net, record (world only), model, base
     sim | net      the engines: reference simulator | runtime     model, record (sim only), base
@@ -13,7 +14,7 @@ through others (a circle).
     laws           the law contract, the built-in laws, loading   model, base
     model          the paper's math, scenarios, metrics, faults   base
     base           zswarm.errors, args, files, provenance, ports,  nothing of zswarm
-                   stopping
+                   stopping, process
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ import pytest
 from conftest import ROOT
 
 BASE = {"zswarm", "zswarm.errors", "zswarm.args", "zswarm.files", "zswarm.provenance", "zswarm.ports",
-        "zswarm.stopping"}
+        "zswarm.stopping", "zswarm.process"}
 ALLOWED: dict[str, set[str]] = {
     "base": {"base"},
     "model": {"base", "model"},
@@ -36,13 +37,14 @@ ALLOWED: dict[str, set[str]] = {
     "sim": {"base", "model", "laws", "record", "sim"},
     "net": {"base", "model", "net"},
     "ros": {"base", "model", "ros"},
+    "host": {"base", "model", "net", "host"},
     "agents": {"base", "model", "laws", "net", "ros", "agents"},
     "world": {"base", "model", "laws", "net", "record", "world"},
     "tune": {"base", "model", "laws", "record", "sim", "tune"},
-    "launch": {"base", "model", "laws", "record", "sim", "net", "ros", "launch"},
-    "cluster": {"base", "model", "laws", "record", "sim", "net", "ros", "launch", "cluster"},
-    "bench": {"base", "model", "laws", "record", "sim", "net", "launch", "cluster", "bench"},
-    "cli": {"base", "model", "laws", "record", "sim", "net", "tune", "launch", "cluster", "bench", "ros", "cli"},
+    "launch": {"base", "model", "laws", "record", "sim", "net", "host", "ros", "launch"},
+    "cluster": {"base", "model", "laws", "record", "sim", "net", "host", "ros", "launch", "cluster"},
+    "bench": {"base", "model", "laws", "record", "sim", "net", "host", "launch", "cluster", "bench"},
+    "cli": {"base", "model", "laws", "record", "sim", "net", "host", "tune", "launch", "cluster", "bench", "ros", "cli"},
     "api": {"base", "model", "laws", "record", "sim"},  # zswarm/__init__: the notebook API
 }
 
@@ -157,12 +159,12 @@ def test_a_package_without_a_layer_fails_the_check(tmp_path):
     """A new folder (say a swarm-of-swarms layer) that nobody gave a layer is caught, both as a module
     and as something another module imports; the same module is accepted once its package has a layer."""
     module = tmp_path / "host.py"
-    module.write_text("from zswarm.net.procs import Children\n")
+    module.write_text("from zswarm.host.procs import Children\n")
     assert any("zswarm.fleets.host is in no layer" in v for v in violations([("zswarm.fleets.host", module)]))
     user = tmp_path / "supervisor.py"
     user.write_text("def _start():\n    from zswarm.fleets.host import Host\n")
     assert any("which is in no layer" in v for v in violations([("zswarm.launch.supervisor", user)]))
-    ALLOWED["fleets"] = {"base", "model", "net", "fleets"}
+    ALLOWED["fleets"] = {"base", "model", "net", "host", "fleets"}
     try:
         assert violations([("zswarm.fleets.host", module)]) == []
     finally:

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from zswarm.model.scenarios import get_scenario
-from zswarm.net.procs import free_port, start_router
+from zswarm.host.procs import free_port, start_router
 from zswarm.record.replay import load_run, recompute
 from zswarm.sim.simulator import Simulator, simulate
 

@@ -9,7 +9,7 @@ import os
 import time
 from pathlib import Path
 
-from zswarm.net.procs import Children, Fleet, free_port
+from zswarm.host.procs import Children, Fleet, free_port
 
 
 def _autogroup(pid: int) -> str | None:
@@ -40,9 +40,9 @@ def test_a_forked_agent_shares_the_fleets_session_in_a_process_group_of_its_own(
 
 
 def test_the_local_host_forks_every_agent_from_one_fleet_or_starts_each_alone():
-    """The host boundary (zswarm.launch.hosts): the supervisor asks a host for an agent and gets a
+    """The host boundary (zswarm.host.local): the supervisor asks a host for an agent and gets a
     handle it can poll and signal; here, forked from one fleet, or each in an interpreter of its own."""
-    from zswarm.launch.hosts import LocalHost
+    from zswarm.host.local import LocalHost
 
     bad = ["--run", "host-test", "--scenario", "static-goal", "--connect", "tcp/127.0.0.1:1", "--id"]
     for fork in (True, False):
@@ -66,7 +66,7 @@ def test_a_restarted_child_takes_its_dead_selfs_place():
     """Children.add: a restarted agent takes its dead self's place (the supervisor and a cluster node
     add a thousand agents through it, so it must not scan the list), the same child added twice is
     held once, and a live process is never dropped."""
-    from zswarm.net.procs import Child, ForkedProc
+    from zswarm.host.procs import Child, ForkedProc
 
     kids = Children()
     first = kids.add(Child("agent-3", ForkedProc(10**6)))  # a pid no process has: nothing is signalled

@@ -17,7 +17,7 @@ from zswarm.net import messages as msg
 from zswarm.net.config import zenoh_config
 from zswarm.net.pose_batch import PoseArrays
 from zswarm.net.poses import TAKEOVER, PoseTable
-from zswarm.net.procs import free_port, start_router
+from zswarm.host.procs import free_port, start_router
 
 from swarm_procs import agent_state, processes, stand_in_world, start_agent, start_world, wait_exit
 

@@ -13,7 +13,7 @@ import zenoh
 from zswarm.net import messages as msg
 from zswarm.net.config import zenoh_config
 from zswarm.net.keys import Keys
-from zswarm.net.procs import start_router
+from zswarm.host.procs import start_router
 
 from swarm_procs import Watch, processes, start_agent, start_world, wait_exit, with_reference
 

@@ -9,7 +9,7 @@ import pytest
 
 from zswarm.laws.registry import BUILTIN
 from zswarm.model.scenarios import get_scenario
-from zswarm.net.procs import start_router
+from zswarm.host.procs import start_router
 from zswarm.sim.simulator import simulate
 
 from conftest import ROOT

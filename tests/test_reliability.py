@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 
-from zswarm.net.procs import free_port, wait_for_port
+from zswarm.host.procs import free_port, wait_for_port
 from zswarm.net.router import CLOSE_WAIT_S
 from zswarm.record.replay import load_run, load_segment, segments
 
@@ -233,7 +233,7 @@ def test_the_world_repeats_the_final_tick_until_every_agent_has_said_goodbye(tmp
     from zswarm.net import messages as msg
     from zswarm.net.config import open_session, zenoh_config
     from zswarm.net.keys import Keys
-    from zswarm.net.procs import start_router
+    from zswarm.host.procs import start_router
 
     run = "lastword"
     finals: list[float] = []

@@ -16,7 +16,7 @@ from zswarm.args import UsageError
 from zswarm.net import messages as msg
 from zswarm.net.config import open_session, zenoh_config
 from zswarm.net.keys import Keys
-from zswarm.net.procs import free_port, start_router
+from zswarm.host.procs import free_port, start_router
 from zswarm.net.security import write_secure_dir
 
 from conftest import ROOT
@@ -124,7 +124,7 @@ def test_rights_follow_the_certificate(certs):
 def start_secure_mesh(kids, certs: Path, open_last: bool = False) -> list[str]:
     """Three routers meshed over mutual TLS (``zswarm run --routers 3 --secure``), the last one's
     access control off with ``open_last`` (a node's router widened)."""
-    from zswarm.net.procs import start_mesh
+    from zswarm.host.procs import start_mesh
 
     endpoints = [f"tls/127.0.0.1:{free_port()}" for _ in range(3)]
     start_mesh(kids, endpoints[:2], extra=["--config", str(certs / "router.json5")])

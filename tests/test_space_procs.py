@@ -16,7 +16,7 @@ from viewer_shots import NO_XVFB, colored, render
 from zswarm.net import messages as msg
 from zswarm.net.config import open_session, zenoh_config
 from zswarm.net.keys import Keys
-from zswarm.net.procs import agent_argv, free_port
+from zswarm.host.procs import agent_argv, free_port
 from zswarm.record.replay import load_run, recompute
 
 

@@ -9,7 +9,7 @@ import subprocess
 import sys
 import threading
 
-from zswarm.net.procs import free_port, wait_for_port
+from zswarm.host.procs import free_port, wait_for_port
 from zswarm.stopping import StopSignal
 
 

@@ -1,7 +1,7 @@
 import os
 import sys
 
-from zswarm.net.procs import one_blas_thread
+from zswarm.process import one_blas_thread
 
 one_blas_thread(os.environ)  # before numpy is imported: its pool would spin on every core
 

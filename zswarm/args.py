@@ -12,6 +12,7 @@ import sys
 from typing import Callable, NoReturn, Sequence
 
 from zswarm.errors import EXIT_FAILURE, EXIT_USAGE, Failure, ParamError, UsageError
+from zswarm.ports import LOOPBACK
 
 __all__ = ["EXIT_USAGE", "Parser", "UsageError", "add_param_args", "positive_float", "positive_int", "run_main",
            "seed_arg"]
@@ -105,7 +106,7 @@ class ParamsFile(argparse.Action):
 
 
 #: What ``rerun`` (the viewer) listens on for streamed recordings.
-DEFAULT_VIEWER_URL = "rerun+http://127.0.0.1:9876/proxy"
+DEFAULT_VIEWER_URL = f"rerun+http://{LOOPBACK}:9876/proxy"
 
 
 def is_viewer_url(text: str) -> bool:

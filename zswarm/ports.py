@@ -29,7 +29,12 @@ def port_range() -> tuple[int, int] | None:
     return lo, hi
 
 
-def free_port(host: str = "127.0.0.1") -> int:
+#: The one address a process on this machine binds when nothing says otherwise (loopback: nothing
+#: outside the machine reaches it). A run over machines binds the address its user gives.
+LOOPBACK = "127.0.0.1"
+
+
+def free_port(host: str = LOOPBACK) -> int:
     """A TCP port nothing listens on at ``host`` now."""
     span = port_range()
     if span is None:

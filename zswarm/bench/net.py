@@ -21,15 +21,8 @@ from typing import Any
 from zswarm.bench.measure import CpuWindow, pss_mb, rss_mb
 from zswarm.launch.world_watch import wait_for_start
 from zswarm.model.faults import FaultModel
-from zswarm.net.procs import (
-    Child,
-    Children,
-    Fleet,
-    agent_argv,
-    free_port,
-    start_mesh,
-    world_argv,
-)
+from zswarm.host.local import LocalHost
+from zswarm.host.procs import Child, Children, agent_argv
 from zswarm.net.runspec import RunSpec
 
 
@@ -41,22 +34,20 @@ def field_spec(n_agents: int, run: str, duration: float, scenario: str = "bench-
                    faults=faults or FaultModel(), safety=safety)
 
 
-def start_routers(kids: Children, k: int) -> list[str]:
-    """K routers on free loopback ports, meshed as ``zswarm run --routers K`` meshes them."""
-    endpoints = [f"tcp/127.0.0.1:{free_port()}" for _ in range(k)]
-    start_mesh(kids, endpoints)
-    return endpoints
+def start_routers(host: LocalHost, k: int) -> list[str]:
+    """K routers on free ports of the host, meshed as ``zswarm run --routers K`` meshes them."""
+    return host.start_routers([host.endpoint() for _ in range(k)])
 
 
 def start_field(kids: Children, spec: RunSpec, summary_path: Path, routers: int = 1) -> tuple[str, Child, list[Child]]:
     """Routers, the world (waiting up to 120 s for the agents) and the N agent processes of ``spec``,
     forked from one fleet as ``zswarm run`` starts them (agent i on router i mod K). Returns the first
     router's endpoint, the world and the agents."""
-    endpoints = start_routers(kids, routers)
-    world = kids.spawn("world", world_argv(spec, endpoints[0], "--summary", str(summary_path), "--progress", "0",
-                                           "--start-timeout", "120"), stdout=subprocess.DEVNULL)
-    fleet = Fleet(kids)
-    agents = [fleet.spawn(f"agent-{i}", agent_argv(spec, i, endpoints[i % routers], "--node", str(i % routers))[2:])
+    host = LocalHost(kids)
+    endpoints = start_routers(host, routers)
+    world = host.spawn_world(spec, endpoints[0], "--summary", str(summary_path), "--progress", "0",
+                             "--start-timeout", "120")
+    agents = [host.spawn_agent(f"agent-{i}", agent_argv(spec, i, endpoints[i % routers], "--node", str(i % routers))[2:])
               for i in range(spec.scenario.n_agents)]
     return endpoints[0], world, agents
 
@@ -117,7 +108,7 @@ def run_floor(n_agents: int, duration: float, scenario: str = "bench-field", han
     spec = field_spec(n_agents, f"floor{n_agents}", duration, scenario)
     kids = Children()
     try:
-        endpoint = start_routers(kids, 1)[0]
+        endpoint = start_routers(LocalHost(kids), 1)[0]
         kids.spawn("floor-world", ["-m", "zswarm.bench.floor", "--prey", *spec.to_argv(), "--connect", endpoint],
                    stdout=subprocess.DEVNULL)
         # in one session, as a fleet's agents are (agents.fleet): one scheduling group under autogroup

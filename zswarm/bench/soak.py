@@ -31,7 +31,7 @@ import numpy as np
 from zswarm.bench.measure import rss_mb
 from zswarm.bench.net import field_spec, start_field
 from zswarm.model.faults import FaultModel
-from zswarm.net.procs import Children
+from zswarm.host.procs import Children
 
 FLAT_MB_PER_MIN = 1.0
 

@@ -21,7 +21,8 @@ from typing import Any
 from zswarm.bench.measure import CpuWindow
 from zswarm.bench.net import start_routers
 from zswarm.launch.world_watch import wait_for_start
-from zswarm.net.procs import Children, world_argv
+from zswarm.host.local import LocalHost
+from zswarm.host.procs import Children
 from zswarm.net.runspec import RunSpec
 
 
@@ -39,10 +40,10 @@ def measure(n_agents: int, duration: float, scenario: str = "large-swarm", time_
     with tempfile.TemporaryDirectory() as tmp:
         summary_path, record = Path(tmp) / "world.json", Path(tmp) / "world.rrd"
         try:
-            endpoint = start_routers(kids, 1)[0]
-            world = kids.spawn("world", world_argv(spec, endpoint, "--summary", str(summary_path), "--record",
-                                                   str(record), "--progress", "0", "--intake", intake,
-                                                   "--start-timeout", "120"), stdout=subprocess.DEVNULL)
+            host = LocalHost(kids)
+            endpoint = start_routers(host, 1)[0]
+            world = host.spawn_world(spec, endpoint, "--summary", str(summary_path), "--record", str(record),
+                                     "--progress", "0", "--intake", intake, "--start-timeout", "120")
             share, first = -(-n_agents // crowds), 0
             while first < n_agents:
                 count = min(share, n_agents - first)

@@ -7,6 +7,7 @@ import argparse
 from pathlib import Path
 
 from zswarm.args import UsageError, positive_int
+from zswarm.ports import LOOPBACK
 
 DESCRIPTION = ("Write ca.pem, NAME.pem/.key and NAME.json5 (a full Zenoh config with mutual TLS; the router's "
                "with access control) for router, world and agent into DIR. Use them with 'zswarm run --secure "
@@ -17,7 +18,7 @@ def add_arguments(certs: argparse.ArgumentParser) -> None:
     certs.add_argument("directory", type=Path, metavar="DIR")
     certs.add_argument("--router", default="tls/localhost:7447", metavar="ENDPOINT",
                        help="the router's endpoint written into the configs (default tls/localhost:7447)")
-    certs.add_argument("--hosts", default="localhost,127.0.0.1", metavar="H1,H2",
+    certs.add_argument("--hosts", default=f"localhost,{LOOPBACK}", metavar="H1,H2",
                        help="names and addresses the router is reached by (certificate SANs)")
     certs.add_argument("--extra", default="", metavar="NAME,..",
                        help="more certificates with no rights (e.g. guest) for testing")

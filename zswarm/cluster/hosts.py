@@ -1,5 +1,5 @@
 """The driver's side of each node: a pinned :class:`~zswarm.cluster.node.NodeHost` actor, a host of the
-run (:class:`zswarm.launch.hosts.Host`) whose agents are handles with ``subprocess.Popen``'s
+run (:class:`zswarm.host.local.Host`) whose agents are handles with ``subprocess.Popen``'s
 interface, so that the supervisor, the chaos and the ending code treat an agent on another machine as
 they treat one forked here.
 
@@ -18,7 +18,7 @@ from typing import Any, Callable, Sequence
 from zswarm.cluster.node import NodeHost
 from zswarm.cluster.ray_cluster import import_ray
 from zswarm.launch.plan import id_ranges
-from zswarm.net.procs import Child, ForkedProc
+from zswarm.host.procs import Child, ForkedProc
 
 POLL_S = 0.2
 CALL_TIMEOUT_S = 30.0
@@ -70,7 +70,7 @@ class NodeLink:
         return self.info
 
     def spawn_agent(self, name: str, args: Sequence[str]) -> Child:
-        """:meth:`zswarm.launch.hosts.Host.spawn_agent`: forked on the node by its actor (a restarted
+        """:meth:`zswarm.host.local.Host.spawn_agent`: forked on the node by its actor (a restarted
         agent's old entry there is dropped first)."""
         self.call("restart", name)
         pid = self.call("spawn_agent", name, list(args))

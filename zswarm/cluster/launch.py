@@ -5,7 +5,7 @@ Each node runs a Zenoh router (the first node's, on the driver's machine, is joi
 ``--routers K`` does on one machine) and its share of agents, through its
 :class:`~zswarm.cluster.hosts.NodeLink`; the world runs here, on the driver's machine, and writes the
 recording and the summary here. Supervision, chaos and the ending are :class:`Launch`'s own: a node
-is a host (:mod:`zswarm.launch.hosts`), and an agent on another machine a handle with ``Popen``'s
+is a host (:mod:`zswarm.host.local`), and an agent on another machine a handle with ``Popen``'s
 interface.
 """
 
@@ -16,11 +16,12 @@ import time
 import numpy as np
 
 from zswarm.cluster.hosts import NodeLink
-from zswarm.launch.placement import place
 from zswarm.cluster.ray_cluster import RayCluster
 from zswarm.errors import UsageError
+from zswarm.launch.placement import place
 from zswarm.launch.plan import Plan, id_ranges
 from zswarm.launch.supervisor import Launch, _say
+from zswarm.ports import LOOPBACK
 
 
 class ClusterLaunch(Launch):
@@ -55,7 +56,7 @@ class ClusterLaunch(Launch):
         for link in self.links:  # the first node is the driver's: the world joins its router
             join = self.endpoints[0] if self.endpoints else None
             try:
-                self.endpoints.append(link.call("start_router", "127.0.0.1" if local else link.info["address"], join,
+                self.endpoints.append(link.call("start_router", LOOPBACK if local else link.info["address"], join,
                                                 extra, "tls" if plan.secure is not None else "tcp"))
             except Exception as exc:  # noqa: BLE001 (Ray wraps what the node raised)
                 raise UsageError(f"node {link.label}: its router did not start ({str(exc).splitlines()[-1][:160]})") \

@@ -8,8 +8,8 @@ the lines they wrote to stderr, prefixed with the node and the agent.
 Every child gets ``PR_SET_PDEATHSIG``: when the actor's worker dies (Ray's raylet also kills its
 process group and its children), the router and the fleet die with it and the fleet's agents die with
 the fleet, so a driver that is killed, or a node Ray drops, leaves no zswarm process behind. The router
-and the fleet are sessions of their own (:func:`zswarm.net.procs.start_router`,
-:class:`zswarm.net.procs.Fleet`): under Linux's autogroup scheduling the router then gets a group's
+and the fleet are sessions of their own (:func:`zswarm.host.procs.start_router`,
+:class:`zswarm.host.procs.Fleet`): under Linux's autogroup scheduling the router then gets a group's
 share of the CPU and the node's agents together another, rather than each a thread's share among
 the Ray worker's.
 """
@@ -23,7 +23,8 @@ import threading
 from collections import deque
 from typing import Sequence
 
-from zswarm.net.procs import Children, Fleet, start_router
+from zswarm.host.local import LocalHost
+from zswarm.host.procs import Children
 
 
 def node_address() -> str:
@@ -39,7 +40,7 @@ class NodeHost:
     def __init__(self, label: str) -> None:
         self.label = label  # how this node's lines are prefixed
         self.kids = Children()  # the router and the fleet: sessions of their own, dying with this worker
-        self.fleet: Fleet | None = None
+        self.host = LocalHost(self.kids, stderr=subprocess.PIPE)  # this node: the driver sets where it binds
         self.lines: deque[str] = deque(maxlen=10_000)
         self.reported: set[str] = set()
         self.lock = threading.Lock()
@@ -54,17 +55,18 @@ class NodeHost:
     def start_router(self, host: str, join: str | None, extra: Sequence[str] = (), proto: str = "tcp") -> str:
         """This node's router on a free port of ``host``, joined to ``join`` (the first node's router);
         ``proto`` tls with ``extra`` naming its configuration (``--secure``)."""
-        args = [*extra, *(["--connect", join] if join else [])]
-        endpoint = start_router(self.kids, host, proto=proto, extra=args, name="router", stderr=subprocess.PIPE)
+        self.host.bind = host
+        endpoint = self.host.start_router(proto, [*extra, *(["--connect", join] if join else [])])
         self._follow(self.kids.named("router")[-1].proc.stderr, "router")
         return endpoint
 
     def spawn_agent(self, name: str, args: Sequence[str]) -> int:
         """Fork agent ``name`` with the agent program's arguments (``-m agents`` not included); its pid."""
-        if self.fleet is None:
-            self.fleet = Fleet(self.kids, stderr=subprocess.PIPE)
-            self._follow(self.fleet.child.proc.stderr, None)
-        return self.fleet.spawn(name, args).pid
+        fleet = self.host.fleet
+        child = self.host.spawn_agent(name, args)
+        if self.host.fleet is not fleet:  # a new fleet: its error lines are this node's
+            self._follow(self.host.fleet.child.proc.stderr, None)
+        return child.pid
 
     def _follow(self, stream, name: str | None) -> None:
         def read() -> None:
@@ -102,8 +104,8 @@ class NodeHost:
     def stop(self, grace: float = 5.0) -> None:
         """Agents, then the router; every child reaped."""
         self.kids.stop_all(grace)
-        if self.fleet is not None and self.fleet.child.proc.stdin:
+        if self.host.fleet is not None and self.host.fleet.child.proc.stdin:
             try:
-                self.fleet.child.proc.stdin.close()
+                self.host.fleet.child.proc.stdin.close()
             except OSError:
                 pass

@@ -22,6 +22,7 @@ from typing import Any
 
 from zswarm.cluster.ray_env import NODE_ARGS, SYSTEM_CONFIG, offline_env
 from zswarm.errors import UsageError
+from zswarm.ports import LOOPBACK
 
 INSTALL = 'Ray is not installed: pip install -e ".[cluster]" (or pip install "ray==2.60.*") on every node'
 ADDRESS = re.compile(r"^(auto|local(:\d+)?|[\w.\-\[\]:]+:\d+)$")
@@ -94,11 +95,11 @@ class RayCluster:
 def loopback_only():
     """While a local cluster's nodes start: Ray's version check of each node asks for "this node's
     address" before the driver has one, and finds it by a probe towards 8.8.8.8 (1.1 s each, and a
-    warning line each, where there is no route). Every node of a local cluster is 127.0.0.1."""
+    warning line each, where there is no route). Every node of a local cluster is on loopback."""
     from ray._private import services
 
     original = services.get_node_ip_address
-    services.get_node_ip_address = lambda address=None: "127.0.0.1"
+    services.get_node_ip_address = lambda address=None: LOOPBACK
     try:
         yield
     finally:
@@ -182,7 +183,7 @@ def connect(address: str, cores: int, insecure_ok: bool = False) -> RayCluster:
     driver in. A cluster started here wants a token made for the run (``RAY_AUTH_MODE=token``, the token
     in the environment of every Ray process it starts, never in a file); joining one that wants none
     is said in one line (``insecure_ok``: not)."""
-    own = "127.0.0.1"
+    own = LOOPBACK
     auth = "token"
     if not address.startswith("local"):
         address, own = reachable(address)
@@ -214,17 +215,17 @@ def connect(address: str, cores: int, insecure_ok: bool = False) -> RayCluster:
                          env={k: v for k, v in os.environ.items() if k != "ZSWARM_RAY_RUN"})
     try:
         if address == "local":
-            ray.init(num_cpus=cores, _node_ip_address="127.0.0.1", _system_config=SYSTEM_CONFIG, **NODE_ARGS, **quiet)
+            ray.init(num_cpus=cores, _node_ip_address=LOOPBACK, _system_config=SYSTEM_CONFIG, **NODE_ARGS, **quiet)
         elif address.startswith("local:"):
             from ray.cluster_utils import Cluster
 
             k, each = local_nodes(address, cores)
-            args = {"num_cpus": each, "node_ip_address": "127.0.0.1", **NODE_ARGS}
+            args = {"num_cpus": each, "node_ip_address": LOOPBACK, **NODE_ARGS}
             with contextlib.redirect_stdout(io.StringIO()), loopback_only():
                 cluster.local = Cluster(initialize_head=True, head_node_args={**args, "_system_config": SYSTEM_CONFIG})
                 for _ in range(k - 1):
                     cluster.local.add_node(**args)
-            ray.init(address=cluster.local.address, _node_ip_address="127.0.0.1", **quiet)
+            ray.init(address=cluster.local.address, _node_ip_address=LOOPBACK, **quiet)
         else:
             ray.init(address=address, _node_ip_address=own, **quiet)
     except (ConnectionError, RuntimeError, TimeoutError, ValueError) as exc:

@@ -17,11 +17,13 @@ import os
 from pathlib import Path
 from typing import MutableMapping
 
+from zswarm.ports import LOOPBACK
+
 #: The environment of every Ray process (driver, nodes, workers), before ``import ray``.
 OFFLINE = {
     "RAY_USAGE_STATS_ENABLED": "0",
     "RAY_USAGE_STATS_PROMPT_ENABLED": "0",
-    "RAY_USAGE_STATS_REPORT_URL": "http://127.0.0.1:9/",  # discard: nothing listens, nothing leaves
+    "RAY_USAGE_STATS_REPORT_URL": f"http://{LOOPBACK}:9/",  # discard: nothing listens, nothing leaves
     "RAY_memory_monitor_refresh_ms": "0",
     "RAY_process_group_cleanup_enabled": "1",  # a dead worker's process group (its routers, agents) goes too
     "RAY_kill_child_processes_on_worker_exit": "1",

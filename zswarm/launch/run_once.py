@@ -16,7 +16,7 @@ import signal
 import subprocess
 from pathlib import Path
 
-from zswarm.net.procs import Children
+from zswarm.host.procs import Children
 from zswarm.net.runspec import RunSpec
 
 STOP_GRACE_S = 30.0

@@ -20,23 +20,21 @@ from zswarm.errors import Failure, UsageError
 from zswarm.launch.chaos import Event, schedule
 from zswarm.launch.configs import agent_config_args, role_configs
 from zswarm.launch.ending import finish_recording
-from zswarm.launch.hosts import Host, LocalHost
+from zswarm.host.local import Host, LocalHost
+from zswarm.ports import LOOPBACK
 from zswarm.launch.migration import Migration
 from zswarm.launch.placement import place
 from zswarm.launch.plan import Plan
 from zswarm.net.config import CONNECT_TIMEOUT, endpoint_host_port
 from zswarm.launch.world_lines import DONE, forward_lines
 from zswarm.launch.world_watch import WorldWatch
-from zswarm.net.procs import (
+from zswarm.host.procs import (
     Child,
     Children,
     agent_argv,
-    free_port,
     local_host,
     port_in_use,
-    start_mesh,
     wait_for_port,
-    world_argv,
 )
 
 #: No agent is moved (--migrate-every) in the run's last MOVE_WALL_S wall seconds (or its last simulated
@@ -65,7 +63,8 @@ class Launch:
         self.endpoint = plan.connect  # the first router's: the world's, and agent i's on router i mod K
         self.endpoints: list[str] = []
         self.configs: dict[str, list[str]] = {}
-        self.local = LocalHost(self.kids, plan.fork)  # where this machine's agents run
+        # this machine: its routers bind where --listen says (loopback by default), its agents fork here
+        self.local = LocalHost(self.kids, plan.fork, endpoint_host_port(plan.listen)[0] if plan.listen else LOOPBACK)
         self.watch: WorldWatch | None = None  # with chaos to time: the world's start, heard on Zenoh
         self.pending: list[Event] = schedule(plan.kill, plan.restart_after, plan.world_outage, plan.world_crash)
         self.rng = np.random.default_rng([self.spec.seed, 0xC0FFEE])
@@ -85,7 +84,7 @@ class Launch:
     def run(self) -> int:
         self.configs = role_configs(self.plan, self.spec.scenario.n_agents, _say)
         if "router" in self.plan.roles:
-            self.endpoint = self.plan.listen or f"{'tls' if self.plan.secure else 'tcp'}/127.0.0.1:{free_port()}"
+            self.endpoint = self.plan.listen or self.local.endpoint("tls" if self.plan.secure else "tcp")
             host, port = endpoint_host_port(self.endpoint)
             if port_in_use(local_host(host), port):
                 raise UsageError(f"port {port} on {host} is already in use; pick another with --listen")
@@ -117,9 +116,9 @@ class Launch:
             self._reach_router()
         if "router" in plan.roles:
             proto = self.endpoint.split("/", 1)[0]
-            self.endpoints += [f"{proto}/127.0.0.1:{free_port()}" for _ in range(plan.routers - 1)]
+            self.endpoints += [self.local.endpoint(proto) for _ in range(plan.routers - 1)]
             try:
-                start_mesh(self.kids, self.endpoints, plan.connect, self.configs.get("router", []))
+                self.local.start_routers(self.endpoints, plan.connect, self.configs.get("router", []))
             except RuntimeError as exc:
                 raise UsageError(str(exc)) from None
         if "world" in plan.roles:
@@ -244,7 +243,7 @@ class Launch:
         if resume:
             extra.append("--resume")
         extra += self._viewer().to_argv()
-        self.world = self.kids.spawn("world", world_argv(self.spec, self.endpoint, *extra), stdout=subprocess.PIPE)
+        self.world = self.local.spawn_world(self.spec, self.endpoint, *extra, stdout=subprocess.PIPE)
         forward_lines(self.world, self._forward)
 
     def _forward(self, text: str) -> None:

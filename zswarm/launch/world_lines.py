@@ -9,7 +9,7 @@ from __future__ import annotations
 import threading
 from typing import Callable
 
-from zswarm.net.procs import Child
+from zswarm.host.procs import Child
 
 DONE = "world: done"
 

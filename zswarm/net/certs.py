@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from zswarm.errors import UsageError
+from zswarm.ports import LOOPBACK
 
 ROLES = ("router", "world", "agent")
 
@@ -50,7 +51,7 @@ def _crypto():
     return x509, hashes, serialization, ec, ExtendedKeyUsageOID, NameOID
 
 
-def make_certs(directory: Path, names: tuple[str, ...] = ROLES, hosts: tuple[str, ...] = ("localhost", "127.0.0.1"),
+def make_certs(directory: Path, names: tuple[str, ...] = ROLES, hosts: tuple[str, ...] = ("localhost", LOOPBACK),
                days: int = 30) -> dict[str, CertPaths]:
     """Write ``ca.pem``/``ca.key`` and ``NAME.pem``/``NAME.key`` for every name into ``directory``.
 

@@ -14,6 +14,7 @@ import zenoh
 
 from zswarm.args import DEFAULT_VIEWER_URL, ConnectAction
 from zswarm.errors import UsageError
+from zswarm.ports import LOOPBACK
 
 
 #: How long a process keeps trying to reach its router at start (``--connect-timeout``), and a machine
@@ -85,7 +86,7 @@ def zenoh_config(mode: str | None = "client", connect: Iterable[str] = (), liste
     return conf
 
 
-DEFAULT_ROUTER = "tcp/127.0.0.1:7447"
+DEFAULT_ROUTER = f"tcp/{LOOPBACK}:7447"
 
 
 def _first_line(exc: Exception) -> str:

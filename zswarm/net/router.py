@@ -12,6 +12,7 @@ from typing import Sequence
 
 from zswarm.args import Parser, run_main
 from zswarm.net.config import add_zenoh_args, config_from_args, open_session
+from zswarm.ports import LOOPBACK
 from zswarm.stopping import stop_on_signals
 
 ROUTER_RUNTIME: str | None = None  # Zenoh's default pools
@@ -22,7 +23,7 @@ def _main(argv: Sequence[str] | None) -> int:
     add_zenoh_args(parser, default_mode="router")
     args = parser.parse_args(argv)
     if not args.listen and args.config is None:
-        args.listen = ["tcp/127.0.0.1:7447"]
+        args.listen = [f"tcp/{LOOPBACK}:7447"]
     stop = stop_on_signals()
     # the router is no agent: it carries every message of the swarm, so it keeps Zenoh's own
     # multi-threaded runtime rather than the agents' single worker (measured: docs/benchmarks.md)

@@ -28,6 +28,7 @@ from pathlib import Path
 
 from zswarm.net.certs import ROLES, CertPaths, make_certs
 from zswarm.net.keys import Keys
+from zswarm.ports import LOOPBACK
 
 ANY_RUN = Keys("*", 1.0)  # the key expressions of every run: zswarm/*/...
 ANY_RUN_3D = Keys("*", 1.0, dims=3)  # and of every 3-D run (a pose key has one more cell segment)
@@ -115,7 +116,7 @@ def role_config(paths: CertPaths, endpoint: str, agents: int = 0) -> dict:
 
 
 def write_secure_dir(directory: Path, endpoint: str = "tls/localhost:7447",
-                     hosts: tuple[str, ...] = ("localhost", "127.0.0.1"), names: tuple[str, ...] = ROLES,
+                     hosts: tuple[str, ...] = ("localhost", LOOPBACK), names: tuple[str, ...] = ROLES,
                      days: int = 30, agents: int = 0) -> dict[str, Path]:
     """Make the CA and certificates, and write ``NAME.json5`` (a full Zenoh config) for every name;
     with ``agents = N`` also ``agent-0`` .. ``agent-{N-1}``, each with rights to its own keys only.

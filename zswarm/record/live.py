@@ -18,9 +18,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from urllib.parse import urlparse
 
-from zswarm.args import DEFAULT_VIEWER_URL as DEFAULT_URL
 from zswarm.args import ConnectAction
+from zswarm.args import DEFAULT_VIEWER_URL as DEFAULT_URL
 from zswarm.errors import UsageError
+from zswarm.ports import LOOPBACK
 from zswarm.ports import free_port
 
 SERVE_PORT = 9876
@@ -107,7 +108,7 @@ def sinks(path: Path | None, viewer: Viewer | None) -> list:
     if viewer.serve:
         server = rr.GrpcServerSink(port=SERVE_PORT)
         out.append(server)
-        uri = server.uri.replace("0.0.0.0", "127.0.0.1")  # it listens on every interface
+        uri = server.uri.replace("0.0.0.0", LOOPBACK)  # it listens on every interface
         rr.serve_web_viewer(web_port=WEB_PORT, open_browser=False, connect_to=uri)
         print(f"serving the run live: open http://localhost:{WEB_PORT} (or: rerun --connect {uri})", flush=True)
     return out
@@ -123,4 +124,4 @@ def spawn_viewer() -> str:
     except Exception as exc:  # no `rerun` on PATH, no display: say so, in one line
         raise UsageError(f"--spawn: cannot start the Rerun viewer ({exc}); run 'rerun' yourself and use "
                          "--connect, or --serve for a browser") from None
-    return f"rerun+http://127.0.0.1:{port}/proxy"
+    return f"rerun+http://{LOOPBACK}:{port}/proxy"

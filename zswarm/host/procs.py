@@ -7,7 +7,6 @@ session, so a terminal's Ctrl-C reaches only the launcher, which then stops the 
 
 from __future__ import annotations
 
-import ctypes
 import json
 import os
 import signal
@@ -17,34 +16,13 @@ import sys
 import threading
 import time
 from dataclasses import dataclass, field
-from typing import IO, TYPE_CHECKING, MutableMapping, Sequence
+from typing import IO, TYPE_CHECKING, Sequence
 
-from zswarm.ports import free_port  # noqa: F401  (re-exported: the launcher, benchmarks and tests take it here)
+from zswarm.ports import LOOPBACK, free_port  # noqa: F401  (free_port re-exported: the launcher, benchmarks and tests take it here)
+from zswarm.process import die_with_parent, one_blas_thread
 
 if TYPE_CHECKING:
     from zswarm.net.runspec import RunSpec
-
-_PR_SET_PDEATHSIG = 1
-
-
-def die_with_parent() -> None:
-    """SIGTERM this process when its parent dies (run in a child, between fork and exec or the program)."""
-    try:
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
-    except OSError:
-        pass
-
-
-BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
-
-
-def one_blas_thread(env: MutableMapping[str, str]) -> None:
-    """One BLAS thread unless the user set otherwise; call it before numpy is imported. A swarm
-    process does its linear algebra on small arrays, and an idle BLAS pool of one thread per core
-    spins between calls: on a 16-core machine the world burned 2.2 cores at N = 100 and 9.5 at
-    N = 400 that way (docs/benchmarks.md), cores its agents needed."""
-    for name in BLAS_THREADS:
-        env.setdefault(name, "1")
 
 
 def python_env() -> dict[str, str]:
@@ -231,7 +209,7 @@ def wait_for_port(host: str, port: int, timeout: float, child: Child | None = No
     return False
 
 
-def start_router(kids: Children, host: str = "127.0.0.1", proto: str = "tcp", extra: Sequence[str] = (),
+def start_router(kids: Children, host: str = LOOPBACK, proto: str = "tcp", extra: Sequence[str] = (),
                  name: str = "router", stderr: int | None = None) -> str:
     """A router child listening on a free port of ``host`` (``extra``: more router arguments, e.g.
     ``--config``, or ``--connect`` to join another router); returns its endpoint once the port accepts
@@ -246,7 +224,7 @@ ROUTER_MODULE = "zswarm.net.router"
 
 def local_host(host: str) -> str:
     """Where to check a listening port: a wildcard address is reached on loopback."""
-    return "127.0.0.1" if host in ("0.0.0.0", "::") else host
+    return LOOPBACK if host in ("0.0.0.0", "::") else host
 
 
 def start_mesh(kids: Children, endpoints: Sequence[str], join: str | None = None, extra: Sequence[str] = ()) -> None:
