@@ -432,6 +432,9 @@ class World:
         result["messages_sent"] += self.sent
         result["messages_received"] += self.received
         self.settle_departures(force=True)
+        if self.ending:  # an agent that sent its final report is stopping with the run, token or not yet
+            self.census.stopped_at_end += [w for w in sorted(self.census.alive)
+                                           if self.stats.final(w) and w not in self.census.stopped_at_end]
         if self.census.stopped_at_end:
             self._event(f"run ended: {len(self.census.stopped_at_end)} agents stopped with it")
         result.update({"startup_s": self.census.all_alive_after, "departures": self.census.departures,
