@@ -14,21 +14,42 @@ README = (ROOT / "README.md").read_text()
 LINES = README.splitlines()
 
 
-def commands() -> list[list[str]]:
-    """Every zswarm or launch.py command of the README's shell blocks, as argv (``&&`` split)."""
+def commands(text: str = README, bash_only: bool = True) -> list[list[str]]:
+    """Every zswarm or launch.py command of ``text``'s code blocks (its ``bash`` blocks only, with
+    ``bash_only``), as argv, with ``.venv/bin/`` and ``python`` spelled either way; ``&&`` split."""
     out, shell = [], False
-    for line in LINES:
+    for line in text.splitlines():
         if line.startswith("```"):
-            shell = line.strip() == "```bash"
+            shell = not shell and (line.strip() == "```bash" or not bash_only)
             continue
-        if not shell:
+        if not shell or "\u2500" in line:  # not a command, or a drawing of one
             continue
-        code = re.split(r"\s#\s", line)[0].strip()
-        for part in code.split("&&"):
-            argv = shlex.split(part)
-            if argv[:1] == [".venv/bin/zswarm"] or argv[:2] == [".venv/bin/python", "launch.py"]:
+        code = re.split(r"\s#\s", line)[0].strip().replace("[--json]", "--json")
+        for part in re.split(r"&&|;", code):
+            try:
+                argv = [a for a in shlex.split(part) if a != "&"]
+            except ValueError:
+                continue
+            if argv[:1] in ([".venv/bin/zswarm"], ["zswarm"]) or (
+                    len(argv) > 1 and argv[0].endswith(("python", "python3")) and argv[1] == "launch.py"):
                 out.append(argv)
     return out
+
+
+def parse(argv: list[str]) -> None:
+    """``argv`` through the very parser its command runs with (SystemExit when it is refused)."""
+    from zswarm.cli import launch, sweep
+    from zswarm.cli.main import build_parser
+
+    if argv[0].endswith(("python", "python3")):  # launch.py is zswarm run
+        parser, rest = launch.build_parser("launch.py"), argv[2:]
+    elif argv[1] == "run":
+        parser, rest = launch.build_parser(), argv[2:]
+    elif argv[1] == "sweep":
+        parser, rest = sweep.build_parser(), argv[2:]
+    else:
+        parser, rest = build_parser(), argv[1:]
+    parser.parse_args(rest)
 
 
 def test_the_readme_is_short_and_starts_with_set_up_and_the_demo():
@@ -48,21 +69,26 @@ def test_the_readmes_test_command_is_the_one_ci_runs():
 @pytest.mark.parametrize("argv", commands(), ids=lambda a: " ".join(a[1:4]))
 def test_every_readme_command_is_taken_by_its_parser(argv):
     """Parsed by the very parser the command runs with: a flag renamed or a value refused fails here."""
-    from zswarm.cli import launch, sweep
-    from zswarm.cli.main import build_parser
-
-    if argv[0] == ".venv/bin/python":  # launch.py is zswarm run
-        parser, rest = launch.build_parser("launch.py"), argv[2:]
-    elif argv[1] == "run":
-        parser, rest = launch.build_parser(), argv[2:]
-    elif argv[1] == "sweep":
-        parser, rest = sweep.build_parser(), argv[2:]
-    else:
-        parser, rest = build_parser(), argv[1:]
     try:
-        parser.parse_args(rest)
+        parse(argv)
     except SystemExit as exc:
         pytest.fail(f"{' '.join(argv)}: refused by its parser (exit {exc.code})")
+
+
+def test_every_command_in_the_guides_is_taken_by_its_parser():
+    """The guides' commands too (a ``--params FILE`` the reader writes first is left out: its parser reads it)."""
+    refused, seen = [], 0
+    for page in sorted((ROOT / "docs").glob("*.md")):
+        for argv in commands(page.read_text(), bash_only=False):
+            if "--params" in argv:
+                k = argv.index("--params")
+                argv = argv[:k] + argv[k + 2:]
+            seen += 1
+            try:
+                parse(argv)
+            except SystemExit:
+                refused.append(f"{page.name}: {' '.join(argv)}")
+    assert seen >= 80 and refused == [], refused
 
 
 def test_the_readme_shows_every_task_and_its_links_lead_somewhere():
@@ -79,3 +105,25 @@ def test_the_readme_shows_every_task_and_its_links_lead_somewhere():
             headings = [re.sub(r"[^\w\- ]", "", h.strip("# ").lower()).replace(" ", "-")
                         for h in (ROOT / path).read_text().splitlines() if h.startswith("#")]
             assert anchor in headings, (path, anchor)
+
+
+@pytest.mark.parametrize("command", ["sim", "run", "sweep", "tune", "monitor", "robot-sim", "bench net", "bench world",
+                                     "bench laws", "bench placement", "bench soak"])
+def test_every_duration_flag_takes_units_and_a_bare_number_is_seconds(command):
+    """One meaning per flag: ``--duration 90``, ``90s`` and ``1.5min`` are the same on every command
+    (fault delays are the one exception, documented: a bare ``--latency 100`` is milliseconds)."""
+    from zswarm.cli import launch, sweep
+    from zswarm.cli.main import build_parser
+    from zswarm.model.faults import parse_duration
+
+    required = {"sweep": ["--out", "x"], "tune": ["--out", "x"], "monitor": ["--run", "x"], "robot-sim": ["--robots", "r.toml"]}
+    parser = {"run": launch.build_parser(), "sweep": sweep.build_parser()}.get(command)
+    prefix = [] if parser is not None else command.split()
+    parser = parser or build_parser()
+    got = {parser.parse_args([*prefix, *required.get(command, []), "--duration", text]).duration
+           for text in ("90", "90s", "1.5min", "90000ms")}
+    assert got == {90.0}
+    with pytest.raises(SystemExit):
+        parser.parse_args([*prefix, *required.get(command, []), "--duration", "90q"])
+    assert parse_duration("100") == parse_duration("100ms") == parse_duration("0.1s") == 0.1
+    assert "a bare number is ms" in launch.build_parser().format_help().replace("\n", " ").replace("  ", " ")

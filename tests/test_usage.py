@@ -105,7 +105,7 @@ CASES = [
     ([LAUNCH, "sweep", "--out", "{dir}/s", "--scenario", "nope"], "unknown scenario"),
     ([LAUNCH, "sweep", "--out", "{dir}/s", "--latency", "1,x"], "expected a duration"),
     ([LAUNCH, "sweep", "--out", "{dir}/s", "--dropout", "1.5"], "dropout must be in [0, 1)"),
-    ([LAUNCH, "sweep", "--out", "{dir}/s", "--duration", "-1"], "--duration must be > 0"),
+    ([LAUNCH, "sweep", "--out", "{dir}/s", "--duration", "-1"], "--duration: expected a duration >= 0"),
     ([LAUNCH, "sweep", "--out", "{junk}"], "is a file"),
     # files that cannot be written, or would be written under the wrong name
     (["-m", "zswarm", "design", "--save", "/proc/x.rrd"], "cannot create a file in /proc"),
@@ -126,7 +126,7 @@ CASES = [
     (["-m", "zswarm", "sim", "--record", "{old}"], "old.rrd exists; give another path or --force"),
     (["-m", "zswarm", "design", "--save", "{old}"], "old.rrd exists; give another path or --force"),
     (["-m", "zswarm", "sim", "--agents", "0"], "--agents"),
-    (["-m", "zswarm", "monitor", "--run", "x", "--duration", "-1"], "--duration must be"),
+    (["-m", "zswarm", "monitor", "--run", "x", "--duration", "-1"], "--duration: expected a duration >= 0"),
     (["-m", "zswarm", "tune", "--out", "{dir}/t", "--popsize", "1"], "--popsize must be >= 2"),
     (["-m", "zswarm", "tune", "--out", ""], "--out needs a directory"),
     # the processes

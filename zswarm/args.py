@@ -8,13 +8,15 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 import sys
 from typing import Callable, NoReturn, Sequence
 
 from zswarm.errors import EXIT_FAILURE, EXIT_USAGE, Failure, ParamError, UsageError
 from zswarm.ports import LOOPBACK
 
-__all__ = ["EXIT_USAGE", "Parser", "UsageError", "add_param_args", "positive_float", "positive_int", "run_main",
+__all__ = ["EXIT_USAGE", "Parser", "UsageError", "add_param_args", "positive_float", "positive_int", "positive_seconds",
+           "run_main", "seconds",
            "seed_arg"]
 
 class Parser(argparse.ArgumentParser):
@@ -162,6 +164,31 @@ def positive_float(text: str) -> float:
         raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
     if not value > 0 or value == float("inf"):
         raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {text!r}")
+    return value
+
+
+_DURATION = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(ms|s|min|h)?\s*$")
+_UNIT = {"ms": 1e-3, "s": 1.0, "min": 60.0, "h": 3600.0, None: 1.0}
+
+
+def seconds(text: str) -> float:
+    """A duration flag's value in seconds: a bare number is seconds; ``500ms``, ``30s``, ``2min`` and
+    ``1h`` say their unit. (Fault delays, ``--latency`` and ``--jitter``, are the one exception: a bare
+    number there is milliseconds, as their help says.)"""
+    m = _DURATION.match(str(text))
+    if not m:
+        raise argparse.ArgumentTypeError(f"expected a duration like 30, 30s, 500ms or 2min, got {text!r}")
+    value = float(m.group(1)) * _UNIT[m.group(2)]
+    if not math.isfinite(value) or value < 0:
+        raise argparse.ArgumentTypeError(f"expected a duration >= 0, got {text!r}")
+    return value
+
+
+def positive_seconds(text: str) -> float:
+    """:func:`seconds`, above zero."""
+    value = seconds(text)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"expected a duration > 0, got {text!r}")
     return value
 
 

@@ -7,7 +7,7 @@ import json
 import time
 from pathlib import Path
 
-from zswarm.args import UsageError, positive_int
+from zswarm.args import UsageError, positive_int, positive_seconds
 from zswarm.cli.bench_interactions import add_study_arguments
 
 DESCRIPTION = ("Every law (or those of --laws) on the same scenario, seeds and faults in the reference simulator, "
@@ -20,7 +20,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--agents", type=positive_int, default=None, help="N (default: the scenario's)")
     p.add_argument("--laws", default=None, help="comma-separated law names (default: every law zswarm laws lists)")
     p.add_argument("--latency", default="0,200ms", help="one-way latencies, comma-separated (default 0,200ms)")
-    p.add_argument("--duration", type=float, default=None, help="simulated seconds (default: the scenario's)")
+    p.add_argument("--duration", type=positive_seconds, default=None, help="simulated seconds (default: the scenario's)")
     p.add_argument("--dropout", type=float, default=0.0, help="loss probability of every run (default 0)")
     p.add_argument("--safety", default="off,barrier", help="filter modes, comma-separated (default off,barrier)")
     p.add_argument("--figure", type=Path, default=None, metavar="FILE.png", help="write the figure here")

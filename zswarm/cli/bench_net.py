@@ -14,7 +14,7 @@ import argparse
 import json
 from pathlib import Path
 
-from zswarm.args import positive_float, positive_int
+from zswarm.args import positive_int, positive_seconds
 from zswarm.bench.figures import figure
 from zswarm.bench.net import measure, record_curves
 from zswarm.files import check_writable
@@ -26,7 +26,7 @@ DESCRIPTION = __doc__.split("\n\n")[1]
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--agents", type=lambda t: [positive_int(x) for x in t.split(",")],
                    default=[10], help="N, or a comma-separated list (default 10)")
-    p.add_argument("--duration", type=positive_float, default=15.0,
+    p.add_argument("--duration", type=positive_seconds, default=15.0,
                    help="simulated = wall seconds per run (default 15)")
     p.add_argument("--routers", type=positive_int, default=1, metavar="K",
                    help="K meshed routers, agent i on router i mod K (default 1)")

@@ -13,6 +13,7 @@ import argparse
 import json
 import time
 
+from zswarm.args import positive_seconds
 from zswarm.errors import UsageError
 
 DESCRIPTION = __doc__.split("\n\n")[1]
@@ -24,8 +25,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--nodes", type=int, default=10, help="K nodes, equal capacities (default 10)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--samples", type=int, default=50, help="instants of the run counted (default 50)")
-    p.add_argument("--duration", type=float, default=None, help="simulated seconds (default the scenario's)")
-    p.add_argument("--migrate-every", type=float, default=10.0, metavar="S",
+    p.add_argument("--duration", type=positive_seconds, default=None, help="simulated seconds (default the scenario's)")
+    p.add_argument("--migrate-every", type=positive_seconds, default=10.0, metavar="S",
                    help="also count space placement with the agents moved every S seconds, as zswarm run "
                         "--migrate-every S moves them (default 10)")
     p.add_argument("--json", action="store_true", help="one JSON object: space, round_robin (the shares), ...")

@@ -18,7 +18,7 @@ import argparse
 from pathlib import Path
 from typing import Sequence
 
-from zswarm.args import DEFAULT_VIEWER_URL, ConnectAction, Parser, run_main
+from zswarm.args import ConnectAction, DEFAULT_VIEWER_URL, Parser, run_main, seconds
 from zswarm.launch.chaos import parse_crash, parse_kill, parse_outage
 from zswarm.net.runspec import add_run_args
 from zswarm.record.live import add_viewer_args
@@ -71,7 +71,7 @@ def build_parser(prog: str = "zswarm run") -> Parser:
     add_viewer_args(p, zenoh_connect="connect")
     p.add_argument("--listen", default=None, metavar="ENDPOINT",
                    help="router endpoint (default tcp/127.0.0.1:FREE_PORT)")
-    p.add_argument("--connect-timeout", type=float, default=None, metavar="S",
+    p.add_argument("--connect-timeout", type=seconds, default=None, metavar="S",
                    help="how long the world and the agents retry a router that does not answer before they give "
                         "up (default 15 s; machines started by hand must start within it)")
     p.add_argument("--routers", type=int, default=1, metavar="K",
@@ -105,13 +105,13 @@ def build_parser(prog: str = "zswarm run") -> Parser:
     p.add_argument("--placement", default="space", choices=("space", "round-robin"),
                    help="with --cluster: agents that start near each other share a node (space, default) or "
                         "ids are dealt in turn (round-robin)")
-    p.add_argument("--migrate-every", type=float, default=None, metavar="S",
+    p.add_argument("--migrate-every", type=seconds, default=None, metavar="S",
                    help="free clock, with --routers K or --cluster: every S seconds of the run, split the swarm "
                         "anew by space and move each agent whose router (node) changes there, make-before-break "
                         "(docs/cluster.md)")
     p.add_argument("--kill", type=parse_kill, default=None, metavar="K@T",
                    help="SIGKILL K agents, chosen with the seed, T seconds after the start")
-    p.add_argument("--restart-after", type=float, default=None, metavar="S",
+    p.add_argument("--restart-after", type=seconds, default=None, metavar="S",
                    help="restart the killed agents S seconds later (they rejoin at their spawn position); with "
                         "--cluster, also the agents of a node that was lost, on the surviving nodes")
     p.add_argument("--world-outage", type=parse_outage, default=None, metavar="T:S",

@@ -16,6 +16,7 @@ import signal
 import sys
 import time
 
+from zswarm.args import positive_seconds
 from zswarm.errors import UsageError
 from zswarm.net.keys import Keys, check_run_id
 
@@ -29,8 +30,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     parser.add_argument("--run", dest="run_id", required=True, metavar="RUN",
                         help="the run id (zswarm run prints it; its --run)")
-    parser.add_argument("--every", type=float, default=1.0, metavar="S", help="refresh period (default 1 s)")
-    parser.add_argument("--duration", type=float, default=None, metavar="S", help="stop after S seconds")
+    parser.add_argument("--every", type=positive_seconds, default=1.0, metavar="S", help="refresh period (default 1 s)")
+    parser.add_argument("--duration", type=positive_seconds, default=None, metavar="S", help="stop after S seconds")
     parser.add_argument("--wait", type=float, default=10.0, metavar="S",
                         help="give up (exit 2) if no agent of the run is heard within S seconds (default 10)")
     parser.add_argument("--json", action="store_true", help="one JSON object per refresh instead of the table")

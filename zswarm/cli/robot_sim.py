@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from zswarm.args import UsageError, add_param_args, seed_arg
+from zswarm.args import UsageError, add_param_args, positive_seconds, seed_arg
 from zswarm.stopping import stop_on_signals
 
 DESCRIPTION = ("Stand-in ROS 2 robots for rehearsing a deployment: differential-drive robots at the scenario's "
@@ -26,7 +26,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--rate", type=float, default=50.0, help="odometry and dynamics rate in Hz (default 50)")
     parser.add_argument("--cmd-timeout", type=float, default=0.25,
                         help="stop a robot whose commands stopped this many seconds ago (default 0.25)")
-    parser.add_argument("--duration", type=float, default=None, help="stop after this many seconds (default: "
+    parser.add_argument("--duration", type=positive_seconds, default=None, help="stop after this many seconds (default: "
                         "until the run ends, see --idle-exit, or Ctrl-C)")
     parser.add_argument("--idle-exit", type=float, default=5.0, metavar="S",
                         help="stop once the robots were commanded and then no command came for S seconds: "

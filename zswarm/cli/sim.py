@@ -8,7 +8,7 @@ import sys
 import time
 from pathlib import Path
 
-from zswarm.args import add_law_arg, add_param_args, positive_float, positive_int, seed_arg
+from zswarm.args import add_law_arg, add_param_args, positive_int, positive_seconds, seed_arg
 from zswarm.model.params import parse_assignments
 from zswarm.model.potentials import COMBINATIONS
 from zswarm.model.scenarios import SCENARIOS, get_scenario
@@ -23,7 +23,7 @@ def add_sim_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--potential", choices=COMBINATIONS, default=None,
                         help="obstacle-goal combination: additive (eq 12) or multiplicative (eq 14); "
                              "default: the scenario's")
-    parser.add_argument("--duration", type=positive_float, default=None, help="simulated seconds")
+    parser.add_argument("--duration", type=positive_seconds, default=None, help="simulated time, e.g. 30 or 30s")
     parser.add_argument("--agents", type=positive_int, default=None, metavar="N",
                         help="N agents (the same as --set n_agents=N, and zswarm run's --agents)")
     parser.add_argument("--record", type=Path, metavar="FILE.rrd", help="write a Rerun recording")

@@ -7,7 +7,7 @@ import argparse
 import json
 from typing import Any
 
-from zswarm.args import positive_float, positive_int, seed_arg
+from zswarm.args import positive_int, positive_seconds, seed_arg
 from zswarm.bench.figures import figure
 from zswarm.bench.soak import FLAT_MB_PER_MIN, run_soak
 
@@ -19,7 +19,7 @@ DESCRIPTION = ("N agents on bench-field with seeded loss for several minutes; sa
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--agents", type=positive_int, default=30, help="N (default 30)")
     p.add_argument("--dropout", type=float, default=0.2, help="loss probability per message (default 0.2)")
-    p.add_argument("--duration", type=positive_float, default=300.0, help="seconds (default 300)")
+    p.add_argument("--duration", type=positive_seconds, default=300.0, help="wall time, e.g. 300 or 5min (default 300 s)")
     p.add_argument("--seed", type=seed_arg, default=0)
     p.add_argument("--json", action="store_true")
 

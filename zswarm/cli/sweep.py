@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 from typing import Sequence
 
-from zswarm.args import Parser, UsageError, add_law_arg, add_param_args, seed_arg
+from zswarm.args import Parser, UsageError, add_law_arg, add_param_args, positive_seconds, seed_arg
 from zswarm.files import write_json
 from zswarm.launch.sweep import Cell, aggregate, cell_spec, run_cell_distributed, simulate_cell, write_curves, write_tables
 from zswarm.model.faults import FaultModel, parse_duration_list
@@ -38,7 +38,7 @@ def build_parser(prog: str = "zswarm sweep") -> Parser:
     p.add_argument("--repeats", type=int, default=3, help="runs per cell, seeds seed..seed+repeats-1 (default 3)")
     p.add_argument("--seed", type=seed_arg, default=0, help="repeat r uses seed + r (default 0)")
     p.add_argument("--agents", type=int, default=None, help="N (default: the scenario's)")
-    p.add_argument("--duration", type=float, default=None, help="simulated seconds (default: the scenario's)")
+    p.add_argument("--duration", type=positive_seconds, default=None, help="simulated seconds (default: the scenario's)")
     add_param_args(p)
     add_law_arg(p)
     p.add_argument("--out", type=Path, required=True, help="output directory (reused to resume)")
@@ -79,8 +79,6 @@ def main(argv: Sequence[str] | None, prog: str = "zswarm sweep") -> int:
 
     args.overrides = {**parse_assignments(args.assignments), **({"n_agents": args.agents} if args.agents is not None else {})}
     bind(get_scenario(args.scenario, args.overrides))  # a bad scenario, parameter or law stops here
-    if args.duration is not None and not args.duration > 0:
-        raise UsageError(f"--duration must be > 0 (got {args.duration})")
     if args.out.exists() and not args.out.is_dir():
         raise UsageError(f"--out {args.out} is a file; give a directory (a new one, or a sweep's to resume it)")
     try:

@@ -12,7 +12,7 @@ from typing import Iterable
 
 import zenoh
 
-from zswarm.args import DEFAULT_VIEWER_URL, ConnectAction
+from zswarm.args import DEFAULT_VIEWER_URL, ConnectAction, seconds
 from zswarm.errors import UsageError
 from zswarm.ports import LOOPBACK
 
@@ -45,7 +45,7 @@ def add_zenoh_args(parser: argparse.ArgumentParser, default_mode: str = "client"
     parser.set_defaults(default_mode=default_mode)
     group.add_argument("--scout", action="store_true",
                        help="enable multicast scouting (off by default so runs never meet by accident)")
-    group.add_argument("--connect-timeout", type=float, default=CONNECT_TIMEOUT, metavar="S",
+    group.add_argument("--connect-timeout", type=seconds, default=CONNECT_TIMEOUT, metavar="S",
                        help=f"keep trying to reach the router this long at start (default {CONNECT_TIMEOUT:g} s)")
 
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any, Literal
 
-from zswarm.args import add_law_arg, add_param_args, seed_arg
+from zswarm.args import add_law_arg, add_param_args, positive_seconds, seed_arg
 from zswarm.errors import UsageError
 from zswarm.model.faults import FaultModel, parse_duration
 from zswarm.model.neighbours import subscription_radius
@@ -138,8 +138,8 @@ def add_run_args(parser: argparse.ArgumentParser, run_help: str = f"run id: name
     group.add_argument("--time-scale", type=time_scale_arg, default=1.0,
                        help="simulated seconds per wall second in free mode (default 1: dt=0.05 s at 20 Hz; "
                             "zswarm run: auto, the pace this machine can hold)")
-    group.add_argument("--duration", type=float, default=None,
-                       help="simulated seconds (default: the scenario's)")
+    group.add_argument("--duration", type=positive_seconds, default=None,
+                       help="simulated time, e.g. 30 or 30s, 2min (default: the scenario's)")
     add_safety_arg(group)
     add_fault_args(parser)
 
@@ -156,8 +156,8 @@ def time_scale_arg(text: str) -> float | str:
 
 def add_fault_args(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group("faults (applied by every receiving agent, seeded by --seed)")
-    group.add_argument("--latency", default="0", help="fixed delay of every incoming message, e.g. 100ms")
-    group.add_argument("--jitter", default="0", help="uniform jitter around the delay, e.g. 20ms")
+    group.add_argument("--latency", default="0", help="fixed delay of every incoming message, e.g. 100ms or 0.1s (a bare number is ms)")
+    group.add_argument("--jitter", default="0", help="uniform jitter around the delay, e.g. 20ms (a bare number is ms)")
     group.add_argument("--dropout", type=float, default=0.0, help="loss probability in [0, 1)")
     group.add_argument("--burst", type=float, default=0.0,
                        help="mean loss-burst length (Gilbert-Elliott); 0: independent losses")
