@@ -56,8 +56,9 @@ def test_monitor_matches_the_runs_summary_and_payloads_name_their_encoding(tmp_p
     try:
         wait_for_port(port)
         seen, tokens = _stock_subscriber(endpoint, run, time.monotonic() + 20)
-        mon = run_cli("-m", "zswarm", "monitor", "--run", run, "--connect", endpoint, "--duration", "4", "--json",
-                      timeout=60)
+        # no --connect: a run of this machine is found by its name
+        mon = run_cli("-m", "zswarm", "monitor", "--run", run, "--duration", "4", "--json", timeout=60)
+        unknown = run_cli("-m", "zswarm", "monitor", "--run", "not-running-here", timeout=60)
         nobody = run_cli("-m", "zswarm", "monitor", "--run", "nobody-here", "--connect", endpoint, "--wait", "1",
                          timeout=60)
         _, err = swarm.communicate(timeout=90)
@@ -84,3 +85,8 @@ def test_monitor_matches_the_runs_summary_and_payloads_name_their_encoding(tmp_p
 
     assert nobody.returncode == 2 and "no agent of run 'nobody-here'" in nobody.stderr, nobody.stderr
     assert "Traceback" not in nobody.stderr
+    assert unknown.returncode == 2 and len(unknown.stderr.strip().splitlines()) == 1, unknown.stderr
+    assert "no run 'not-running-here' is running on this machine" in unknown.stderr
+    from zswarm.launch.local_runs import endpoint_of
+
+    assert endpoint_of(run) is None  # the run's entry went with it

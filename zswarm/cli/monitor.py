@@ -29,7 +29,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     from zswarm.net.config import add_zenoh_args
 
     parser.add_argument("--run", dest="run_id", required=True, metavar="RUN",
-                        help="the run id (zswarm run prints it; its --run)")
+                        help="the run id (zswarm run prints it; its --run); a run of this machine is found by "
+                             "it, one elsewhere needs --connect")
     parser.add_argument("--every", type=positive_seconds, default=1.0, metavar="S", help="refresh period (default 1 s)")
     parser.add_argument("--duration", type=positive_seconds, default=None, metavar="S", help="stop after S seconds")
     parser.add_argument("--wait", type=float, default=10.0, metavar="S",
@@ -78,6 +79,15 @@ def run(args: argparse.Namespace) -> int:
     for flag, value in (("--every", args.every), ("--wait", args.wait), ("--duration", args.duration)):
         if value is not None and not (math.isfinite(value) and value > 0):
             raise UsageError(f"{flag} must be a number of seconds > 0 (got {value:g})")
+    if not args.connect and args.config is None:  # a run of this machine, found by its name
+        from zswarm.launch.local_runs import endpoint_of, runs_dir
+
+        endpoint = endpoint_of(args.run_id)
+        if endpoint is None:
+            raise UsageError(f"no run {args.run_id!r} is running on this machine (its runs are listed in "
+                             f"{runs_dir()}); for a run elsewhere give --connect tcp/ROUTER:PORT (zswarm run "
+                             "prints its router)")
+        args.connect = [endpoint]
     session = open_session(config_from_args(args), what="monitor", retry_for=args.connect_timeout)
     watch = RunWatch(Keys(args.run_id, cell_size=1.0))  # the wildcards it subscribes to span every cell
     stop = False

@@ -18,6 +18,7 @@ import numpy as np
 from zswarm.cluster.hosts import NodeLink
 from zswarm.cluster.ray_cluster import RayCluster
 from zswarm.errors import UsageError
+from zswarm.launch.local_runs import announce
 from zswarm.launch.placement import place
 from zswarm.launch.plan import Plan, id_ranges
 from zswarm.launch.supervisor import Launch, _say
@@ -63,6 +64,7 @@ class ClusterLaunch(Launch):
                     from None
             link.watch()
         self.endpoint = self.endpoints[0]
+        self.announced = announce(self.spec.run, self.endpoint)  # zswarm monitor --run finds it here
         if not plan.quiet:
             counts = np.bincount(list(self.node_of.values()), minlength=len(self.links))
             _say(", ".join(f"{link.label}: {c} agents, router {e}" for link, c, e in

@@ -20,6 +20,7 @@ from zswarm.errors import Failure, UsageError
 from zswarm.launch.chaos import Event, schedule
 from zswarm.launch.configs import agent_config_args, role_configs
 from zswarm.launch.ending import finish_recording
+from zswarm.launch.local_runs import announce, forget
 from zswarm.host.local import Host, LocalHost
 from zswarm.ports import LOOPBACK
 from zswarm.launch.migration import Migration
@@ -62,6 +63,7 @@ class Launch:
         self.started_at = time.time()
         self.endpoint = plan.connect  # the first router's: the world's, and agent i's on router i mod K
         self.endpoints: list[str] = []
+        self.announced: Path | None = None  # this run's entry among the local runs (zswarm.launch.local_runs)
         self.configs: dict[str, list[str]] = {}
         # this machine: its routers bind where --listen says (loopback by default), its agents fork here
         self.local = LocalHost(self.kids, plan.fork, endpoint_host_port(plan.listen)[0] if plan.listen else LOOPBACK)
@@ -106,6 +108,7 @@ class Launch:
             return 143 if interrupted else 130
         finally:
             self.kids.stop_all()
+            forget(self.announced)
             if self.watch is not None:
                 self.watch.close()
 
@@ -121,6 +124,7 @@ class Launch:
                 self.local.start_routers(self.endpoints, plan.connect, self.configs.get("router", []))
             except RuntimeError as exc:
                 raise UsageError(str(exc)) from None
+            self.announced = announce(self.spec.run, self.endpoint)  # zswarm monitor --run finds it here
         if "world" in plan.roles:
             self._spawn_world(resume=False)
         if self.migration is not None:  # agents start placed by space over the routers
@@ -139,6 +143,8 @@ class Launch:
             routers = f"router {self.endpoint}" if len(self.endpoints) == 1 else \
                 f"{len(self.endpoints)} routers {', '.join(self.endpoints)}"
             _say(f"run {self.spec.run!r}, {len(self.kids.named('agent'))} agent processes, {routers}", err=False)
+            if self.announced is not None:
+                _say(f"watch it live: zswarm monitor --run {self.spec.run}", err=False)
             for note in plan.notes:
                 _say(note, err=False)
 
