@@ -3,7 +3,9 @@ unknown options, bad values, unknown scenarios, unreadable files and occupied po
 
 from __future__ import annotations
 
+import os
 import socket
+import sys
 import time
 from pathlib import Path
 
@@ -411,3 +413,25 @@ def test_the_last_line_names_a_viewer_command_that_exists_here(monkeypatch, tmp_
     assert (Path.cwd() / command).parent.absolute() == Path(sys.executable).parent.absolute()
     monkeypatch.setenv("PATH", str(Path(sys.executable).parent))
     assert shutil.which("rerun") is not None and viewer_command() == "rerun"
+
+
+def test_cluster_auto_takes_only_the_cluster_ray_start_left_here(tmp_path):
+    """``--cluster auto`` is RAY_ADDRESS or the head ``ray start`` left on this machine (its bootstrap
+    file), never whatever Ray head a scan of the machine's processes finds (another program's private
+    cluster); a head that is gone is said to be gone. No Ray process starts."""
+    import subprocess
+
+    env = {k: v for k, v in os.environ.items() if k != "RAY_ADDRESS"}
+    env.update(PYTHONPATH=str(ROOT), RAY_TMPDIR=str(tmp_path))
+
+    def auto() -> subprocess.CompletedProcess:
+        return subprocess.run([sys.executable, LAUNCH, "--cluster", "auto"], capture_output=True, text=True,
+                              timeout=60, cwd=tmp_path, env=env)
+
+    res = auto()
+    assert res.returncode == 2 and "--cluster auto found no Ray cluster on this machine" in res.stderr, res.stderr
+    (tmp_path / "ray").mkdir()
+    (tmp_path / "ray" / "ray_current_cluster").write_text("127.0.0.1:1\n")  # a head that has stopped
+    res = auto()
+    assert res.returncode == 2 and len(res.stderr.strip().splitlines()) == 1, res.stderr
+    assert "found no running Ray cluster: the last one ray start left on this machine, 127.0.0.1:1" in res.stderr

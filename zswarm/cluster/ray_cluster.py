@@ -113,22 +113,34 @@ def reachable(address: str, timeout: float = 5.0) -> tuple[str, str]:
     line) otherwise. Ray itself would retry an address that does not answer for minutes."""
     import socket
 
-    if address == "auto":
-        from ray._private.services import get_ray_address_from_environment
-
-        try:
-            address = get_ray_address_from_environment("auto", None)
-        except ConnectionError:
-            raise UsageError("--cluster auto found no Ray cluster on this machine (RAY_ADDRESS is unset and "
-                             "ray start --head was not run here): give HOST:PORT, or --cluster local") from None
+    found = address == "auto"
+    if found:
+        address = auto_address()
     host, _, port = address.rpartition(":")
     try:
         with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout) as s:
             own = s.getsockname()[0]
     except (OSError, ValueError) as exc:
+        if found:
+            raise UsageError(f"--cluster auto found no running Ray cluster: the last one ray start left on this "
+                             f"machine, {address}, does not answer ({exc.strerror or exc}); start it again, or give "
+                             "HOST:PORT, or use --cluster local") from None
         raise UsageError(f"cannot reach the Ray cluster at {address} ({exc.strerror or exc}): is its head "
                          "running (ray start --head) and the port open? or use --cluster local") from None
     return address, own
+
+
+def auto_address() -> str:
+    """``--cluster auto``: ``RAY_ADDRESS``, else the cluster ``ray start --head`` left on this machine (its
+    bootstrap file). Never Ray's own fallback, a scan of the machine's processes for any running Ray head:
+    that finds another program's private cluster (a ``--cluster local`` run of another checkout)."""
+    from ray._private.services import find_bootstrap_address
+
+    address = os.environ.get("RAY_ADDRESS", "").strip() or find_bootstrap_address(None)
+    if not address:
+        raise UsageError("--cluster auto found no Ray cluster on this machine (RAY_ADDRESS is unset and "
+                         "ray start --head was not run here): give HOST:PORT, or --cluster local")
+    return address
 
 
 AUTH_VARS = ("RAY_AUTH_MODE", "RAY_AUTH_TOKEN", "RAY_AUTH_TOKEN_PATH")
