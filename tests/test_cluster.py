@@ -123,6 +123,7 @@ def test_a_swarm_over_three_nodes_catches_the_prey_and_says_where_each_agent_ran
     # moved between nodes, make-before-break: nobody saw an agent leave, every count went on
     assert s["migration"]["moves"] > 0 and s["departures"] == [] and s["agents_final_reports"] == 12
     assert "exited with code" not in res.stderr
+    assert "network_util" not in res.stderr and "logging.cc" not in res.stderr  # Ray's start-up lines: dropped
     assert s["ticks"] >= 0.97 * 12 * s["steps"]
 
 

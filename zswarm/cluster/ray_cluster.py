@@ -16,6 +16,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -89,6 +90,36 @@ class RayCluster:
                 self.local.shutdown()
         if self.run_dir is not None:
             shutil.rmtree(self.run_dir, ignore_errors=True)
+
+
+#: What Ray's C++ core prints while it starts in a process, before it reads RAY_BACKEND_LOG_LEVEL: that
+#: its UDP connect towards 8.8.8.8 (which sends no packet) found no route, and that it set the log level.
+RAY_STARTUP_NOISE = re.compile(rb"network_util\.cc:\d+: Failed to determine local IP|logging\.cc:\d+: Set ray log level")
+
+
+@contextlib.contextmanager
+def ray_startup_filter():
+    """This process's standard error (file descriptor 2, where Ray's C++ core writes) through a filter
+    while Ray starts here: :data:`RAY_STARTUP_NOISE` is dropped, every other line passes. Processes
+    started meanwhile keep writing through it (it lives as long as they do)."""
+    read, write = os.pipe()
+    terminal = os.dup(2)
+
+    def pump() -> None:
+        with os.fdopen(read, "rb") as lines:
+            for line in lines:
+                if not RAY_STARTUP_NOISE.search(line):
+                    os.write(terminal, line)
+
+    sys.stderr.flush()
+    os.dup2(write, 2)
+    os.close(write)
+    threading.Thread(target=pump, daemon=True).start()
+    try:
+        yield
+    finally:
+        sys.stderr.flush()
+        os.dup2(terminal, 2)
 
 
 @contextlib.contextmanager
@@ -226,20 +257,22 @@ def connect(address: str, cores: int, insecure_ok: bool = False) -> RayCluster:
                          stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, start_new_session=True,
                          env={k: v for k, v in os.environ.items() if k != "ZSWARM_RAY_RUN"})
     try:
-        if address == "local":
-            ray.init(num_cpus=cores, _node_ip_address=LOOPBACK, _system_config=SYSTEM_CONFIG, **NODE_ARGS, **quiet)
-        elif address.startswith("local:"):
-            from ray.cluster_utils import Cluster
+        with ray_startup_filter():
+            if address == "local":
+                ray.init(num_cpus=cores, _node_ip_address=LOOPBACK, _system_config=SYSTEM_CONFIG, **NODE_ARGS, **quiet)
+            elif address.startswith("local:"):
+                from ray.cluster_utils import Cluster
 
-            k, each = local_nodes(address, cores)
-            args = {"num_cpus": each, "node_ip_address": LOOPBACK, **NODE_ARGS}
-            with contextlib.redirect_stdout(io.StringIO()), loopback_only():
-                cluster.local = Cluster(initialize_head=True, head_node_args={**args, "_system_config": SYSTEM_CONFIG})
-                for _ in range(k - 1):
-                    cluster.local.add_node(**args)
-            ray.init(address=cluster.local.address, _node_ip_address=LOOPBACK, **quiet)
-        else:
-            ray.init(address=address, _node_ip_address=own, **quiet)
+                k, each = local_nodes(address, cores)
+                args = {"num_cpus": each, "node_ip_address": LOOPBACK, **NODE_ARGS}
+                with contextlib.redirect_stdout(io.StringIO()), loopback_only():
+                    cluster.local = Cluster(initialize_head=True,
+                                            head_node_args={**args, "_system_config": SYSTEM_CONFIG})
+                    for _ in range(k - 1):
+                        cluster.local.add_node(**args)
+                ray.init(address=cluster.local.address, _node_ip_address=LOOPBACK, **quiet)
+            else:
+                ray.init(address=address, _node_ip_address=own, **quiet)
     except (ConnectionError, RuntimeError, TimeoutError, ValueError) as exc:
         cluster.close()
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
