@@ -162,6 +162,9 @@ def test_a_tune_that_does_not_beat_the_start_keeps_the_start_and_says_so(tmp_pat
     held = result["comparison"]["as_tuned"]
     assert held["tuned"]["objective"] >= held["start"]["objective"]  # this budget finds nothing better
     assert res.returncode == 1 and "does not beat the start" in res.stderr and result["recommended"] == "start"
+    assert "best set:" not in res.stdout and "the search's best (not kept" in res.stdout  # no "best set" it drops
+    assert "(the START set;" in res.stdout and "Exit 0 with a set that beats the start, 1 when" in run_cli(
+        "-m", "zswarm", "tune", "--help").stdout.replace("\n", " ")
     design = run_cli("-m", "zswarm", "design", "--params", str(out / "best.toml"), "--json")
     params = json.loads(design.stdout)["params"]
     for name, value in result["start"]["values"].items():

@@ -32,7 +32,8 @@ DESCRIPTION = (
     "than 2 d^r), obstacle contact, or clearance below d_m^ro is disqualified; a set that fails zswarm "
     "design (Props 1-5, formation, contact, swarm squeeze; see --waive) is never simulated. "
     "Resumes from --out DIR after an interruption; deterministic for a given --seed. "
-    "Exit 0 with a best set, 1 when no set passed, 2 on a usage error.")
+    "Exit 0 with a set that beats the start, 1 when no set passed or none beat the start on the held-out seeds "
+    "(best.toml then keeps the start), 2 on a usage error.")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

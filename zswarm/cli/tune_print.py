@@ -68,7 +68,9 @@ def print_result(out: dict[str, Any], plan: Plan, faults) -> None:
           f"{sum(r['validation_disqualified'] > 0 for r in fin)} of {len(fin)} finalists collided there)")
     print(f"best objective {b['objective']:.3f} s on the tuning seeds (start {_fmt(out['start']['objective'], '.3f')} s); "
           f"design: {design_line(out)}")
-    print("best set: " + "  ".join(f"{k}={v:.4g}" for k, v in b["values"].items()))
+    kept = out["recommended"] == "tuned"
+    print(("best set: " if kept else "the search's best (not kept: best.toml keeps the start, below): ")
+          + "  ".join(f"{k}={v:.4g}" for k, v in b["values"].items()))
     sections = [("as_tuned", faults_text(faults))] + ([("fault_free", "none")] if "fault_free" in out["comparison"] else [])
     for key, text in sections:
         print(f"\nheld-out seeds {plan.holdout[0]}..{plan.holdout[-1]}, simulated, faults {text}:")
@@ -76,8 +78,8 @@ def print_result(out: dict[str, Any], plan: Plan, faults) -> None:
     if "confirm" in out:
         print(f"\ndistributed (zswarm run), faults {faults_text(faults)}:")
         _table(out["confirm"])
-    print(f"\nwrote {plan.out}/best.toml (use: --params {plan.out}/best.toml), design.txt, comparison.json, "
-          f"tune.png, tune.rrd, result.json")
+    print(f"\nwrote {plan.out}/best.toml ({'the best set' if kept else 'the START set'}; use: --params "
+          f"{plan.out}/best.toml), design.txt, comparison.json, tune.png, tune.rrd, result.json")
 
 
 def _table(rows: dict[str, dict[str, Any]]) -> None:
