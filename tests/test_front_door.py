@@ -1,6 +1,6 @@
-"""The README is the front door: short, its set-up and demo first, every command in it one that the
-real parsers take, every link one that leads somewhere."""
-
+"""The front door: a README that is short, its set-up and demo first, every command in it and in the
+guides one that the real parsers take, every link one that leads somewhere, and no page, docstring or
+comment that narrates the order of the work (that is CHANGELOG.md's and git's)."""
 from __future__ import annotations
 
 import re
@@ -127,3 +127,24 @@ def test_every_duration_flag_takes_units_and_a_bare_number_is_seconds(command):
         parser.parse_args([*prefix, *required.get(command, []), "--duration", "90q"])
     assert parse_duration("100") == parse_duration("100ms") == parse_duration("0.1s") == 0.1
     assert "a bare number is ms" in launch.build_parser().format_help().replace("\n", " ").replace("  ", " ")
+
+
+#: Phrases that narrate the order of the work; CHANGELOG.md is where that history belongs.
+NARRATION = re.compile(r"\ba later (session|commit|issue|version of this)|\b(an )?earlier session|\bthis session\b(?!'s own)"
+                       r"|started at commit|\bup to commit|\bthe next day\b|\ba day earlier\b|\bbefore this work\b"
+                       r"|\bissue \d+\b|\bthe landed code\b|\bsince the fix\b", re.IGNORECASE)
+
+
+def narrating(text: str) -> list[str]:
+    return [line.strip()[:120] for line in text.splitlines() if NARRATION.search(line)]
+
+
+def test_no_page_docstring_or_comment_narrates_the_order_of_the_work():
+    files = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
+    for folder in ("zswarm", "agents", "world", "tests", "examples"):
+        files += sorted((ROOT / folder).rglob("*.py"))
+    found = {str(f.relative_to(ROOT)): hits for f in files
+             if f.name != "test_front_door.py" and (hits := narrating(f.read_text()))}
+    assert found == {}, found
+    assert narrating("as a later session measured") and narrating("the code before this work")  # it can fail
+    assert not narrating("not this session's own publications")  # a Zenoh session is no narration
