@@ -31,8 +31,8 @@ class ClusterLaunch(Launch):
         self.cluster, self.links, self.placement = cluster, links, placement
         spawns = plan.spec.scenario.initial_positions(np.random.default_rng(plan.spec.seed))[list(plan.ids)]
         where = place(spawns, [link.cpus for link in links], placement)
-        self.node_of: dict[int, int] = {i: k for i, k in zip(plan.ids, where)}
-        self.placed = dict(self.node_of)  # where each agent started (a restarted one may run elsewhere)
+        self.where = {i: k for i, k in zip(plan.ids, where)}  # Launch's one agent -> router map: a node's router
+        self.placed = dict(self.where)  # where each agent started (a restarted one may run elsewhere)
         self.lost_seen: set[int] = set()  # nodes whose loss was taken in
         self.rejoin: list[tuple[float, list[int]]] = []  # (when, agents) of lost nodes, with --restart-after
 
@@ -66,7 +66,7 @@ class ClusterLaunch(Launch):
         self.endpoint = self.endpoints[0]
         self.announced = announce(self.spec.run, self.endpoint)  # zswarm monitor --run finds it here
         if not plan.quiet:
-            counts = np.bincount(list(self.node_of.values()), minlength=len(self.links))
+            counts = np.bincount(list(self.where.values()), minlength=len(self.links))
             _say(", ".join(f"{link.label}: {c} agents, router {e}" for link, c, e in
                            zip(self.links, counts, self.endpoints)), err=False)
         self._spawn_world(resume=False)
@@ -97,7 +97,7 @@ class ClusterLaunch(Launch):
             for i in agents:
                 self._spawn_agent(i)
             _say(f"restarted agents {id_ranges(agents)} of a lost node on "
-                 f"{', '.join(sorted({self.links[self.node_of[i]].label for i in agents}))}")
+                 f"{', '.join(sorted({self.links[self.where[i]].label for i in agents}))}")
         super()._note_crashes()
 
     def _dead_routers(self) -> list[str]:
@@ -106,25 +106,19 @@ class ClusterLaunch(Launch):
         return [f"{link.label}, exit {link.router_exit}" for link in self.links
                 if link.router_exit is not None and not link.lost]
 
-    def router_of(self, agent: int) -> int:
-        return self.node_of[agent]
-
-    def _moved(self, agent: int, router: int) -> None:
-        self.node_of[agent] = router
-
     def capacities(self) -> list[float]:
         return [0.0 if link.lost else float(link.cpus) for link in self.links]  # a lost node takes no one
 
     def host_of(self, agent: int) -> NodeLink | None:
         """Its node; one whose node was lost rejoins on the surviving node with the fewest agents (and
         that node's router: :meth:`router_of`)."""
-        if self.links[self.node_of[agent]].lost:
+        if self.links[self.where[agent]].lost:
             alive = [k for k, other in enumerate(self.links) if not other.lost]
             if not alive:
                 return None
-            load = {k: sum(1 for n in self.node_of.values() if n == k) for k in alive}
-            self.node_of[agent] = min(alive, key=lambda k: load[k])
-        return self.links[self.node_of[agent]]
+            load = {k: sum(1 for n in self.where.values() if n == k) for k in alive}
+            self.where[agent] = min(alive, key=lambda k: load[k])
+        return self.links[self.where[agent]]
 
     def _routing(self) -> dict:
         return {**super()._routing(),
@@ -132,4 +126,4 @@ class ClusterLaunch(Launch):
                             "nodes": [{"label": link.label, **link.info, "router": e, "lost": link.lost}
                                       for link, e in zip(self.links, self.endpoints)],
                             "agent_node": {str(i): self.links[k].label for i, k in self.placed.items()},
-                            "agent_node_at_end": {str(i): self.links[k].label for i, k in self.node_of.items()}}}
+                            "agent_node_at_end": {str(i): self.links[k].label for i, k in self.where.items()}}}
