@@ -48,7 +48,7 @@ PROCESS_MODULES = {
 #: free: starting the long ones first keeps one of them from being the run's tail. Modules not named
 #: keep their order, after these.
 LONGEST_FIRST = (
-    "test_cluster", "test_distributed", "test_design", "test_usage", "test_reliability", "test_render",
+    "test_cluster", "test_distributed", "test_netns", "test_design", "test_usage", "test_reliability", "test_render",
     "test_sim", "test_space_procs", "test_experiments", "test_study", "test_security", "test_hostile",
     "test_robots", "test_tune",
 )
