@@ -57,7 +57,12 @@ CASES = [
     (["-m", "zswarm", "tune", "--out", "{dir}/t", "--scenario", "{junk}.toml"], "scenario"),
     (["-m", "zswarm", "tune", "--out", "{dir}/t", "--waive", "prop9"], "invalid choice"),
     (["-m", "zswarm", "tune", "--out", "{dir}/t", "--set", "c_a_prime=0"], "from 0 in log space"),
-    (["-m", "zswarm", "tune", "--out", "{junk}"], "cannot create --out"),
+    (["-m", "zswarm", "tune", "--out", "{junk}"], "is a file; give a directory"),
+    (["-m", "zswarm", "tune", "--out", "/proc/zswarm-out"], "cannot create --out /proc/zswarm-out"),
+    (["-m", "zswarm", "bench", "guidelines", "--out", "/proc/zswarm-out", "--sets", "1"],
+     "cannot create --out /proc/zswarm-out"),
+    (["-m", "zswarm", "bench", "guidelines", "--out", "{junk}", "--sets", "1"], "is a file; give a directory"),
+    ([LAUNCH, "sweep", "--out", "/proc/zswarm-out", "--sim-only"], "cannot create --out /proc/zswarm-out"),
     # live viewing
     (["-m", "zswarm", "sim", "--connect", "rerun+http://127.0.0.1:1/proxy"], "no Rerun viewer answers there"),
     (["-m", "zswarm", "sim", "--connect", "tcp/127.0.0.1:1"], "expected a viewer URL"),

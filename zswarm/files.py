@@ -38,6 +38,19 @@ def check_writable(path: Path, suffixes: tuple[str, ...] | None = None) -> Path:
     return path
 
 
+def out_dir(folder: Path, flag: str = "--out") -> Path:
+    """The output folder ``folder`` (``flag``'s), made if missing; one line (UsageError) when it is a
+    file or cannot be made or written."""
+    folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        raise UsageError(f"{flag} {folder} is a file; give a directory")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UsageError(f"cannot create {flag} {folder}: {exc.strerror or exc}") from None
+    return folder
+
+
 def check_run_files(record: Path | None, summary: Path | None, trajectory: Path | None) -> None:
     """The files a run writes (``--record``, ``--summary``, ``--trajectory``), each with its extension."""
     for path, suffix in ((record, ".rrd"), (summary, ".json"), (trajectory, ".npz")):

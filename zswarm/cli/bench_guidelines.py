@@ -47,9 +47,9 @@ def run(args: argparse.Namespace) -> int:
         if name not in SCENARIOS:
             raise UsageError(f"unknown scenario {name!r}; known: {', '.join(SCENARIOS)}")
     if args.out is not None:
-        from zswarm.files import check_writable
+        from zswarm.files import check_writable, out_dir
 
-        args.out.mkdir(parents=True, exist_ok=True)
+        out_dir(args.out)
         check_writable(args.out / "study.json")
     start = time.time()
     todo = cases(args.scenarios, args.agents, args.sets, args.spread, args.seed)

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Sequence
 
 from zswarm.args import Parser, UsageError, add_law_arg, add_param_args, positive_seconds, seed_arg
-from zswarm.files import write_json
+from zswarm.files import out_dir, write_json
 from zswarm.launch.sweep import Cell, aggregate, cell_spec, run_cell_distributed, simulate_cell, write_curves, write_tables
 from zswarm.model.faults import FaultModel, parse_duration_list
 
@@ -81,10 +81,7 @@ def main(argv: Sequence[str] | None, prog: str = "zswarm sweep") -> int:
     bind(get_scenario(args.scenario, args.overrides))  # a bad scenario, parameter or law stops here
     if args.out.exists() and not args.out.is_dir():
         raise UsageError(f"--out {args.out} is a file; give a directory (a new one, or a sweep's to resume it)")
-    try:
-        args.out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UsageError(f"cannot create --out {args.out}: {exc.strerror}") from None
+    out_dir(args.out)
     cells = [Cell(la, d, r, m) for m in modes for la in lat for d in drop for r in range(args.repeats)]
     todo = [c for c in cells if not (args.out / "cells" / c.name / "sim.json").exists()
             or (not args.sim_only and not (args.out / "cells" / c.name / "run.json").exists())]

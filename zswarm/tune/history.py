@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from zswarm.errors import UsageError
-from zswarm.files import check_writable, write_json
+from zswarm.files import check_writable, out_dir, write_json
 
 #: Fields of tune.json that may change between a tune and its resumption.
 MAY_CHANGE = ("budget", "finalists", "validation")  # the last two only choose among what was searched
@@ -26,10 +26,7 @@ class History:
         self.path = folder / "history.jsonl"
         self.records: dict[tuple[int, int], dict[str, Any]] = {}
         config_path = folder / "tune.json"
-        try:
-            folder.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise UsageError(f"cannot create --out {folder}: {exc.strerror or exc}") from None
+        out_dir(folder)
         check_writable(config_path)
         config = json.loads(json.dumps(config))  # as it reads back (tuples become lists)
         if config_path.exists():
