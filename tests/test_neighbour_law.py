@@ -178,3 +178,11 @@ def test_interaction_names_parse_and_fail_in_one_line():
         assert "\n" not in str(err.value)
     with pytest.raises(ParamError, match="needs a pair spacing"):
         neighbour_law(PAPER_PARAMS.with_values({"interaction": "gate"}))  # the paper's set has no d^f
+
+
+def test_the_modules_doc_states_the_gates_constants_as_the_code_has_them():
+    from zswarm.model import neighbour_law as nl
+
+    doc = " ".join(nl.__doc__.split())
+    assert f"g_in = {nl.GATE_INNER} g_out" in doc
+    assert f"ahead = clip((cos - {nl.AHEAD_COS:g})/" in doc.replace("1/2", "0.5")

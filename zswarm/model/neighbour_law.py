@@ -17,7 +17,7 @@ and the variants of :mod:`zswarm.model.interaction` act on those parts, with w_k
 - ``gate`` multiplies the agent's goal term by 1 - max_k near(r_k) ahead(cos_k), where
   cos_k is the cosine between the direction to neighbour k and the direction to the goal,
   ahead = clip((cos - 1/2)/(1/4), 0, 1) (a cone of about 41-60 degrees about the goal direction) and
-  near = clip((g_out - r)/(g_out - g_in), 0, 1) with g_out = gate d^f and g_in = 3/4 g_out: an agent
+  near = clip((g_out - r)/(g_out - g_in), 0, 1) with g_out = gate d^f and g_in = 0.9 g_out (GATE_INNER): an agent
   with a neighbour ahead within g_in takes no goal pull. The gate is not the gradient of a potential.
 
 The sums are over pairs given either as a flat list (agent index per pair: one agent process, or the
