@@ -149,7 +149,7 @@ class OutcomeTally:
 
 def drive(engine: Engine, steps: int, tally: OutcomeTally | None = None, stop_at_collision: bool = False,
           watch: Callable[[int, np.ndarray], None] | None = None) -> None:
-    """The one step loop of every simulation: at each step k = 0..steps, the tally of the positions,
+    """The one step loop of both simulators: at each step k = 0..steps, the tally of the positions,
     every agent's command from what it senses, ``watch(k, commands)`` (a recording, the trajectories),
     then (k < steps) the move. ``stop_at_collision``: end at the first step any run collides (a study
     that only asks whether a set collides need not simulate a crushed swarm to its end). Without a
