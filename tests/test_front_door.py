@@ -148,3 +148,14 @@ def test_no_page_docstring_or_comment_narrates_the_order_of_the_work():
     assert found == {}, found
     assert narrating("as a later session measured") and narrating("the code before this work")  # it can fail
     assert not narrating("not this session's own publications")  # a Zenoh session is no narration
+
+
+def test_the_small_cuts_a_new_user_hit_stay_mended():
+    """Each a line of the issue that found them: "8 agents on 1 nodes"; *.mcap files (zswarm export)
+    not ignored by git; Rerun's analytics on without a word in the README."""
+    from zswarm.args import counted
+
+    assert (counted(1, "node"), counted(3, "node"), counted(0, "agent")) == ("1 node", "3 nodes", "0 agents")
+    assert "counted(len(self.links), 'node')" in (ROOT / "zswarm" / "cluster" / "launch.py").read_text()
+    assert "*.mcap" in (ROOT / ".gitignore").read_text().split()
+    assert "rerun analytics disable" in README

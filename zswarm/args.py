@@ -171,6 +171,11 @@ _DURATION = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(ms|s
 _UNIT = {"ms": 1e-3, "s": 1.0, "min": 60.0, "h": 3600.0, None: 1.0}
 
 
+def counted(n: int, noun: str) -> str:
+    """``n`` and ``noun`` as a line says it: "1 node", "3 nodes"."""
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
 def seconds(text: str) -> float:
     """A duration flag's value in seconds: a bare number is seconds; ``500ms``, ``30s``, ``2min`` and
     ``1h`` say their unit. (Fault delays, ``--latency`` and ``--jitter``, are the one exception: a bare

@@ -15,6 +15,7 @@ import time
 
 import numpy as np
 
+from zswarm.args import counted
 from zswarm.cluster.hosts import NodeLink
 from zswarm.cluster.ray_cluster import RayCluster
 from zswarm.errors import UsageError
@@ -78,8 +79,8 @@ class ClusterLaunch(Launch):
                 break
             self._spawn_agent(i)
         if not plan.quiet:
-            nodes = f"{len(self.links)} node{'s' if len(self.links) != 1 else ''}"
-            _say(f"run {self.spec.run!r}, {len(self.plan.ids)} agents on {nodes} (placement {self.placement})", err=False)
+            _say(f"run {self.spec.run!r}, {counted(len(self.plan.ids), 'agent')} on {counted(len(self.links), 'node')} "
+                 f"(placement {self.placement})", err=False)
             for note in plan.notes:
                 _say(note, err=False)
 
