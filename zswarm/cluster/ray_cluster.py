@@ -105,11 +105,14 @@ def ray_startup_filter():
     read, write = os.pipe()
     terminal = os.dup(2)
 
-    def pump() -> None:
+    def pump() -> None:  # keeps draining whatever happens: a full pipe would block whoever writes to it
         with os.fdopen(read, "rb") as lines:
             for line in lines:
                 if not RAY_STARTUP_NOISE.search(line):
-                    os.write(terminal, line)
+                    try:
+                        os.write(terminal, line)
+                    except OSError:
+                        pass
 
     sys.stderr.flush()
     os.dup2(write, 2)
