@@ -28,7 +28,7 @@ from zswarm.laws.registry import bind
 from zswarm.model import body as bodies
 from zswarm.model import prey as prey_motion
 from zswarm.model.faults import FaultModel
-from zswarm.model.metrics import Summary
+from zswarm.model.metrics import Summary, obstacle_clearance
 from zswarm.model.law import compile_law, swarm_field
 from zswarm.model.neighbours import ObstacleIndex, pairs_within
 from zswarm.model.safety import judged
@@ -206,7 +206,7 @@ class OneRun:
         i, j = i[keep], j[keep]
         d = x[i] - x[j]
         a, m = self.sim.obstacles.sensed(x)
-        clearance = np.linalg.norm(x[a] - self.sim.obstacles.centers[m], axis=1) - self.sim.obstacles.radii[m]
+        clearance = obstacle_clearance(x[a], self.sim.obstacles.centers[m], self.sim.obstacles.radii[m])
         zero = np.zeros(len(i), dtype=np.intp)
         return Sensed(zero, i, j, np.sqrt(np.einsum("ij,ij->i", d, d)), np.zeros(len(a), dtype=np.intp), a, m,
                       clearance)
