@@ -90,3 +90,19 @@ def test_monitor_matches_the_runs_summary_and_payloads_name_their_encoding(tmp_p
     from zswarm.launch.local_runs import endpoint_of
 
     assert endpoint_of(run) is None  # the run's entry went with it
+
+
+def test_a_local_run_whose_launcher_was_killed_is_no_run(tmp_path, monkeypatch):
+    """An entry a launcher killed outright left behind names a router nobody runs: looked up, it is
+    removed, not connected to (the monitor would wait out its connect timeout)."""
+    import subprocess as sp
+
+    from zswarm.launch.local_runs import announce, endpoint_of
+
+    monkeypatch.setenv("XDG_RUNTIME_DIR", str(tmp_path))
+    path = announce("alive-run", "tcp/127.0.0.1:1")
+    assert endpoint_of("alive-run") == "tcp/127.0.0.1:1"  # this process is its launcher
+    dead = sp.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    path.write_text(f"tcp/127.0.0.1:2 {dead.pid}\n")
+    assert endpoint_of("alive-run") is None and not path.exists()

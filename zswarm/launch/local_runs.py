@@ -1,9 +1,10 @@
 """The runs this machine's user is running, by name: where ``zswarm monitor --run RUN`` finds a local
 run's router without ``--connect`` (its port is a free one, chosen at start).
 
-``zswarm run`` writes one small file per run, ``RUNS_DIR/RUN``, holding its first router's endpoint,
-into a folder only this user can read (``$XDG_RUNTIME_DIR/zswarm-runs``, else
-``/tmp/zswarm-runs-UID``), and removes it when the run ends.
+``zswarm run`` writes one small file per run, ``RUNS_DIR/RUN``, holding its first router's endpoint and
+its own pid, into a folder only this user can read (``$XDG_RUNTIME_DIR/zswarm-runs``, else
+``/tmp/zswarm-runs-UID``), and removes it when the run ends. A launcher killed outright cannot remove
+it: an entry whose launcher is gone is no run, and is removed when it is looked up.
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ def announce(run: str, endpoint: str) -> Path | None:
         if folder.stat().st_uid != os.getuid():  # someone else's folder: not one to trust or write to
             return None
         path = folder / run
-        path.write_text(endpoint + "\n")
+        path.write_text(f"{endpoint} {os.getpid()}\n")
         return path
     except OSError:
         return None
@@ -43,10 +44,15 @@ def endpoint_of(run: str) -> str | None:
     """The endpoint of the local run ``run``, if this user is running it here."""
     check_run_id(run)
     folder = runs_dir()
+    path = folder / run
     try:
         if folder.stat().st_uid != os.getuid():
             return None
-        text = (folder / run).read_text().strip()
-    except OSError:
+        endpoint, pid = path.read_text().split()
+        os.kill(int(pid), 0)  # its launcher is alive
+    except ProcessLookupError:
+        forget(path)  # a launcher killed outright left it
         return None
-    return text or None
+    except (OSError, ValueError):
+        return None
+    return endpoint
