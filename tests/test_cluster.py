@@ -15,6 +15,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 import uuid
 from pathlib import Path
@@ -296,10 +297,8 @@ def read_until(proc: subprocess.Popen, needle: str, seconds: float) -> list[str]
 def test_two_hosts_a_lost_worker_node_and_a_killed_driver(tmp_path):
     from test_netns import make_hosts, remove_hosts
 
-    import tempfile
-
     a, b = make_hosts()
-    mark = uuid.uuid4().hex
+    mark, started = uuid.uuid4().hex, time.time()
     nodes_dir = Path(tempfile.mkdtemp(prefix="zst-", dir="/tmp"))  # short: Ray's socket paths are limited
     env_a, env_b = ray_node_env(nodes_dir / "a", mark), ray_node_env(nodes_dir / "b", mark)
     # at the wall clock (the reference catches the prey at 14.75 s): at twice it, on 2 cores beside the
@@ -319,9 +318,10 @@ def test_two_hosts_a_lost_worker_node_and_a_killed_driver(tmp_path):
         assert not [p for p in left_behind(mark) if _zswarm(p)]
         # 1. the swarm, half on each host, catches the prey; then the worker host's Ray dies, and its
         # agents rejoin on the head's host a second later (--restart-after)
-        # (32 simulated seconds: a loaded machine gets its restarted agents up well before the end)
+        # (32 simulated seconds: a loaded machine gets its restarted agents up well before the end).
+        # --secure: each host's router and agents use keys made on that host, signed by the driver's CA
         driver = subprocess.Popen([*run, "--duration", "32", "--restart-after", "1", "--record",
-                                   str(tmp_path / "two.rrd")], env=env_a,
+                                   str(tmp_path / "two.rrd"), "--secure", str(tmp_path / "pki")], env=env_a,
                                   cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         try:
             read_until(driver, "captured at", 120)
@@ -336,6 +336,8 @@ def test_two_hosts_a_lost_worker_node_and_a_killed_driver(tmp_path):
         assert set(nodes) == {HEAD, WORKER} and nodes[WORKER]["lost"] and not nodes[HEAD]["lost"]
         assert s["capture_time"] is not None and s["collisions"] == 0, s
         assert s["cross_router_heard"] > 0  # agents on one host heard agents on the other, router to router
+        assert s["security"] == {"tls": True, "acl": True, "ray_auth": "token"}, s["security"]
+        assert s["messages_rejected"] == 0 and s["agents_final_reports"] == 12
         lost = [ln for ln in err.splitlines() if f"node1@{WORKER} lost" in ln]
         assert lost and "crashed" in lost[0], err[-3000:]
         on_worker = {d["id"] for d in s["departures"]}  # the world saw the worker host's agents go ...
@@ -344,7 +346,8 @@ def test_two_hosts_a_lost_worker_node_and_a_killed_driver(tmp_path):
         assert f"of a lost node on node0@{HEAD}" in err
         assert all(HEAD in label for label in s["cluster"]["agent_node_at_end"].values())  # where they ran at the end
         assert {int(i) for i, label in s["cluster"]["agent_node"].items() if WORKER in label} == on_worker  # placed
-        # 2. the worker host back, a new run, its driver SIGKILLed: nothing of zswarm left on either host
+        # 2. the worker host back (its first actor removes the keys the lost one left), a new run, its
+        # driver SIGKILLed: nothing of zswarm left on either host
         kill_all(node_processes(nodes_dir / "b"))
         start_ray(b, ray_node_env(nodes_dir / "b2", mark), "--address", f"{HEAD}:6379", "--node-ip-address", WORKER)
         driver = subprocess.Popen([*run, "--duration", "60", "--record", str(tmp_path / "k.rrd")], env=env_a,
@@ -362,6 +365,7 @@ def test_two_hosts_a_lost_worker_node_and_a_killed_driver(tmp_path):
         finally:
             if driver.poll() is None:
                 driver.kill()
+        assert stale_keys(started) == []  # no host keeps the keys of a run that is over
         # 3. a worker host with another zswarm: refused in one line, before any agent starts. (A host
         # without zswarm is not made here: this project's editable install is found on any path.)
         for fake, needle in ((fake_zswarm(nodes_dir / "other", "9.9.9"), f"node1@{WORKER} has zswarm 9.9.9"),):
@@ -378,6 +382,14 @@ def test_two_hosts_a_lost_worker_node_and_a_killed_driver(tmp_path):
         kill_all(node_processes(nodes_dir))  # both hosts' Ray
         remove_hosts(a, b)
         shutil.rmtree(nodes_dir, ignore_errors=True)
+
+
+def stale_keys(since: float) -> list[Path]:
+    """Node key folders made since ``since`` whose actor is gone."""
+    from zswarm.cluster.node import KEYS_PREFIX
+
+    return [p for p in Path(tempfile.gettempdir()).glob(f"{KEYS_PREFIX}*") if p.stat().st_mtime >= since
+            and not Path(f"/proc/{p.name[len(KEYS_PREFIX):].split('-')[0]}").exists()]
 
 
 def fake_zswarm(folder: Path, version: str) -> Path:

@@ -296,3 +296,69 @@ def test_launch_refuses_agents_without_an_identity(per_agent, cli):
     res = cli(str(ROOT / "launch.py"), "--secure", str(per_agent), "--agents", "8")
     assert res.returncode == 2 and "none to agent 6 and others" in res.stderr, res.stderr
     assert f"zswarm certs {per_agent} --force --agents 8" in res.stderr
+
+
+class DirectLink:
+    """A node of a cluster reached by plain calls instead of through Ray; what crosses is kept."""
+
+    def __init__(self, node, address: str) -> None:
+        self.node, self.label, self.info, self.crossed = node, "node1", {"address": address}, []
+
+    def call(self, method: str, *args):
+        out = getattr(self.node, method)(*args)
+        self.crossed.append((method, args, out))
+        return out
+
+
+def test_a_cluster_nodes_identities_are_made_there_and_signed_by_the_drivers_ca(certs, tmp_path):
+    """``--secure`` over other machines: the node makes its router's and its agents' keys, the driver's CA
+    signs their public halves, and the node's router enforces the driver's access control. No private
+    key crosses (what crosses is kept and searched), the node's folder is its user's alone, and it goes
+    when the node stops."""
+    import os
+    import shutil
+
+    from zswarm.cluster.node import NodeHost
+    from zswarm.cluster.pki import NodeIdentities
+
+    node = NodeHost("node1")
+    link = DirectLink(node, "127.0.0.1")
+    ids = NodeIdentities(certs)
+    ids.make(link, ["router", "agent"])
+    ids.make(link, ["agent"])  # held already: nothing crosses
+    folder = Path(ids.folders["node1"])
+    assert [m for m, _, _ in link.crossed] == ["identities", "install"]
+    assert "PRIVATE KEY" not in repr(link.crossed) and "PUBLIC KEY" in repr(link.crossed)
+    assert folder.stat().st_mode & 0o777 == 0o700 and (folder / "router.key").stat().st_mode & 0o777 == 0o600
+    assert (folder / "router.key").read_bytes() != (certs / "router.key").read_bytes()  # its own key
+    view = tmp_path / "view"  # the node's router and agent, the driver's world, and a guest
+    view.mkdir()
+    for name, where in (("router", folder), ("agent", folder), ("world", certs), ("guest", certs)):
+        (view / f"{name}.json5").symlink_to(where / f"{name}.json5")
+    try:
+        with processes() as kids:
+            got = exchange(view, start_router(kids, proto="tls", extra=["--config", str(view / "router.json5")]))
+    finally:
+        node.stop(1.0)
+    assert got["heard"] == [("5", "agent"), ("prey", "world")] and got["obstacle_answers"] == ["world"]
+    assert got["guest_heard"] == ["guest", "guest"]
+    assert not folder.exists()
+    bare = tmp_path / "no-ca-key"
+    shutil.copytree(certs, bare)
+    os.unlink(bare / "ca.key")
+    with pytest.raises(UsageError, match="has no ca.key"):
+        NodeIdentities(bare).make(DirectLink(NodeHost("node2"), "127.0.0.1"), ["router"])
+
+
+def test_a_secure_directory_without_its_cas_key_is_refused_for_other_machines(certs, tmp_path):
+    """Over other machines the CA signs each node's keys: a directory without ``ca.key`` is refused in one
+    line before Ray is reached (the address answers nothing)."""
+    import shutil
+
+    bare = tmp_path / "pki"
+    shutil.copytree(certs, bare)
+    (bare / "ca.key").unlink()
+    res = subprocess.run([sys.executable, str(ROOT / "launch.py"), "--cluster", "127.0.0.1:1", "--secure", str(bare)],
+                         capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    assert res.returncode == 2 and res.stderr.strip().count("\n") == 0, res.stderr
+    assert "has no ca.key" in res.stderr, res.stderr

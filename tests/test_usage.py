@@ -163,8 +163,6 @@ CASES = [
     ([LAUNCH, "--cluster", "local:99"], "1 to 16"),
     ([LAUNCH, "--cluster", "local", "--role", "agents"], "--cluster runs every role itself"),
     ([LAUNCH, "--cluster", "local", "--ids", "0-3"], "--cluster places every agent itself"),
-    ([LAUNCH, "--cluster", "10.0.0.1:6379", "--secure", "{dir}"],
-     "--secure over a cluster of other machines is not supported yet"),
     ([LAUNCH, "--cluster", "local", "--tracks", "{dir}"], "--tracks over a cluster is not supported yet"),
     ([LAUNCH, "--tracks", "{junk}"], "cannot make the folder"),
     ([LAUNCH, "--role", "agents", "--connect", "tcp/127.0.0.1:1", "--agents", "10", "--ids", "0-50"],

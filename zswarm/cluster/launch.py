@@ -17,12 +17,15 @@ import numpy as np
 
 from zswarm.args import counted
 from zswarm.cluster.hosts import NodeLink
+from zswarm.cluster.pki import NodeIdentities
 from zswarm.cluster.ray_cluster import RayCluster
 from zswarm.errors import UsageError
+from zswarm.launch.configs import agent_config_args
 from zswarm.launch.local_runs import announce
 from zswarm.launch.placement import place
 from zswarm.launch.plan import Plan, id_ranges
 from zswarm.launch.supervisor import Launch, _say
+from zswarm.net.security import agent_name
 from zswarm.ports import LOOPBACK
 
 
@@ -36,6 +39,10 @@ class ClusterLaunch(Launch):
         self.placed = dict(self.where)  # where each agent started (a restarted one may run elsewhere)
         self.lost_seen: set[int] = set()  # nodes whose loss was taken in
         self.rejoin: list[tuple[float, list[int]]] = []  # (when, agents) of lost nodes, with --restart-after
+        # --secure over other machines: each node's identities made there (a local cluster's nodes are
+        # this machine: they use the --secure directory itself)
+        self.node_keys = plan.secure is not None and not cluster.address.startswith("local")
+        self.identities: NodeIdentities | None = None
 
     @property
     def ray_auth(self) -> str | None:
@@ -55,8 +62,13 @@ class ClusterLaunch(Launch):
         # every node of a local cluster is this machine: its routers listen on loopback, the address a
         # --secure run's certificates name (Ray may know the nodes by the machine's own address)
         local = self.cluster.address.startswith("local")
-        for link in self.links:  # the first node is the driver's: the world joins its router
+        if self.node_keys:  # the secure directory is made (Launch.run): its CA signs them
+            self.identities = NodeIdentities(plan.secure)
+        for k, link in enumerate(self.links):  # the first node is the driver's: the world joins its router
             join = self.endpoints[0] if self.endpoints else None
+            if self.identities is not None:
+                self.identities.make(link, ["router", *(agent_name(i) for i, n in self.where.items() if n == k)])
+                extra = ["--config", self.identities.config(link, "router")]
             try:
                 self.endpoints.append(link.call("start_router", LOOPBACK if local else link.info["address"], join,
                                                 extra, "tls" if plan.secure is not None else "tcp"))
@@ -83,6 +95,13 @@ class ClusterLaunch(Launch):
                  f"(placement {self.placement})", err=False)
             for note in plan.notes:
                 _say(note, err=False)
+
+    def _agent_config(self, agent: int) -> list[str]:
+        """Under ``--secure`` over other machines, the identity made for it on its node."""
+        if self.identities is None:
+            return super()._agent_config(agent)
+        link = self.links[self.where[agent]]
+        return agent_config_args(self.plan, self.configs, agent, self.identities.config(link, agent_name(agent)))
 
     def _note_crashes(self) -> None:
         """A lost node's agents are crashed (said once, by its link); with ``--restart-after S`` they

@@ -12,15 +12,23 @@ and the fleet are sessions of their own (:func:`zswarm.host.procs.start_router`,
 :class:`zswarm.host.procs.Fleet`): under Linux's autogroup scheduling the router then gets a group's
 share of the CPU and the node's agents together another, rather than each a thread's share among
 the Ray worker's.
+
+Under ``--secure`` a node makes its own keys (:meth:`NodeHost.identities`) in a folder only its user
+reads, and is handed back the certificates the driver's CA signed for them (:meth:`NodeHost.install`):
+no private key crosses the network. The folder goes when the node stops, or, if its actor was killed
+outright, when the next node actor of this user starts on that machine.
 """
 
 from __future__ import annotations
 
 import os
+import shutil
 import socket
 import subprocess
+import tempfile
 import threading
 from collections import deque
+from pathlib import Path
 from typing import Sequence
 
 from zswarm.host.local import LocalHost
@@ -34,6 +42,25 @@ def node_address() -> str:
     return ray.util.get_node_ip_address()
 
 
+KEYS_PREFIX = "zswarm-keys-"
+
+
+def keys_folder() -> Path:
+    """A new folder for this actor's keys: mode 0700, named for its pid."""
+    return Path(tempfile.mkdtemp(prefix=f"{KEYS_PREFIX}{os.getpid()}-"))
+
+
+def remove_stale_keys() -> None:
+    """Remove the key folders this user's actors left here when they were killed outright."""
+    for old in Path(tempfile.gettempdir()).glob(f"{KEYS_PREFIX}*"):
+        try:
+            pid = int(old.name[len(KEYS_PREFIX):].split("-")[0])
+            if old.stat().st_uid == os.getuid() and not Path(f"/proc/{pid}").exists():
+                shutil.rmtree(old, ignore_errors=True)
+        except (ValueError, OSError):
+            continue
+
+
 class NodeHost:
     """The driver's hands on one node (methods are called through Ray)."""
 
@@ -44,6 +71,8 @@ class NodeHost:
         self.lines: deque[str] = deque(maxlen=10_000)
         self.reported: set[str] = set()
         self.lock = threading.Lock()
+        self.keys: Path | None = None  # --secure: this node's own keys and certificates
+        remove_stale_keys()
 
     def info(self) -> dict:
         """What the driver checks before it places anything here."""
@@ -59,6 +88,23 @@ class NodeHost:
         endpoint = self.host.start_router(proto, [*extra, *(["--connect", join] if join else [])])
         self._follow(self.kids.named("router")[-1].proc.stderr, "router")
         return endpoint
+
+    def identities(self, names: Sequence[str]) -> dict[str, str]:
+        """Make a key pair here for each name that has none (``router``, ``agent-I``); their public halves,
+        for the driver's CA to sign."""
+        from zswarm.net.certs import make_keys
+
+        if self.keys is None:
+            self.keys = keys_folder()
+        return make_keys(self.keys, names)
+
+    def install(self, ca_pem: str, certs: dict[str, str], acl: dict) -> str:
+        """Keep the certificates signed for this node's keys, and a Zenoh config for each (the router's
+        with the run's access control ``acl``); the folder that holds them."""
+        from zswarm.net.security import install_identities
+
+        install_identities(self.keys, ca_pem, certs, acl)
+        return str(self.keys)
 
     def spawn_agent(self, name: str, args: Sequence[str]) -> int:
         """Fork agent ``name`` with the agent program's arguments (``-m agents`` not included); its pid."""
@@ -104,6 +150,8 @@ class NodeHost:
     def stop(self, grace: float = 5.0) -> None:
         """Agents, then the router; every child reaped."""
         self.kids.stop_all(grace)
+        if self.keys is not None:
+            shutil.rmtree(self.keys, ignore_errors=True)
         if self.host.fleet is not None and self.host.fleet.child.proc.stdin:
             try:
                 self.host.fleet.child.proc.stdin.close()

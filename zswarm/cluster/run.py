@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import copy
+from pathlib import Path
 
 from zswarm.cluster.hosts import NodeLink
 from zswarm.cluster.launch import ClusterLaunch
@@ -22,9 +23,6 @@ REFUSED = {
     "ids": "--cluster places every agent itself (--placement); --ids is for machines started by hand",
     "routers": "--cluster runs one router per node",
     "robots": "--robots over a cluster is not supported yet: run robots' agents on their machines by hand",
-    "secure": "--secure over a cluster of other machines is not supported yet (their routers' certificates would "
-              "need each node's address, handed over securely): use --cluster local or local:K, or run by hand "
-              "with --role and zswarm certs (docs/running.md)",
     "listen": "--cluster picks each node's router endpoint itself",
     "connect": "--cluster joins the routers itself; --connect names a router for machines started by hand",
     "tracks": "--tracks over a cluster is not supported yet (each node would write its agents' tracks on its own disk)",
@@ -34,11 +32,15 @@ REFUSED = {
 def check_flags(args: argparse.Namespace) -> None:
     given = {"role": args.role != ["router", "world", "agents"], "ids": args.ids is not None,
              "routers": args.routers != 1, "robots": args.robots is not None,
-             "secure": args.secure is not None and not args.cluster.startswith("local"),
              "listen": args.listen is not None, "connect": args.connect is not None, "tracks": args.tracks is not None}
     for flag, set_ in given.items():
         if set_:
             raise UsageError(REFUSED[flag])
+    secure = None if args.secure is None else Path(args.secure)
+    if (secure is not None and not args.cluster.startswith("local") and (secure / "router.json5").is_file()
+            and not (secure / "ca.key").is_file()):
+        raise UsageError(f"--secure {secure} has no ca.key: over other machines each node's own keys are signed "
+                         "by the CA there (give a new directory for zswarm to make, or yours with its CA's key)")
 
 
 def node_label(k: int, node: dict) -> str:

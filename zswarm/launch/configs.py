@@ -36,8 +36,9 @@ def _role_configs(plan: Plan, n_agents: int, say: Callable[..., None]) -> dict[s
     return {role: ["--config", str(plan.secure / f"{role}.json5")] for role in ("router", "world")}
 
 
-def agent_config_args(plan: Plan, configs: dict[str, list[str]], agent: int) -> list[str]:
-    """Agent ``agent``'s config: under --secure, its own identity's if the directory has one; with
+def agent_config_args(plan: Plan, configs: dict[str, list[str]], agent: int, own: str | None = None) -> list[str]:
+    """Agent ``agent``'s config: under --secure, its own identity's (``own``: the config made for it
+    where it runs, :mod:`zswarm.cluster.pki`; else the directory's, if it has one); with
     --robots, the robots file (an agent it names drives that robot); with --tracks, the folder its
     track goes to."""
     extra = [] if plan.robots is None else ["--robots", str(plan.robots)]
@@ -47,4 +48,4 @@ def agent_config_args(plan: Plan, configs: dict[str, list[str]], agent: int) -> 
     from zswarm.net.security import agent_config
 
     timeout = [] if plan.connect_timeout is None else ["--connect-timeout", f"{plan.connect_timeout:g}"]
-    return ["--config", str(agent_config(plan.secure, agent))] + timeout + extra
+    return ["--config", own or str(agent_config(plan.secure, agent))] + timeout + extra

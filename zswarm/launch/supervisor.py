@@ -150,8 +150,8 @@ class Launch:
 
     def _watch_world(self) -> None:
         """Chaos counts from the world's start, heard on Zenoh (beside the world as on another machine),
-        over the agents' identity where it runs agents, else the world's."""
-        args = self._agent_config(self.plan.ids[0]) if "agents" in self.plan.roles else self.configs.get("world", [])
+        over the world's identity where the world runs here, else the agents'."""
+        args = self.configs.get("world", []) if "world" in self.plan.roles else self._agent_config(self.plan.ids[0])
         config = Path(args[args.index("--config") + 1]) if "--config" in args else None
         timeout = self.plan.connect_timeout if self.plan.connect_timeout is not None else 15.0
         self.watch = WorldWatch(self.spec.keys, self.endpoint, config, timeout)

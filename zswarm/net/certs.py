@@ -10,8 +10,10 @@ from __future__ import annotations
 
 import datetime as dt
 import ipaddress
+import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Sequence
 
 from zswarm.errors import UsageError
 from zswarm.ports import LOOPBACK
@@ -51,6 +53,48 @@ def _crypto():
     return x509, hashes, serialization, ec, ExtendedKeyUsageOID, NameOID
 
 
+def _pem(serialization, key=None, cert=None) -> bytes:
+    if key is not None:
+        return key.private_bytes(serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8,
+                                 serialization.NoEncryption())
+    return cert.public_bytes(serialization.Encoding.PEM)
+
+
+def _write_key(path: Path, pem: bytes) -> None:
+    """A private key, readable by its owner alone from the moment it exists."""
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+    with os.fdopen(fd, "wb") as f:
+        f.write(pem)
+    path.chmod(0o600)
+
+
+def _validity(days: int) -> tuple[dt.datetime, dt.datetime]:
+    now = dt.datetime.now(dt.timezone.utc)
+    return now - dt.timedelta(minutes=5), now + dt.timedelta(days=days)
+
+
+def _leaf(name: str, public_key, ca_cert, ca_key, hosts: tuple[str, ...], days: int):
+    """A certificate for ``name`` (its CN) over ``public_key``, signed by the CA: ``hosts`` as subject
+    alternative names, both a TLS server and client."""
+    x509, hashes, _, _, eku, oid = _crypto()
+    sans: list = []
+    for host in hosts:
+        try:
+            sans.append(x509.IPAddress(ipaddress.ip_address(host)))
+        except ValueError:
+            sans.append(x509.DNSName(host))
+    valid_from, valid_to = _validity(days)
+    return (x509.CertificateBuilder()
+            .subject_name(x509.Name([x509.NameAttribute(oid.COMMON_NAME, name)]))
+            .issuer_name(ca_cert.subject).public_key(public_key)
+            .serial_number(x509.random_serial_number())
+            .not_valid_before(valid_from).not_valid_after(valid_to)
+            .add_extension(x509.BasicConstraints(ca=False, path_length=None), critical=True)
+            .add_extension(x509.SubjectAlternativeName(sans), critical=False)
+            .add_extension(x509.ExtendedKeyUsage([eku.SERVER_AUTH, eku.CLIENT_AUTH]), critical=False)
+            .sign(ca_key, hashes.SHA256()))
+
+
 def make_certs(directory: Path, names: tuple[str, ...] = ROLES, hosts: tuple[str, ...] = ("localhost", LOOPBACK),
                days: int = 30) -> dict[str, CertPaths]:
     """Write ``ca.pem``/``ca.key`` and ``NAME.pem``/``NAME.key`` for every name into ``directory``.
@@ -58,19 +102,10 @@ def make_certs(directory: Path, names: tuple[str, ...] = ROLES, hosts: tuple[str
     Every leaf carries ``hosts`` as subject alternative names (the router's address is checked
     against them when ``verify_name_on_connect`` is on) and is both a TLS server and client.
     """
-    x509, hashes, serialization, ec, eku, oid = _crypto()
+    x509, hashes, serialization, ec, _, oid = _crypto()
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
-    now = dt.datetime.now(dt.timezone.utc)
-    valid_from, valid_to = now - dt.timedelta(minutes=5), now + dt.timedelta(days=days)
-
-    def key_pem(key) -> bytes:
-        return key.private_bytes(serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8,
-                                 serialization.NoEncryption())
-
-    def cert_pem(cert) -> bytes:
-        return cert.public_bytes(serialization.Encoding.PEM)
-
+    valid_from, valid_to = _validity(days)
     ca_key = ec.generate_private_key(ec.SECP256R1())
     ca_name = x509.Name([x509.NameAttribute(oid.COMMON_NAME, "zswarm-ca")])
     ca = (x509.CertificateBuilder().subject_name(ca_name).issuer_name(ca_name)
@@ -82,31 +117,51 @@ def make_certs(directory: Path, names: tuple[str, ...] = ROLES, hosts: tuple[str
                                        data_encipherment=False, key_agreement=False,
                                        encipher_only=False, decipher_only=False), critical=True)
           .sign(ca_key, hashes.SHA256()))
-    (directory / "ca.pem").write_bytes(cert_pem(ca))
-    (directory / "ca.key").write_bytes(key_pem(ca_key))
-    (directory / "ca.key").chmod(0o600)
-
-    sans: list = []
-    for host in hosts:
-        try:
-            sans.append(x509.IPAddress(ipaddress.ip_address(host)))
-        except ValueError:
-            sans.append(x509.DNSName(host))
+    (directory / "ca.pem").write_bytes(_pem(serialization, cert=ca))
+    _write_key(directory / "ca.key", _pem(serialization, key=ca_key))
     out = {}
     for name in names:
         key = ec.generate_private_key(ec.SECP256R1())
-        cert = (x509.CertificateBuilder()
-                .subject_name(x509.Name([x509.NameAttribute(oid.COMMON_NAME, name)]))
-                .issuer_name(ca_name).public_key(key.public_key())
-                .serial_number(x509.random_serial_number())
-                .not_valid_before(valid_from).not_valid_after(valid_to)
-                .add_extension(x509.BasicConstraints(ca=False, path_length=None), critical=True)
-                .add_extension(x509.SubjectAlternativeName(sans), critical=False)
-                .add_extension(x509.ExtendedKeyUsage([eku.SERVER_AUTH, eku.CLIENT_AUTH]), critical=False)
-                .sign(ca_key, hashes.SHA256()))
         paths = CertPaths(directory, name)
-        paths.cert.write_bytes(cert_pem(cert))
-        paths.key.write_bytes(key_pem(key))
-        paths.key.chmod(0o600)
+        paths.cert.write_bytes(_pem(serialization, cert=_leaf(name, key.public_key(), ca, ca_key, hosts, days)))
+        _write_key(paths.key, _pem(serialization, key=key))
         out[name] = paths
     return out
+
+
+def make_keys(directory: Path, names: Sequence[str]) -> dict[str, str]:
+    """A key pair for every name that has none yet in ``directory`` (made private to its owner): the
+    private halves stay there, the public halves (PEM) are returned, to be signed by :func:`sign`
+    wherever the CA is. This is how a node of a cluster gets its identities without a private key
+    crossing the network."""
+    _, _, serialization, ec, _, _ = _crypto()
+    directory = Path(directory)
+    directory.mkdir(mode=0o700, parents=True, exist_ok=True)
+    directory.chmod(0o700)
+    out = {}
+    for name in names:
+        path = CertPaths(directory, name).key
+        if path.exists():
+            key = serialization.load_pem_private_key(path.read_bytes(), password=None)
+        else:
+            key = ec.generate_private_key(ec.SECP256R1())
+            _write_key(path, _pem(serialization, key=key))
+        out[name] = key.public_key().public_bytes(serialization.Encoding.PEM,
+                                                  serialization.PublicFormat.SubjectPublicKeyInfo).decode()
+    return out
+
+
+def sign(ca_directory: Path, public_keys: dict[str, str], hosts: tuple[str, ...], days: int = 30) -> dict[str, str]:
+    """Certificates (PEM) for public keys made elsewhere (:func:`make_keys`), by the CA of
+    ``ca_directory`` (its ``ca.pem`` and ``ca.key``), each named for its key's name and valid for
+    ``hosts``."""
+    x509, _, serialization, _, _, _ = _crypto()
+    ca_dir = Path(ca_directory)
+    if not (ca_dir / "ca.key").is_file():
+        raise UsageError(f"{ca_dir} has no ca.key: certificates for other machines are signed by the CA "
+                         "there (give --secure a directory zswarm made, or one with your CA's key)")
+    ca_cert = x509.load_pem_x509_certificate((ca_dir / "ca.pem").read_bytes())
+    ca_key = serialization.load_pem_private_key((ca_dir / "ca.key").read_bytes(), password=None)
+    return {name: _pem(serialization, cert=_leaf(name, serialization.load_pem_public_key(pem.encode()),
+                                                 ca_cert, ca_key, hosts, days)).decode()
+            for name, pem in public_keys.items()}

@@ -133,6 +133,30 @@ def write_secure_dir(directory: Path, endpoint: str = "tls/localhost:7447",
     return out
 
 
+def install_identities(directory: Path, ca_pem: str, certs: dict[str, str], acl: dict) -> dict[str, Path]:
+    """On the machine whose keys they are (:func:`zswarm.net.certs.make_keys` left them in
+    ``directory``): write the CA, each signed certificate, and ``NAME.json5`` for each name; the
+    router's with ``acl`` as its access control (the run's, so that every router of it enforces the
+    same rules)."""
+    directory = Path(directory)
+    (directory / "ca.pem").write_text(ca_pem)
+    out = {}
+    for name, pem in certs.items():
+        paths = CertPaths(directory, name)
+        paths.cert.write_text(pem)
+        conf = role_config(paths, "tls/localhost:7447")
+        if name == "router":
+            conf["access_control"] = acl
+        out[name] = directory / f"{name}.json5"
+        out[name].write_text(json.dumps(conf, indent=2) + "\n")
+    return out
+
+
+def router_acl(directory: Path) -> dict:
+    """The access control of a secure directory's router (what every router of a run enforces)."""
+    return json.loads((Path(directory) / "router.json5").read_text())["access_control"]
+
+
 def agent_config(directory: Path, agent: int) -> Path:
     """The config agent ``agent`` uses from a secure directory: its own identity if there is one."""
     own = Path(directory) / f"{agent_name(agent)}.json5"
