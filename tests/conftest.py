@@ -73,6 +73,8 @@ def pytest_configure(config) -> None:
     order (:data:`LONGEST_FIRST`, by time) is the one kept. And a suite started where SIGINT is ignored
     (``nohup``, ``cmd &`` in a script) would pass that on to every process it starts, which then could
     not be interrupted as the tests interrupt them: SIGINT is given its Python default back."""
+    if not hasattr(config, "workerinput"):  # once, in the process that starts the workers
+        compile_tree()
     if hasattr(config.option, "loadscopereorder"):
         config.option.loadscopereorder = False
     if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
@@ -82,6 +84,17 @@ def pytest_configure(config) -> None:
         k = int(worker[2:]) % 11  # 10000-31999: below the kernel's ephemeral ports (32768-)
         lo = 10_000 + 2_000 * k
         os.environ["ZSWARM_PORTS"] = f"{lo}-{lo + 1_999}"
+
+
+def compile_tree() -> None:
+    """Byte-compile the project's modules into ``__pycache__``. Where ``PYTHONDONTWRITEBYTECODE`` is set (CI
+    images often set it), a fresh clone has no compiled modules and none is ever written, so each of the
+    hundreds of processes the suite starts (worlds, routers, fleets, commands) would compile every
+    module it imports again; compiled once here, they all read it."""
+    import compileall
+
+    for folder in ("zswarm", "agents", "world"):
+        compileall.compile_dir(str(ROOT / folder), quiet=2)
 
 
 def wait_for_port(port: int, timeout: float = 30.0) -> None:
