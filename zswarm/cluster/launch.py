@@ -55,7 +55,8 @@ class ClusterLaunch(Launch):
             for link in self.links:
                 link.close()
 
-    def _start(self) -> None:
+    def _start_routers(self) -> None:
+        """A router on every node, each joined to the first's (the driver's node: the world joins it)."""
         plan = self.plan
         extra = self.configs.get("router", [])
         self.endpoints = []
@@ -64,7 +65,7 @@ class ClusterLaunch(Launch):
         local = self.cluster.address.startswith("local")
         if self.node_keys:  # the secure directory is made (Launch.run): its CA signs them
             self.identities = NodeIdentities(plan.secure)
-        for k, link in enumerate(self.links):  # the first node is the driver's: the world joins its router
+        for k, link in enumerate(self.links):
             join = self.endpoints[0] if self.endpoints else None
             if self.identities is not None:
                 self.identities.make(link, ["router", *(agent_name(i) for i, n in self.where.items() if n == k)])
@@ -82,19 +83,10 @@ class ClusterLaunch(Launch):
             counts = np.bincount(list(self.where.values()), minlength=len(self.links))
             _say(", ".join(f"{link.label}: {c} agents, router {e}" for link, c, e in
                            zip(self.links, counts, self.endpoints)), err=False)
-        self._spawn_world(resume=False)
-        if self.pending or self.migration is not None:  # chaos and moves count from the world's start
-            self._watch_world()
-        for k, i in enumerate(plan.ids):
-            if self.world is not None and not self.world.alive():
-                _say(f"the world ended before every agent started ({k} of {len(plan.ids)} started)")
-                break
-            self._spawn_agent(i)
-        if not plan.quiet:
-            _say(f"run {self.spec.run!r}, {counted(len(self.plan.ids), 'agent')} on {counted(len(self.links), 'node')} "
-                 f"(placement {self.placement})", err=False)
-            for note in plan.notes:
-                _say(note, err=False)
+
+    def _started(self) -> str:
+        return (f"run {self.spec.run!r}, {counted(len(self.plan.ids), 'agent')} on {counted(len(self.links), 'node')} "
+                f"(placement {self.placement})")
 
     def _agent_config(self, agent: int) -> list[str]:
         """Under ``--secure`` over other machines, the identity made for it on its node."""

@@ -113,23 +113,14 @@ class Launch:
                 self.watch.close()
 
     def _start(self) -> None:
+        """The routers (:meth:`_start_routers`), the world, then the agents, each on its host."""
         plan = self.plan
-        self.endpoints = [self.endpoint]
-        if "router" not in plan.roles:  # a machine started by hand: its router is another machine's
-            self._reach_router()
-        if "router" in plan.roles:
-            proto = self.endpoint.split("/", 1)[0]
-            self.endpoints += [self.local.endpoint(proto) for _ in range(plan.routers - 1)]
-            try:
-                self.local.start_routers(self.endpoints, plan.connect, self.configs.get("router", []))
-            except RuntimeError as exc:
-                raise UsageError(str(exc)) from None
-            self.announced = announce(self.spec.run, self.endpoint)  # zswarm monitor --run finds it here
+        self._start_routers()
         if "world" in plan.roles:
             self._spawn_world(resume=False)
-        if self.migration is not None:  # agents start placed by space over the routers
+        if self.migration is not None and not self.where:  # agents start placed by space over the routers
             spawns = self.spec.scenario.initial_positions(np.random.default_rng(self.spec.seed))[list(plan.ids)]
-            self.where = dict(zip(plan.ids, place(spawns, [1.0] * len(self.endpoints), "space")))
+            self.where = dict(zip(plan.ids, place(spawns, self.capacities(), "space")))
         if (self.pending or self.migration is not None) and ("world" in plan.roles or "agents" in plan.roles):
             self._watch_world()
         if "agents" in plan.roles:
@@ -140,13 +131,33 @@ class Launch:
                     break
                 self._spawn_agent(i)
         if not plan.quiet:
-            routers = f"router {self.endpoint}" if len(self.endpoints) == 1 else \
-                f"{len(self.endpoints)} routers {', '.join(self.endpoints)}"
-            _say(f"run {self.spec.run!r}, {len(self.kids.named('agent'))} agent processes, {routers}", err=False)
+            _say(self._started(), err=False)
             if self.announced is not None:
                 _say(f"watch it live: zswarm monitor --run {self.spec.run}", err=False)
             for note in plan.notes:
                 _say(note, err=False)
+
+    def _start_routers(self) -> None:
+        """This machine's routers (``--routers K`` meshed, joined to ``--connect``), or, on a machine
+        started by hand without one, the other machine's router reached."""
+        plan = self.plan
+        self.endpoints = [self.endpoint]
+        if "router" not in plan.roles:  # a machine started by hand: its router is another machine's
+            self._reach_router()
+            return
+        proto = self.endpoint.split("/", 1)[0]
+        self.endpoints += [self.local.endpoint(proto) for _ in range(plan.routers - 1)]
+        try:
+            self.local.start_routers(self.endpoints, plan.connect, self.configs.get("router", []))
+        except RuntimeError as exc:
+            raise UsageError(str(exc)) from None
+        self.announced = announce(self.spec.run, self.endpoint)  # zswarm monitor --run finds it here
+
+    def _started(self) -> str:
+        """The line that says the run has started, and where."""
+        routers = f"router {self.endpoint}" if len(self.endpoints) == 1 else \
+            f"{len(self.endpoints)} routers {', '.join(self.endpoints)}"
+        return f"run {self.spec.run!r}, {len(self.kids.named('agent'))} agent processes, {routers}"
 
     def _watch_world(self) -> None:
         """Chaos counts from the world's start, heard on Zenoh (beside the world as on another machine),
