@@ -362,3 +362,28 @@ def test_a_secure_directory_without_its_cas_key_is_refused_for_other_machines(ce
                          capture_output=True, text=True, timeout=60, cwd=tmp_path)
     assert res.returncode == 2 and res.stderr.strip().count("\n") == 0, res.stderr
     assert "has no ca.key" in res.stderr, res.stderr
+
+
+def test_a_router_whose_certificate_the_mesh_refuses_is_refused_at_start(certs, tmp_path):
+    """A node's router joining the first router of a --secure mesh: with a certificate of the run's CA it
+    joins; with one of another CA it says so and exits 2 within its --connect-timeout, and the node's
+    start refuses it in one line (instead of a mesh split in two without a word)."""
+    from zswarm.cluster.node import NodeHost
+    from zswarm.net.router import JOIN_FAILED
+
+    foreign = tmp_path / "foreign"
+    write_secure_dir(foreign, names=("router",))
+    with processes() as kids:
+        first = start_secure_router(kids, certs)
+        good, bad = NodeHost("node1"), NodeHost("node2")
+        try:
+            assert good.start_router("127.0.0.1", first, ["--config", str(certs / "router.json5")], "tls")
+            t = time.monotonic()
+            with pytest.raises(RuntimeError, match="could not join .* not from one CA") as refused:
+                bad.start_router("127.0.0.1", first, ["--config", str(foreign / "router.json5"),
+                                                       "--connect-timeout", "2"], "tls")
+            assert time.monotonic() - t < 20.0 and "\n" not in str(refused.value)
+            assert bad.kids.named("router")[-1].proc.wait(timeout=10) == JOIN_FAILED
+        finally:
+            good.stop(1.0)
+            bad.stop(1.0)

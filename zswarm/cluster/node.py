@@ -85,7 +85,7 @@ class NodeHost:
         """This node's router on a free port of ``host``, joined to ``join`` (the first node's router);
         ``proto`` tls with ``extra`` naming its configuration (``--secure``)."""
         self.host.bind = host
-        endpoint = self.host.start_router(proto, [*extra, *(["--connect", join] if join else [])])
+        endpoint = self.host.start_router(proto, extra, join)
         self._follow(self.kids.named("router")[-1].proc.stderr, "router")
         return endpoint
 

@@ -51,10 +51,11 @@ class LocalHost:
         start_mesh(self.kids, endpoints, join, extra)
         return list(endpoints)
 
-    def start_router(self, proto: str = "tcp", extra: Sequence[str] = ()) -> str:
-        """One router on a free port of the bind address (``extra``: router arguments, ``--connect`` to
-        join another), once it accepts connections; its endpoint."""
-        return start_router(self.kids, self.bind, proto=proto, extra=extra, name="router", stderr=self.stderr)
+    def start_router(self, proto: str = "tcp", extra: Sequence[str] = (), join: str | None = None) -> str:
+        """One router on a free port of the bind address (``extra``: router arguments), joined to the
+        router ``join`` if given, once it accepts connections (and has joined); its endpoint."""
+        return start_router(self.kids, self.bind, proto=proto, extra=extra, name="router", stderr=self.stderr,
+                            join=join)
 
     def spawn_world(self, spec: RunSpec, connect: str, *extra: str, stdout: int | None = subprocess.DEVNULL,
                     name: str = "world") -> Child:

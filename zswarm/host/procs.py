@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import selectors
 import signal
 import socket
 import subprocess
@@ -210,12 +211,12 @@ def wait_for_port(host: str, port: int, timeout: float, child: Child | None = No
 
 
 def start_router(kids: Children, host: str = LOOPBACK, proto: str = "tcp", extra: Sequence[str] = (),
-                 name: str = "router", stderr: int | None = None) -> str:
+                 name: str = "router", stderr: int | None = None, join: str | None = None) -> str:
     """A router child listening on a free port of ``host`` (``extra``: more router arguments, e.g.
-    ``--config``, or ``--connect`` to join another router); returns its endpoint once the port accepts
-    connections."""
+    ``--config``), joined to the router ``join`` if given; returns its endpoint once the port accepts
+    connections (and it has joined: RuntimeError if it cannot)."""
     endpoint = f"{proto}/{host}:{free_port(host)}"
-    _spawn_router(kids, name, endpoint, None, extra, stderr)
+    _spawn_router(kids, name, endpoint, join, extra, stderr)
     return endpoint
 
 
@@ -242,11 +243,38 @@ def _spawn_router(kids: Children, name: str, endpoint: str, join: str | None, ex
     shared one with a node's agents competed with them thread by thread (``agents.fleet`` says what a
     starved router did to a swarm)."""
     router = kids.spawn(name, ["-m", ROUTER_MODULE, "--listen", endpoint, *(["--connect", join] if join else []),
-                               *extra], stdout=subprocess.DEVNULL, stderr=stderr)
+                               *extra], stdout=subprocess.PIPE if join else subprocess.DEVNULL, stderr=stderr)
     host, port = endpoint.split("/", 1)[1].rsplit(":", 1)
     if not wait_for_port(local_host(host.strip("[]")), int(port), 10.0, router):
         raise RuntimeError(f"the router did not start on {endpoint} (port taken? address not local?)")
+    if join and not _says_ready(router, JOIN_WAIT_S):
+        from zswarm.net.router import JOIN_HINT
+
+        raise RuntimeError(f"the router on {endpoint} could not join {join}: {JOIN_HINT}")
     return router
+
+
+#: How long a router that joins another is given to say it has (it gives up itself after its
+#: ``--connect-timeout``, 15 s by default).
+JOIN_WAIT_S = 40.0
+
+
+def _says_ready(router: Child, seconds: float) -> bool:
+    """Whether the router's first line says it is ready (it exits without one when it cannot join)."""
+    from zswarm.net.router import READY
+
+    sel = selectors.DefaultSelector()
+    sel.register(router.proc.stdout, selectors.EVENT_READ)
+    deadline = time.monotonic() + seconds
+    try:
+        while time.monotonic() < deadline:
+            if sel.select(timeout=0.2):
+                return router.proc.stdout.readline().decode(errors="replace").startswith(READY)
+            if not router.alive():
+                return False
+        return False
+    finally:
+        sel.close()
 
 
 def world_argv(spec: RunSpec, connect: str, *extra: str) -> list[str]:

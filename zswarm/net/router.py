@@ -8,6 +8,7 @@ from __future__ import annotations
 import os
 import sys
 import threading
+import time
 from typing import Sequence
 
 from zswarm.args import Parser, run_main
@@ -29,11 +30,35 @@ def _main(argv: Sequence[str] | None) -> int:
     # multi-threaded runtime rather than the agents' single worker (measured: docs/benchmarks.md)
     session = open_session(config_from_args(args), what="router", runtime=ROUTER_RUNTIME)
     try:
-        print(f"router: listening on {', '.join(args.listen) or 'the config file endpoints'}", flush=True)
+        if args.connect and not joined(session, args.connect_timeout, stop):
+            if stop.is_set():
+                return 0
+            print(f"router: could not join {', '.join(args.connect)} within {args.connect_timeout:g} s: {JOIN_HINT}",
+                  file=sys.stderr, flush=True)
+            return JOIN_FAILED
+        print(f"{READY} {', '.join(args.listen) or 'the config file endpoints'}", flush=True)
         stop.wait()
     finally:
         close_within(session, CLOSE_WAIT_S)
     return 0
+
+
+#: The router's first line on stdout once it listens (and, with ``--connect``, has joined that router).
+READY = "router: listening on"
+#: Its exit status when it could not join the router it was told to (``--connect``) in time.
+JOIN_FAILED = 2
+JOIN_HINT = "nothing answers there, or the two routers' certificates are not from one CA"
+
+
+def joined(session, seconds: float, stop: threading.Event) -> bool:
+    """Whether the session links to another router within ``seconds`` (a TLS router whose certificate the
+    other refuses, or that refuses the other's, keeps trying and never does)."""
+    deadline = time.monotonic() + seconds
+    while not session.info.routers_zid():
+        if time.monotonic() > deadline or stop.is_set():
+            return False
+        time.sleep(0.05)
+    return True
 
 
 #: How long a stopping router waits for its session to close before it leaves without it.
