@@ -55,8 +55,10 @@ def main() -> int:
                                  env={**env, **extra}, capture_output=True, text=True, timeout=180, cwd=out_dir)
             err = [line for line in run.stderr.splitlines() if line.strip()]
             results[name] = {"rc": run.returncode, "seconds": time.monotonic() - t, "stderr": err[-40:]}
-    finally:
-        subprocess.run([*ray, "stop", "--force"], env=head_env, capture_output=True)
+    finally:  # this head's processes only (``ray stop`` would stop every Ray node of the machine)
+        from ray_procs import kill_all, node_processes
+
+        kill_all(node_processes(tmp))
     print(json.dumps(results))
     return 0
 

@@ -7,16 +7,11 @@ left behind."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import os
 import re
-import shutil
 import signal
 import subprocess
-import sys
-import tempfile
-import time
 import uuid
 from pathlib import Path
 
@@ -24,62 +19,9 @@ import pytest
 
 import zswarm
 from conftest import ROOT
+from ray_procs import RAY_TESTS, end_run, left_behind, offline, read_until, wait_gone
 
-NO_RAY = importlib.util.find_spec("ray") is None
-
-
-def _can_unshare() -> bool:
-    if os.geteuid() != 0 or shutil.which("unshare") is None or shutil.which("ip") is None:
-        return False
-    return subprocess.run(["unshare", "--net", "true"], capture_output=True).returncode == 0
-
-
-pytestmark = [pytest.mark.skipif(NO_RAY, reason='Ray is not installed (pip install -e ".[cluster]")'),
-              pytest.mark.skipif(not _can_unshare(), reason="needs root, unshare and iproute2 for a loopback-only "
-                                                            "network namespace (Ray must not reach past it)")]
-
-#: In a fresh network namespace: loopback up, then a record of the namespace's links and routes, then
-#: the command. Nothing but loopback, and no route: nothing the command opens can leave the machine.
-OFFLINE = 'ip link set lo up && ip -o link > "$NS_LINKS" && ip route > "$NS_ROUTES" && exec "$@"'
-
-
-def offline(cwd: Path, *argv: str, mark: str) -> tuple[list[str], dict[str, str]]:
-    env = {**os.environ, "PYTHONPATH": str(ROOT), "ZSWARM_TEST_MARK": mark,
-           "NS_LINKS": str(cwd / "links.txt"), "NS_ROUTES": str(cwd / "routes.txt")}
-    return ["unshare", "--net", "--", "sh", "-c", OFFLINE, "offline", sys.executable, *argv], env
-
-
-def left_behind(mark: str) -> list[str]:
-    """Processes of a run still there: Ray's (their command line names Ray; no other test starts Ray)
-    and every process that inherited the run's mark (the world, the routers, the fleets, the agents)."""
-    out = []
-    for d in Path("/proc").iterdir():
-        if not d.name.isdigit() or int(d.name) == os.getpid():
-            continue
-        try:
-            cmd = (d / "cmdline").read_bytes()
-            env = (d / "environ").read_bytes()
-        except OSError:
-            continue
-        if cmd and (cmd.startswith(b"ray::") or b"/site-packages/ray/" in cmd or
-                    f"ZSWARM_TEST_MARK={mark}".encode() in env.split(b"\0")):
-            text = cmd.replace(b"\0", b" ")[:120].decode(errors="replace")
-            out.append(f"{d.name}: {text}")
-    return out
-
-
-def end_run(driver: subprocess.Popen, mark: str) -> None:
-    """Whatever a test leaves when it fails: the driver, and every process of its run."""
-    if driver.poll() is None:
-        driver.kill()
-    kill_all([int(p.split(":")[0]) for p in left_behind(mark)])
-
-
-def wait_gone(mark: str, seconds: float) -> list[str]:
-    deadline = time.monotonic() + seconds
-    while (left := left_behind(mark)) and time.monotonic() < deadline:
-        time.sleep(0.2)
-    return left
+pytestmark = RAY_TESTS
 
 
 @pytest.fixture(scope="module")
@@ -89,13 +31,19 @@ def three_nodes(tmp_path_factory):
     node are one scheduling group, and beside the rest of the suite on 2 cores a run of 20 once ended
     before they caught it); agents are moved between the nodes every 3 s as the swarm moves."""
     tmp = tmp_path_factory.mktemp("cluster3")
-    mark, started = uuid.uuid4().hex, time.time()
+    mark = uuid.uuid4().hex
     argv, env = offline(tmp, "-m", "zswarm", "run", "--cluster", "local:3", "--agents", "12", "--duration", "25",
                         "--time-scale", "2", "--migrate-every", "3", "--record", str(tmp / "c.rrd"), mark=mark)
-    res = subprocess.run(argv, env=env, cwd=tmp, capture_output=True, text=True, timeout=240)
+    driver = subprocess.Popen(argv, env=env, cwd=tmp, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        out, err = driver.communicate(timeout=240)
+    finally:
+        if driver.poll() is None:
+            end_run(driver, mark)
+    res = subprocess.CompletedProcess(argv, driver.returncode, out, err)
     left = wait_gone(mark, 10.0)
     summary = json.loads((tmp / "c.json").read_text()) if (tmp / "c.json").exists() else None
-    return res, summary, left, tmp, started
+    return res, summary, left, tmp, driver.pid  # unshare and sh exec'd it: the driver's pid
 
 
 def test_a_swarm_over_three_nodes_catches_the_prey_and_says_where_each_agent_ran(three_nodes):
@@ -129,13 +77,13 @@ def test_a_swarm_over_three_nodes_catches_the_prey_and_says_where_each_agent_ran
 
 
 def test_the_cluster_ran_with_nothing_but_loopback_and_left_nothing_behind(three_nodes):
-    res, _, left, tmp, started = three_nodes
+    res, _, left, tmp, driver = three_nodes
     assert res.returncode == 0, res.stderr[-3000:]
     links = (tmp / "links.txt").read_text().split("\n")
     assert [ln.split(":")[1].strip() for ln in links if ln.strip()] == ["lo"]  # no interface but loopback
     assert (tmp / "routes.txt").read_text().strip() == ""  # and no route anywhere
     assert left == [], left
-    assert not [p for p in Path("/tmp").glob("zs-ray-*") if p.stat().st_ctime >= started]  # its Ray folder too
+    assert not list(Path("/tmp").glob(f"zs-ray-{driver}-*"))  # its Ray folder too
 
 
 def test_a_lockstep_run_over_two_nodes_equals_the_reference(tmp_path):
@@ -209,203 +157,6 @@ def test_a_nodes_router_that_dies_stops_the_run_in_one_line_and_leaves_nothing(t
         end_run(driver, mark)
 
 
-# --- two hosts: Ray's head and the world on one, a worker node on the other ---------------------------------
-
-HEAD, WORKER = "10.77.0.1", "10.77.0.2"
-FAST_HEALTH = '{"health_check_initial_delay_ms": 0, "health_check_period_ms": 200, ' \
-              '"health_check_timeout_ms": 300, "health_check_failure_threshold": 3}'
-
-
-def ray_node_env(folder: Path, mark: str) -> dict[str, str]:
-    """What docs/cluster.md tells users to give ``ray start``: zswarm's offline settings, a HOME with the
-    bootstrap file (no cloud-metadata probe), a RAY_TMPDIR of the node's own, and token authentication
-    with the cluster's one token (a file beside the nodes' folders, mode 600)."""
-    import secrets
-
-    from zswarm.cluster.ray_env import offline_env
-
-    token = folder.parent / "token"
-    if not token.exists():
-        token.parent.mkdir(parents=True, exist_ok=True)
-        token.write_text(secrets.token_hex(32))
-        token.chmod(0o600)
-    env = {k: v for k, v in os.environ.items() if not k.startswith("RAY_")}
-    return dict(offline_env(folder, {**env, "PYTHONPATH": str(ROOT), "ZSWARM_TEST_MARK": mark,
-                                     "RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN_PATH": str(token)}))
-
-
-def in_ns(ns: str, *argv: str) -> list[str]:
-    return ["ip", "netns", "exec", ns, *argv]
-
-
-def start_ray(ns: str, env: dict[str, str], *args: str) -> None:
-    ray = str(Path(sys.executable).parent / "ray")
-    res = subprocess.run(in_ns(ns, ray, "start", *args, "--num-cpus", "1", "--object-store-memory", str(80 * 2**20),
-                               "--disable-usage-stats"), env=env, capture_output=True, text=True, timeout=120)
-    assert res.returncode == 0, res.stderr[-2000:]
-
-
-def node_processes(folder: Path) -> list[int]:
-    """The Ray processes of the node(s) whose RAY_TMPDIR is under ``folder``: those that name it (the
-    raylet, in its command line; the processes it started, in their environment), and those that
-    name such a raylet as theirs (``RAY_RAYLET_PID``: Ray's agents set their titles over the start of
-    their environment, the folder with it) or have it as their parent."""
-    tag = str(folder).encode()
-    named, rest = [], {}
-    for d in Path("/proc").iterdir():
-        if d.name.isdigit():
-            try:
-                cmd, env = (d / "cmdline").read_bytes(), (d / "environ").read_bytes()
-                ppid = int((d / "stat").read_text().rsplit(")", 1)[1].split()[1])
-            except (OSError, ValueError, IndexError):
-                continue
-            if tag in cmd or tag in env:
-                named.append(int(d.name))
-            else:
-                rest[int(d.name)] = (env, ppid)
-    marks = {f"RAY_RAYLET_PID={pid}".encode() for pid in named}
-    return named + [pid for pid, (env, ppid) in rest.items()
-                    if ppid in named or marks & set(env.split(b"\0"))]
-
-
-def kill_all(pids: list[int]) -> None:
-    for pid in pids:
-        try:
-            os.kill(pid, signal.SIGKILL)
-        except ProcessLookupError:
-            pass
-
-
-def read_until(proc: subprocess.Popen, needle: str, seconds: float) -> list[str]:
-    """Lines of ``proc``'s output up to the first holding ``needle`` (AssertionError at the deadline)."""
-    import selectors
-
-    lines, deadline = [], time.monotonic() + seconds
-    sel = selectors.DefaultSelector()
-    sel.register(proc.stdout, selectors.EVENT_READ)
-    while time.monotonic() < deadline:
-        if sel.select(timeout=0.5):
-            line = proc.stdout.readline()
-            if not line:
-                break
-            lines.append(line)
-            if needle in line:
-                return lines
-    raise AssertionError(f"no {needle!r} in time; got {''.join(lines)[-2000:]}")
-
-
-def test_two_hosts_a_lost_worker_node_and_a_killed_driver(tmp_path):
-    from test_netns import make_hosts, remove_hosts
-
-    a, b = make_hosts()
-    mark, started = uuid.uuid4().hex, time.time()
-    nodes_dir = Path(tempfile.mkdtemp(prefix="zst-", dir="/tmp"))  # short: Ray's socket paths are limited
-    env_a, env_b = ray_node_env(nodes_dir / "a", mark), ray_node_env(nodes_dir / "b", mark)
-    # at the wall clock (the reference catches the prey at 14.75 s): at twice it, on 2 cores beside the
-    # rest of the suite, an agent restarted at its spawn point once met one passing there before either
-    # had heard the other (0.098 apart, 2 d^r = 0.1; CI, 4 workers)
-    run = in_ns(a, sys.executable, "-m", "zswarm", "run", "--cluster", f"{HEAD}:6379", "--agents", "12")
-    try:
-        start_ray(a, env_a, "--head", "--node-ip-address", HEAD, "--port", "6379", "--include-dashboard", "false",
-                  "--system-config", FAST_HEALTH)
-        start_ray(b, env_b, "--address", f"{HEAD}:6379", "--node-ip-address", WORKER)
-        # 0. a pace its cores cannot hold, refused in one line that names them, before any agent starts
-        res = subprocess.run([*run, "--agents", "500", "--time-scale", "10"], env=env_a, cwd=tmp_path,
-                             capture_output=True, text=True, timeout=120)
-        lines = [ln for ln in res.stderr.splitlines() if "network_util" not in ln and "logging.cc" not in ln]
-        assert res.returncode == 2 and len(lines) == 1, res.stderr[-2000:]
-        assert re.search(r"500 agents stepping 400 times a second .* the cluster has \d+", lines[0]), lines
-        assert not [p for p in left_behind(mark) if _zswarm(p)]
-        # 1. the swarm, half on each host, catches the prey; then the worker host's Ray dies, and its
-        # agents rejoin on the head's host a second later (--restart-after)
-        # (32 simulated seconds: a loaded machine gets its restarted agents up well before the end).
-        # --secure: each host's router and agents use keys made on that host, signed by the driver's CA
-        driver = subprocess.Popen([*run, "--duration", "32", "--restart-after", "1", "--record",
-                                   str(tmp_path / "two.rrd"), "--secure", str(tmp_path / "pki")], env=env_a,
-                                  cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        try:
-            read_until(driver, "captured at", 120)
-            kill_all(node_processes(nodes_dir / "b"))  # the node dies: raylet, workers, the actor, with it
-            out, err = driver.communicate(timeout=120)
-        finally:
-            if driver.poll() is None:
-                driver.kill()
-        assert driver.returncode == 0, err[-3000:]
-        s = json.loads((tmp_path / "two.json").read_text())
-        nodes = {n["address"]: n for n in s["cluster"]["nodes"]}
-        assert set(nodes) == {HEAD, WORKER} and nodes[WORKER]["lost"] and not nodes[HEAD]["lost"]
-        assert s["capture_time"] is not None and s["collisions"] == 0, s
-        assert s["cross_router_heard"] > 0  # agents on one host heard agents on the other, router to router
-        assert s["security"] == {"tls": True, "acl": True, "ray_auth": "token"}, s["security"]
-        assert s["messages_rejected"] == 0 and s["agents_final_reports"] == 12
-        lost = [ln for ln in err.splitlines() if f"node1@{WORKER} lost" in ln]
-        assert lost and "crashed" in lost[0], err[-3000:]
-        on_worker = {d["id"] for d in s["departures"]}  # the world saw the worker host's agents go ...
-        assert 0 < len(on_worker) < 12 and all(d["how"] == "crashed" for d in s["departures"]), s["departures"]
-        assert on_worker <= set(s["stopped_at_end"])  # ... and come back, alive at the end
-        assert f"of a lost node on node0@{HEAD}" in err
-        assert all(HEAD in label for label in s["cluster"]["agent_node_at_end"].values())  # where they ran at the end
-        assert {int(i) for i, label in s["cluster"]["agent_node"].items() if WORKER in label} == on_worker  # placed
-        # 2. the worker host back (its first actor removes the keys the lost one left), a new run, its
-        # driver SIGKILLed: nothing of zswarm left on either host
-        kill_all(node_processes(nodes_dir / "b"))
-        start_ray(b, ray_node_env(nodes_dir / "b2", mark), "--address", f"{HEAD}:6379", "--node-ip-address", WORKER)
-        driver = subprocess.Popen([*run, "--duration", "60", "--record", str(tmp_path / "k.rrd")], env=env_a,
-                                  cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
-        try:
-            read_until(driver, "world: started", 120)
-            zswarm_procs = [p for p in left_behind(mark) if "ray::" not in p and "/ray/" not in p]
-            assert any("agents.fleet" in p for p in zswarm_procs) and any("zswarm.net.router" in p for p in zswarm_procs)
-            driver.send_signal(signal.SIGKILL)
-            driver.wait(timeout=10)
-            deadline = time.monotonic() + 10.0
-            while time.monotonic() < deadline and [p for p in left_behind(mark) if _zswarm(p)]:
-                time.sleep(0.2)
-            assert [p for p in left_behind(mark) if _zswarm(p)] == []
-        finally:
-            if driver.poll() is None:
-                driver.kill()
-        assert stale_keys(started) == []  # no host keeps the keys of a run that is over
-        # 3. a worker host with another zswarm: refused in one line, before any agent starts. (A host
-        # without zswarm is not made here: this project's editable install is found on any path.)
-        for fake, needle in ((fake_zswarm(nodes_dir / "other", "9.9.9"), f"node1@{WORKER} has zswarm 9.9.9"),):
-            kill_all(node_processes(nodes_dir / "b2") + node_processes(nodes_dir / "b3"))
-            shutil.rmtree(nodes_dir / "b3", ignore_errors=True)
-            start_ray(b, {**ray_node_env(nodes_dir / "b3", mark), "PYTHONPATH": str(fake)}, "--address", f"{HEAD}:6379",
-                      "--node-ip-address", WORKER)
-            res = subprocess.run([*run, "--duration", "5"], env=env_a, cwd=tmp_path, capture_output=True, text=True,
-                                 timeout=120)
-            lines = [ln for ln in res.stderr.splitlines() if "network_util" not in ln and "logging.cc" not in ln]
-            assert res.returncode == 2 and len(lines) == 1 and needle in lines[0], res.stderr[-2000:]
-            assert not [p for p in left_behind(mark) if _zswarm(p)]
-    finally:
-        kill_all(node_processes(nodes_dir))  # both hosts' Ray
-        remove_hosts(a, b)
-        shutil.rmtree(nodes_dir, ignore_errors=True)
-
-
-def stale_keys(since: float) -> list[Path]:
-    """Node key folders made since ``since`` whose actor is gone."""
-    from zswarm.cluster.node import KEYS_PREFIX
-
-    return [p for p in Path(tempfile.gettempdir()).glob(f"{KEYS_PREFIX}*") if p.stat().st_mtime >= since
-            and not Path(f"/proc/{p.name[len(KEYS_PREFIX):].split('-')[0]}").exists()]
-
-
-def fake_zswarm(folder: Path, version: str) -> Path:
-    """A folder to put first on a node's PYTHONPATH: this zswarm with another version number."""
-    package = folder / "zswarm"
-    shutil.copytree(ROOT / "zswarm", package, ignore=shutil.ignore_patterns("__pycache__"))
-    init = package / "__init__.py"
-    init.write_text(init.read_text().replace(f'__version__ = "{zswarm.__version__}"', f'__version__ = "{version}"'))
-    return folder
-
-
-def _zswarm(line: str) -> bool:
-    """A process line of zswarm's own (the world, routers, fleets, agents, a driver), not of Ray."""
-    return any(k in line for k in ("-m world", "zswarm.net.router", "agents.fleet", "-m agents", "-m zswarm"))
-
-
 def test_a_pace_the_clusters_cores_cannot_hold_is_refused_before_any_agent_starts(tmp_path):
     """A cluster started here has this machine's cores: refused before Ray is even imported (a ``ray``
     that cannot be imported is put first on the path). Against a cluster that was running already, the
@@ -457,19 +208,3 @@ def test_a_head_that_wants_a_token_lets_in_only_the_right_one(tmp_path, mode):
     assert wait_gone(mark, 10.0) == []
 
 
-def test_a_guest_on_a_secure_clusters_node_reaches_nobody(tmp_path):
-    """zswarm run --cluster local:2 --secure DIR: TLS and access control on every node's router, Ray with
-    a token; a guest with a valid certificate on the second node's router publishes a far pose of agent
-    1, a far prey and a final tick for 5 s: nobody takes any of them (the prey is caught where the world
-    put it, no pose is refused, the run lasts its whole duration), and nothing is left behind."""
-    mark = uuid.uuid4().hex
-    argv, env = offline(tmp_path, str(ROOT / "tests" / "cluster_guest.py"), str(tmp_path), mark=mark)
-    res = subprocess.run(argv, env=env, cwd=tmp_path, capture_output=True, text=True, timeout=400)
-    assert res.returncode == 0, res.stderr[-3000:]
-    out = json.loads(res.stdout.strip().splitlines()[-1])
-    assert out["rc"] == 0 and len(out["routers"]) == 2 and out["puts"] > 100, out
-    s = json.loads((tmp_path / "g.json").read_text())
-    assert s["security"] == {"tls": True, "acl": True, "ray_auth": "token"}
-    assert s["messages_rejected"] == 0 and s["capture_time"] is not None and s["collisions"] == 0, s
-    assert s["world_ticks"] == 401 and s["agents_final_reports"] == 8  # no agent took the guest's final tick
-    assert wait_gone(mark, 10.0) == []

@@ -250,8 +250,8 @@ def connect(address: str, cores: int, insecure_ok: bool = False) -> RayCluster:
         Config.initialize("")
         AuthenticationTokenLoader.instance().reset_cache()
     local = address.startswith("local")
-    # a cluster started here gets a folder of its own; short: Ray's socket paths are limited
-    run_dir = Path(tempfile.mkdtemp(prefix="zs-ray-", dir="/tmp")) if local else None
+    # a cluster started here gets a folder of its own, named for its driver; short: Ray's socket paths are limited
+    run_dir = Path(tempfile.mkdtemp(prefix=f"zs-ray-{os.getpid()}-", dir="/tmp")) if local else None
     offline_env(run_dir)
     quiet = {"configure_logging": True, "logging_level": "ERROR", "log_to_driver": False}
     cluster = RayCluster(address, run_dir, auth=auth)
