@@ -1,4 +1,4 @@
-"""Run inside a loopback-only network namespace by tests/test_cluster_hosts.py: ``zswarm run --cluster local:2
+"""Run inside a loopback-only network namespace by tests/test_cluster.py: ``zswarm run --cluster local:2
 --secure DIR``, and, while it runs, a guest (a certificate of the run's CA, no rights) on the second
 node's router that publishes agent 1's pose far away, the prey far away and a final tick. Prints the
 run's exit code and the guest's count of puts as one JSON object."""
