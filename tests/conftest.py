@@ -39,7 +39,7 @@ PROCESS_MODULES = {
     "test_distributed", "test_reliability", "test_hostile", "test_space_procs", "test_usage", "test_experiments",
     "test_robots", "test_security", "test_netns", "test_render", "test_install", "test_routers", "test_faults",
     "test_monitor", "test_live", "test_latency", "test_api", "test_export", "test_bench", "test_soak",
-    "test_tune", "test_study", "test_cluster", "test_cluster_hosts", "test_joining", "test_fleet",
+    "test_tune", "test_study", "test_cluster", "test_joining", "test_fleet",
 }
 
 
@@ -48,7 +48,7 @@ PROCESS_MODULES = {
 #: free: starting the long ones first keeps one of them from being the run's tail. Modules not named
 #: keep their order, after these.
 LONGEST_FIRST = (
-    "test_cluster_hosts", "test_cluster", "test_distributed", "test_netns", "test_design", "test_usage",
+    "test_cluster", "test_distributed", "test_netns", "test_design", "test_usage",
     "test_reliability", "test_render",
     "test_sim", "test_space_procs", "test_experiments", "test_study", "test_security", "test_hostile",
     "test_robots", "test_tune",

@@ -1,4 +1,4 @@
-"""Run inside a loopback-only network namespace by tests/test_cluster_hosts.py: a Ray head started as
+"""Run inside a loopback-only network namespace by tests/test_cluster.py: a Ray head started as
 docs/cluster.md says (``ray start --head`` with token authentication, or without), then ``zswarm run
 --cluster ADDRESS`` against it with no token, a wrong token and the right one; prints one JSON object of
 what each did (exit code, seconds, last line of stderr)."""

@@ -1,7 +1,7 @@
-"""Helpers of the tests that run Ray clusters (tests/test_cluster.py, tests/test_cluster_hosts.py): Ray
-starts only inside a network namespace that has nothing but loopback (``unshare --net``, :func:`offline`)
-or inside two namespaces joined by a veth pair (:func:`start_ray`), and every process of a test's run
-carries its mark, so that two modules' clusters can run side by side and each test finds its own."""
+"""Helpers of the tests that run Ray clusters (tests/test_cluster.py): Ray starts only inside a network
+namespace that has nothing but loopback (``unshare --net``, :func:`offline`) or inside two namespaces
+joined by a veth pair (:func:`start_ray`), and every process of a test's run carries its mark, so that
+each test finds its own run's processes and no other's."""
 
 from __future__ import annotations
 
