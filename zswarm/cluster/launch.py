@@ -25,7 +25,7 @@ from zswarm.launch.local_runs import announce
 from zswarm.launch.placement import place
 from zswarm.launch.plan import Plan, id_ranges
 from zswarm.launch.supervisor import Launch, _say
-from zswarm.net.security import agent_name
+from zswarm.net.security import agent_config
 from zswarm.ports import LOOPBACK
 
 
@@ -68,7 +68,7 @@ class ClusterLaunch(Launch):
         for k, link in enumerate(self.links):
             join = self.endpoints[0] if self.endpoints else None
             if self.identities is not None:
-                self.identities.make(link, ["router", *(agent_name(i) for i, n in self.where.items() if n == k)])
+                self.identities.make(link, ["router", *(self._identity(i) for i, n in self.where.items() if n == k)])
                 extra = ["--config", self.identities.config(link, "router")]
             try:
                 self.endpoints.append(link.call("start_router", LOOPBACK if local else link.info["address"], join,
@@ -93,7 +93,12 @@ class ClusterLaunch(Launch):
         if self.identities is None:
             return super()._agent_config(agent)
         link = self.links[self.where[agent]]
-        return agent_config_args(self.plan, self.configs, agent, self.identities.config(link, agent_name(agent)))
+        return agent_config_args(self.plan, self.configs, agent, self.identities.config(link, self._identity(agent)))
+
+    def _identity(self, agent: int) -> str:
+        """The name agent ``agent`` holds its rights under: its own (``agent-I``) where the --secure
+        directory's access control gives each agent its own, else the shared ``agent``."""
+        return agent_config(self.plan.secure, agent).stem
 
     def _note_crashes(self) -> None:
         """A lost node's agents are crashed (said once, by its link); with ``--restart-after S`` they
