@@ -167,8 +167,19 @@ def positive_float(text: str) -> float:
     return value
 
 
-_DURATION = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(ms|s|min|h)?\s*$")
-_UNIT = {"ms": 1e-3, "s": 1.0, "min": 60.0, "h": 3600.0, None: 1.0}
+#: A duration: a number (a sign only to be refused by name), then a unit or none.
+_DURATION = re.compile(r"^\s*(-?[0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*(ms|s|min|h)?\s*$")
+_UNIT = {"ms": 1 / 1000, "s": 1.0, "min": 60.0, "h": 3600.0}
+
+
+def duration_seconds(text: str, bare: str = "s", units: Sequence[str] = tuple(_UNIT)) -> float | None:
+    """``text`` in seconds: a number with one of ``units``, or with none (then it is in ``bare``); None
+    when it is no such thing. Every duration zswarm reads goes through here."""
+    m = _DURATION.match(str(text))
+    if m is None or (m.group(2) is not None and m.group(2) not in units):
+        return None
+    unit = m.group(2) or bare
+    return float(m.group(1)) / 1000.0 if unit == "ms" else float(m.group(1)) * _UNIT[unit]
 
 
 def counted(n: int, noun: str) -> str:
@@ -180,10 +191,9 @@ def seconds(text: str) -> float:
     """A duration flag's value in seconds: a bare number is seconds; ``500ms``, ``30s``, ``2min`` and
     ``1h`` say their unit. (Fault delays, ``--latency`` and ``--jitter``, are the one exception: a bare
     number there is milliseconds, as their help says.)"""
-    m = _DURATION.match(str(text))
-    if not m:
+    value = duration_seconds(text)
+    if value is None:
         raise argparse.ArgumentTypeError(f"expected a duration like 30, 30s, 500ms or 2min, got {text!r}")
-    value = float(m.group(1)) * _UNIT[m.group(2)]
     if not math.isfinite(value) or value < 0:
         raise argparse.ArgumentTypeError(f"expected a duration >= 0, got {text!r}")
     return value

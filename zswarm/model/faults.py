@@ -21,18 +21,19 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from zswarm.args import duration_seconds
+
 PREY_SOURCE = 2**31 - 1
 OBSTACLE_SOURCE = 2**31 - 2
-_DURATION = re.compile(r"^\s*([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*(ms|s)?\s*$")
 
 
 def parse_duration(text: str, default_unit: str = "ms") -> float:
-    """'100ms', '0.1s' or '100' (milliseconds) -> seconds."""
-    m = _DURATION.match(str(text))
-    if not m:
+    """'100ms', '0.1s' or '100' (milliseconds) -> seconds (:func:`zswarm.args.duration_seconds`, in the
+    two units a fault delay takes)."""
+    value = duration_seconds(text, default_unit, ("ms", "s"))
+    if value is None or value < 0:
         raise ValueError(f"expected a duration like 100ms or 0.1s (got {text!r})")
-    value = float(m.group(1))
-    return value if (m.group(2) or default_unit) == "s" else value / 1000.0
+    return value
 
 
 def parse_duration_list(text: str) -> list[float]:
