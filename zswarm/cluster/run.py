@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import argparse
 import copy
-from pathlib import Path
 
 from zswarm.cluster.hosts import NodeLink
 from zswarm.cluster.launch import ClusterLaunch
@@ -36,11 +35,13 @@ def check_flags(args: argparse.Namespace) -> None:
     for flag, set_ in given.items():
         if set_:
             raise UsageError(REFUSED[flag])
-    secure = None if args.secure is None else Path(args.secure)
-    if (secure is not None and not args.cluster.startswith("local") and (secure / "router.json5").is_file()
-            and not (secure / "ca.key").is_file()):
-        raise UsageError(f"--secure {secure} has no ca.key: over other machines each node's own keys are signed "
-                         "by the CA there (give a new directory for zswarm to make, or yours with its CA's key)")
+    if args.secure is not None and not args.cluster.startswith("local"):
+        from zswarm.net.security import is_secure_dir
+
+        if is_secure_dir(args.secure):  # one zswarm makes (empty) is signed by the CA it makes
+            from zswarm.net.certs import require_ca_key
+
+            require_ca_key(args.secure)
 
 
 def node_label(k: int, node: dict) -> str:

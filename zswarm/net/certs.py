@@ -151,15 +151,23 @@ def make_keys(directory: Path, names: Sequence[str]) -> dict[str, str]:
     return out
 
 
+def require_ca_key(directory: Path) -> Path:
+    """``directory``, whose CA can sign certificates made elsewhere: UsageError in one line if its key
+    is not there."""
+    directory = Path(directory)
+    if not (directory / "ca.key").is_file():
+        raise UsageError(f"--secure {directory} has no ca.key: over other machines each node's own keys are "
+                         "signed by the CA there (give a new directory for zswarm to make, or yours with its "
+                         "CA's key)")
+    return directory
+
+
 def sign(ca_directory: Path, public_keys: dict[str, str], hosts: tuple[str, ...], days: int = 30) -> dict[str, str]:
     """Certificates (PEM) for public keys made elsewhere (:func:`make_keys`), by the CA of
     ``ca_directory`` (its ``ca.pem`` and ``ca.key``), each named for its key's name and valid for
     ``hosts``."""
     x509, _, serialization, _, _, _ = _crypto()
-    ca_dir = Path(ca_directory)
-    if not (ca_dir / "ca.key").is_file():
-        raise UsageError(f"{ca_dir} has no ca.key: certificates for other machines are signed by the CA "
-                         "there (give --secure a directory zswarm made, or one with your CA's key)")
+    ca_dir = require_ca_key(ca_directory)
     ca_cert = x509.load_pem_x509_certificate((ca_dir / "ca.pem").read_bytes())
     ca_key = serialization.load_pem_private_key((ca_dir / "ca.key").read_bytes(), password=None)
     return {name: _pem(serialization, cert=_leaf(name, serialization.load_pem_public_key(pem.encode()),
