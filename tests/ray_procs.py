@@ -165,21 +165,11 @@ def node_processes(folder: Path) -> list[int]:
     name such a raylet as theirs (``RAY_RAYLET_PID``: Ray's agents set their titles over the start of
     their environment, the folder with it) or have it as their parent."""
     tag = str(folder).encode()
-    named, rest = [], {}
-    for d in Path("/proc").iterdir():
-        if d.name.isdigit():
-            try:
-                cmd, env = (d / "cmdline").read_bytes(), (d / "environ").read_bytes()
-                ppid = int((d / "stat").read_text().rsplit(")", 1)[1].split()[1])
-            except (OSError, ValueError, IndexError):
-                continue
-            if tag in cmd or tag in env:
-                named.append(int(d.name))
-            else:
-                rest[int(d.name)] = (env, ppid)
-    marks = {f"RAY_RAYLET_PID={pid}".encode() for pid in named}
-    return named + [pid for pid, (env, ppid) in rest.items()
-                    if ppid in named or marks & set(env.split(b"\0"))]
+    procs = _processes()
+    named = [pid for pid, (cmd, env, _) in procs.items() if tag in cmd or any(tag in e for e in env)]
+    marks = {f"{pid}".encode() for pid in named}
+    return named + [pid for pid, (_, env, ppid) in procs.items() if pid not in named
+                    and (ppid in named or _var(env, b"RAY_RAYLET_PID") in marks)]
 
 
 def kill_all(pids: list[int]) -> None:

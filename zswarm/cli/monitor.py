@@ -76,9 +76,8 @@ def run(args: argparse.Namespace) -> int:
     from zswarm.net.watch import RunWatch
 
     check_run_id(args.run_id)
-    for flag, value in (("--every", args.every), ("--wait", args.wait), ("--duration", args.duration)):
-        if value is not None and not (math.isfinite(value) and value > 0):
-            raise UsageError(f"{flag} must be a number of seconds > 0 (got {value:g})")
+    if not (math.isfinite(args.wait) and args.wait > 0):  # --every and --duration: positive_seconds
+        raise UsageError(f"--wait must be a number of seconds > 0 (got {args.wait:g})")
     if not args.connect and args.config is None:  # a run of this machine, found by its name
         from zswarm.launch.local_runs import endpoint_of, runs_dir
 
