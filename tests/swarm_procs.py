@@ -172,10 +172,9 @@ def our_processes(marker: str) -> list[int]:
 
 def run_launch(cwd: Path, *args: str, timeout: float = 180.0) -> subprocess.CompletedProcess:
     """``python launch.py ARGS`` to completion (killed on timeout), output captured as text."""
-    from conftest import ROOT
+    from conftest import ROOT, run_cli
 
-    return subprocess.run([sys.executable, str(ROOT / "launch.py"), *args], cwd=cwd, capture_output=True,
-                          text=True, timeout=timeout)
+    return run_cli(str(ROOT / "launch.py"), *args, cwd=cwd, timeout=timeout)
 
 
 class Watch:

@@ -17,7 +17,7 @@ from zswarm.host.procs import free_port, start_router
 from zswarm.record.replay import load_run, recompute
 from zswarm.sim.simulator import Simulator, simulate
 
-from conftest import ROOT
+from conftest import ROOT, run_cli
 from swarm_procs import (
     Watch,
     interrupt_at_step,
@@ -241,9 +241,8 @@ def _lines_until(stream, text: str, timeout: float) -> str:
 
 
 def test_launch_runs_a_swarm_and_leaves_nothing_behind(tmp_path):
-    res = subprocess.run([sys.executable, str(ROOT / "launch.py"), "--agents", "4", "--duration", "4",
-                          "--run", "launchtest", "--record", str(tmp_path / "l.rrd")], cwd=tmp_path,
-                         capture_output=True, text=True, timeout=120)
+    res = run_cli(str(ROOT / "launch.py"), "--agents", "4", "--duration", "4", "--run", "launchtest", "--record",
+                  str(tmp_path / "l.rrd"), cwd=tmp_path, timeout=120)
     assert res.returncode == 0, res.stderr
     assert "rerun " in res.stdout and (tmp_path / "l.json").exists()
     rerun_verify(tmp_path / "l.rrd")

@@ -7,13 +7,12 @@ import subprocess
 import sys
 from pathlib import Path
 
-from conftest import ROOT
+from conftest import ROOT, run_cli
 from swarm_procs import interrupt_when_exists, our_processes
 
 
 def launch(*args: str, cwd, timeout: float = 180) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, str(ROOT / "launch.py"), *args], cwd=cwd, capture_output=True,
-                          text=True, timeout=timeout)
+    return run_cli(str(ROOT / "launch.py"), *args, cwd=cwd, timeout=timeout)
 
 
 def test_kill_restart_and_world_outage(tmp_path):

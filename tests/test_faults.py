@@ -3,15 +3,13 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 
 from zswarm.model.faults import FaultModel, LinkFaults, parse_duration, parse_duration_list
 
-from conftest import ROOT
+from conftest import ROOT, run_cli
 
 
 def pattern(model: FaultModel, receiver: int, source: int, n: int = 2000) -> list:
@@ -63,10 +61,9 @@ def test_durations_parse():
 
 
 def test_injected_dropout_and_delay_are_observed(tmp_path):
-    res = subprocess.run([sys.executable, str(ROOT / "launch.py"), "--agents", "6", "--scenario", "moving-prey",
-                          "--duration", "8", "--dropout", "0.3", "--latency", "100ms", "--jitter", "20ms",
-                          "--record", str(tmp_path / "f.rrd"), "--quiet"], cwd=tmp_path, capture_output=True,
-                         text=True, timeout=120)
+    res = run_cli(str(ROOT / "launch.py"), "--agents", "6", "--scenario", "moving-prey", "--duration", "8",
+                  "--dropout", "0.3", "--latency", "100ms", "--jitter", "20ms", "--record", str(tmp_path / "f.rrd"),
+                  "--quiet", cwd=tmp_path, timeout=120)
     assert res.returncode == 0, res.stderr
     s = json.loads((tmp_path / "f.json").read_text())
     assert s["requested_faults"]["dropout"] == 0.3

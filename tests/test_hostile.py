@@ -2,12 +2,17 @@
 
 from __future__ import annotations
 
+import io
 import math
+import signal
 import struct
+import subprocess
+import threading
 import time
 
 import msgpack
 import numpy as np
+import pytest
 import zenoh
 
 from zswarm.net import messages as msg
@@ -15,7 +20,7 @@ from zswarm.net.config import zenoh_config
 from zswarm.net.keys import Keys
 from zswarm.host.procs import start_router
 
-from swarm_procs import Watch, processes, start_agent, start_world, wait_exit, with_reference
+from swarm_procs import Watch, host_of, processes, split_spec, start_agent, wait_exit, with_reference
 
 
 def garbage(rng: np.random.Generator, keys: Keys, cell: tuple[int, int], i: int) -> list[tuple[str, bytes]]:
@@ -39,6 +44,27 @@ def garbage(rng: np.random.Generator, keys: Keys, cell: tuple[int, int], i: int)
     ]
 
 
+def ended_after_capture(world, hold: float, timeout: float) -> float | None:
+    """Read the world's progress lines until it says the prey is caught, let the swarm hold it ``hold``
+    wall seconds more, then end the run as Ctrl-C would (the world's summary is written as at its end).
+    Returns the capture time it printed (None: not caught within ``timeout``; the run is left to end)."""
+    deadline = time.monotonic() + timeout
+    caught = None
+    lines = io.TextIOWrapper(world.proc.stdout)
+    for line in lines:
+        if "captured at" in line:
+            caught = float(line.split("captured at")[1].split()[0])
+            break
+        if time.monotonic() > deadline:
+            break
+    reader = threading.Thread(target=lambda: sum(1 for _ in lines), daemon=True)
+    reader.start()  # the pipe drained to the end
+    if caught is not None:
+        time.sleep(hold)
+        world.proc.send_signal(signal.SIGINT)
+    return caught
+
+
 def test_flood_of_hostile_messages_changes_nothing(tmp_path):
     rng = np.random.default_rng(666)
     run = "hostile"
@@ -46,10 +72,13 @@ def test_flood_of_hostile_messages_changes_nothing(tmp_path):
         endpoint = start_router(kids)
         # at the wall clock: at twice it (as other free-running swarms of the suite run), an agent under
         # the flood once took more than 20 s to end after the world had (CI, 4 workers; not explained).
-        # 45 s: alone it catches the prey at 22-23 s; twice in a dozen suite runs a loaded machine slowed
-        # it past 30 s (1.4 from the prey then), and once (a fresh clone's CI) to 32.2 s, too late to be one
-        # group again by 35 s; what the flood must not change is that it catches it and stays together
-        world, summary_path, _, _ = start_world(kids, endpoint, run, "moving-prey", tmp_path, "--duration", "45")
+        # Alone it catches the prey at 22-23 s; a loaded machine once slowed it to 32.2 s. The run ends 5 s
+        # after the world says it is caught (45 s at most): what the flood must not change is that it
+        # catches it and stays together
+        summary_path, record = tmp_path / f"{run}.json", tmp_path / f"{run}.rrd"
+        spec, rest = split_spec(run, "moving-prey", "--duration", "45")
+        world = host_of(kids).spawn_world(spec, endpoint, *rest, "--summary", str(summary_path), "--record",
+                                          str(record), "--progress", "0.25", stdout=subprocess.PIPE)
         agents = [start_agent(kids, endpoint, run, "moving-prey", i) for i in range(10)]
         keys = Keys(run, 1.0)
         cells = [(cx, cy) for cx in range(-5, -1) for cy in range(-2, 2)]
@@ -69,6 +98,7 @@ def test_flood_of_hostile_messages_changes_nothing(tmp_path):
                     sent += 1
                 i += 1
                 time.sleep(0.02)
+        caught = ended_after_capture(world, 5.0, 90.0)
         assert wait_exit(world, 120) == 0
         assert all(wait_exit(a, 20) == 0 for a in agents)
     s = with_reference(summary_path, run, "moving-prey", "--duration", "45")
@@ -81,6 +111,8 @@ def test_flood_of_hostile_messages_changes_nothing(tmp_path):
     how = {k: s[k] for k in ("capture_time", "final_centroid_goal_distance", "late_ticks", "ticks",
                              "world_late_ticks", "on_time_ratio", "observed_dropout", "messages_rejected")}
     how["reference_capture_time"] = s["reference"]["capture_time"]
+    assert caught is not None and s["capture_time"] == pytest.approx(caught, abs=0.01), how
     assert s["capture_time"] is not None and s["collisions"] == 0 and s["final_components"] == 1, how
+    assert s["capture_time"] + 4.0 <= s["duration"] < 45.0, how  # it held the prey, and the run ended early
     assert s["reference"]["collisions"] == 0
     assert s["agents_reporting"] == 10

@@ -16,7 +16,7 @@ from zswarm.host.procs import free_port, wait_for_port
 from zswarm.net.router import CLOSE_WAIT_S
 from zswarm.record.replay import load_run, load_segment, segments
 
-from conftest import ROOT
+from conftest import ROOT, run_cli
 from swarm_procs import (
     Watch,
     load_summary,
@@ -164,8 +164,7 @@ def test_world_killed_and_restarted_continues_the_run_in_a_new_segment(tmp_path)
     assert s["world_segments"] == 2 and s["resumed_from"]["step"] == before[-1].step
     assert s["agents_reporting"] == 5 and s["collisions"] == 0 and abs(s["duration"] - 14.0) < 1e-6
     # the summary covers both segments: replay over them reproduces it exactly
-    replay = subprocess.run([sys.executable, "-m", "zswarm", "replay", str(record), "--json"],
-                            capture_output=True, text=True, timeout=120)
+    replay = run_cli("-m", "zswarm", "replay", str(record), "--json", timeout=120)
     out = json.loads(replay.stdout)
     assert out["replay"]["matches_stored_summary"] and out["replay"]["frames"] == len(before) + len(after)
     assert our_processes("worldcrash") == []
@@ -272,9 +271,8 @@ def test_a_machine_that_cannot_reach_its_router_stops_in_one_line_within_the_tim
     port = free_port()  # nobody listens there
     for role in ("agents", "world"):
         began = time.monotonic()
-        res = subprocess.run([sys.executable, str(ROOT / "launch.py"), "--role", role, "--connect",
-                              f"tcp/127.0.0.1:{port}", "--agents", "3", "--connect-timeout", "2", "--run", "unreached"],
-                             cwd=tmp_path, capture_output=True, text=True, timeout=60)
+        res = run_cli(str(ROOT / "launch.py"), "--role", role, "--connect", f"tcp/127.0.0.1:{port}", "--agents", "3",
+                      "--connect-timeout", "2", "--run", "unreached", cwd=tmp_path, timeout=60)
         took = time.monotonic() - began
         lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
         assert res.returncode == 1 and len(lines) == 1, res.stderr

@@ -19,7 +19,7 @@ from zswarm.net.keys import Keys
 from zswarm.host.procs import free_port, start_router
 from zswarm.net.security import write_secure_dir
 
-from conftest import ROOT
+from conftest import ROOT, run_cli
 from swarm_procs import load_summary, processes
 
 RUN = "sec"
@@ -266,10 +266,9 @@ def test_launch_passes_full_zenoh_configs_through(certs, tmp_path):
     router_conf = tmp_path / "router-tls.json5"
     router_conf.write_text(json.dumps(conf))
     record = tmp_path / "pass.rrd"
-    res = subprocess.run([sys.executable, str(ROOT / "launch.py"), "--router-config", str(router_conf),
-                          "--config", str(certs / "agent.json5"), "--listen", f"tls/127.0.0.1:{free_port()}",
-                          "--agents", "3", "--duration", "4", "--run", "passthrough", "--record", str(record),
-                          "--quiet"], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    res = run_cli(str(ROOT / "launch.py"), "--router-config", str(router_conf), "--config", str(certs / "agent.json5"),
+                  "--listen", f"tls/127.0.0.1:{free_port()}", "--agents", "3", "--duration", "4", "--run", "passthrough",
+                  "--record", str(record), "--quiet", cwd=ROOT, timeout=120)
     assert res.returncode == 0, res.stderr
     s = load_summary(record.with_suffix(".json"))
     assert s["agents_reporting"] == 3 and s["steps"] > 50
@@ -280,9 +279,8 @@ def test_a_secure_run_over_three_routers_says_so_in_its_summary(tmp_path):
     routers' configs made there): the agents on every router reach the world, and the summary's
     security block says TLS and access control."""
     record = tmp_path / "mesh.rrd"
-    res = subprocess.run([sys.executable, str(ROOT / "launch.py"), "--routers", "3", "--secure", str(tmp_path / "pki"),
-                          "--agents", "6", "--duration", "6", "--run", "securemesh", "--record", str(record)],
-                         cwd=tmp_path, capture_output=True, text=True, timeout=180)
+    res = run_cli(str(ROOT / "launch.py"), "--routers", "3", "--secure", str(tmp_path / "pki"), "--agents", "6",
+                  "--duration", "6", "--run", "securemesh", "--record", str(record), cwd=tmp_path, timeout=180)
     assert res.returncode == 0, res.stderr[-3000:]
     assert "open run" not in res.stdout  # a secure run does not say it believes any peer
     s = load_summary(record.with_suffix(".json"))
@@ -358,8 +356,7 @@ def test_a_secure_directory_without_its_cas_key_is_refused_for_other_machines(ce
     bare = tmp_path / "pki"
     shutil.copytree(certs, bare)
     (bare / "ca.key").unlink()
-    res = subprocess.run([sys.executable, str(ROOT / "launch.py"), "--cluster", "127.0.0.1:1", "--secure", str(bare)],
-                         capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    res = run_cli(str(ROOT / "launch.py"), "--cluster", "127.0.0.1:1", "--secure", str(bare), timeout=60, cwd=tmp_path)
     assert res.returncode == 2 and res.stderr.strip().count("\n") == 0, res.stderr
     assert "has no ca.key" in res.stderr, res.stderr
 
