@@ -18,6 +18,8 @@ class Counters:
     crossed: int = 0  # ... sent from another router
     ticks: int = 0
     late_ticks: int = 0
+    late_s: float = 0.0  # free clock: how far late ticks moved the schedule on, in all (seconds)
+    skipped_ticks: int = 0  # ... in whole ticks: the ticks the agent let go by
     interventions: int = 0  # the safety filter: ticks it changed the command
     stalled_ticks: int = 0  # ... left it under a tenth of the law's speed
     braked_ticks: int = 0  # ... stopped the agent on data older than its bound
@@ -47,7 +49,7 @@ class Counters:
                             queue_max=self.window_queue_max, tick_lag_max_ms=float(self.window_lag_ms),
                             poses=self.poses, crossed=self.crossed, interventions=self.interventions,
                             stalled_ticks=self.stalled_ticks, braked_ticks=self.braked_ticks,
-                            stalled_long=int(self.stalled_long))
+                            stalled_long=int(self.stalled_long), skipped_ticks=self.skipped_ticks)
         heard, heard_poses = self.heard_lists()
         return msg.Stats(agent, self.sent, self.received, dict(self.rejections.counts), self.late_ticks, self.ticks,
                          dict(self.ages), dict(self.latency), final, health, heard,

@@ -82,7 +82,9 @@ def test_a_swarm_over_three_nodes_catches_the_prey_and_says_where_each_agent_ran
     assert s["migration"]["moves"] > 0 and s["departures"] == [] and s["agents_final_reports"] == 12
     assert "exited with code" not in res.stderr
     assert "network_util" not in res.stderr and "logging.cc" not in res.stderr  # Ray's start-up lines: dropped
-    assert s["ticks"] >= 0.97 * 12 * s["steps"]
+    # every agent's ticks, counted on across its moves: those it ran and those a late tick let go by (what
+    # a starved agent skips, 5 % on a busy machine, is not what a count that restarted at a move loses)
+    assert s["ticks"] + s["skipped_ticks"] >= 0.97 * 12 * s["steps"], (s["ticks"], s["skipped_ticks"])
 
 
 def test_the_cluster_ran_with_nothing_but_loopback_and_left_nothing_behind(three_nodes):

@@ -164,6 +164,28 @@ def test_two_runs_on_one_router_do_not_see_each_other(tmp_path):
     assert {int(k): set(v) for k, v in b["heard"].items()} == {2: {3}, 3: {2}}
 
 
+def test_an_agent_frozen_for_a_second_counts_the_ticks_it_let_go_by(tmp_path):
+    """A free-clock agent that falls behind moves its schedule on rather than catching up (no backlog of
+    ticks); the ticks it let go by are counted (``skipped_ticks``), so that ticks run and ticks let go by
+    add up to the schedule's, however starved the agent was."""
+    with processes() as kids:
+        endpoint = start_router(kids)
+        world, summary_path, _, _ = start_world(kids, endpoint, "frozen", "moving-prey", tmp_path,
+                                                "--set", "n_agents=2", "--duration", "5")
+        agents = [start_agent(kids, endpoint, "frozen", "moving-prey", i, "--set", "n_agents=2") for i in range(2)]
+        with Watch(endpoint, "frozen") as watch:
+            watch.reach_step(20)  # 1 s into the run
+            agents[1].proc.send_signal(signal.SIGSTOP)
+            time.sleep(1.0)
+            agents[1].proc.send_signal(signal.SIGCONT)
+        assert wait_exit(world, 60) == 0
+        assert all(wait_exit(a, 20) == 0 for a in agents)
+    s = load_summary(summary_path)
+    print({k: s[k] for k in ("ticks", "skipped_ticks", "late_ticks", "steps", "startup_s")})
+    assert s["skipped_ticks"] >= 18, s["skipped_ticks"]  # a second frozen: 20 ticks of 50 ms
+    assert 0.97 <= (s["ticks"] + s["skipped_ticks"]) / (2 * s["steps"]) <= 1.1, (s["ticks"], s["skipped_ticks"])
+
+
 def test_killing_one_agent_leaves_the_others_running_and_is_recorded(tmp_path):
     with processes() as kids:
         endpoint = start_router(kids)

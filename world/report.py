@@ -46,6 +46,7 @@ def transport_summary(stats: list[msg.Stats], world_rejected: dict[str, int]) ->
         "safety_braked_ticks": sum(s.health.braked_ticks for s in stats),
         "safety_stalled_agents": sum(1 for s in stats if s.health.stalled_long),
         "ticks": ticks, "late_ticks": late, "on_time_ratio": (1 - late / ticks) if ticks else None,
+        "skipped_ticks": sum(s.health.skipped_ticks for s in stats),  # free clock: let go by late agents
         "observed_dropout": _ratio(float(lost), float(counted)),
         "observed_latency_ms": histogram.percentile(lat, 0.5),
         "heard": {str(s.id): list(s.heard) for s in stats},

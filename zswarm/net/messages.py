@@ -149,11 +149,12 @@ class Health:
     braked_ticks: int = 0
     stalled_long: int = 0  # 1: stalled for a second or more in a row at some point
     crossed: int = 0  # of ``poses``, those sent from another router (Pose.node is not its own)
+    skipped_ticks: int = 0  # free clock: the ticks a late agent let go by (its schedule moves on; no backlog)
 
 
 HEALTH_INTS = ("obstacle_queries_failed", "seq_received", "seq_lost", "injected_drops", "injected_passed",
                "queue_max", "poses", "interventions", "stalled_ticks", "braked_ticks",
-               "stalled_long", "crossed")
+               "stalled_long", "crossed", "skipped_ticks")
 HEALTH_FIELDS = (*HEALTH_INTS, "tick_lag_max_ms")  # every field of Health, as the stats map carries them
 
 
