@@ -33,15 +33,19 @@ def run_cli(*args: str, timeout: float = 120.0, cwd: Path | None = None) -> subp
         server = ForkServer(ROOT)
     try:
         res = server.run(list(args), cwd or ROOT, env, timeout)
-    except subprocess.TimeoutExpired:
-        _FORKS.append(server)
+    except subprocess.TimeoutExpired:  # the server killed the command, and serves on
+        _idle(server)
         raise
     except BaseException:
         server.close()
         raise
+    _idle(server)
+    return res
+
+
+def _idle(server) -> None:
     with _FORKS_LOCK:
         _FORKS.append(server)
-    return res
 
 
 def pytest_unconfigure(config) -> None:
