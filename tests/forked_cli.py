@@ -168,18 +168,21 @@ def _wait(pid: int, timeout: float) -> int | None:
 def serve(scratch: Path) -> None:
     """One job a line on standard input (argv, cwd, env, timeout), each forked as :func:`_child` runs it;
     a line on standard output when it ends: its exit status (null: killed at its timeout) and the files
-    that hold its output. Ends at the end of its input."""
+    that hold its output. Ends at the end of its input, removing ``scratch``."""
     for module in PRELOAD:
         __import__(module)
-    for k, line in enumerate(sys.stdin):
-        job = json.loads(line)
-        out, err = str(scratch / f"{k}.out"), str(scratch / f"{k}.err")
-        sys.stdout.flush()
-        pid = os.fork()
-        if pid == 0:
-            _child(job, out, err)
-        code = _wait(pid, job["timeout"])
-        print(json.dumps({"returncode": code, "stdout": out, "stderr": err}), flush=True)
+    try:
+        for k, line in enumerate(sys.stdin):
+            job = json.loads(line)
+            out, err = str(scratch / f"{k}.out"), str(scratch / f"{k}.err")
+            sys.stdout.flush()
+            pid = os.fork()
+            if pid == 0:
+                _child(job, out, err)
+            code = _wait(pid, job["timeout"])
+            print(json.dumps({"returncode": code, "stdout": out, "stderr": err}), flush=True)
+    finally:  # its client gone, closed or not: nothing of it is left in /tmp
+        shutil.rmtree(scratch, ignore_errors=True)
 
 
 class ForkServer:
