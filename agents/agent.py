@@ -234,7 +234,7 @@ class Agent:
     def stats(self, final: bool = False) -> bytes:
         faults = self.injector.faults if self.injector is not None else None
         injected = (faults.dropped, faults.passed) if faults is not None else (0, 0)
-        return msg.encode(self.counters.stats(self.id, injected, final))
+        return msg.encode(self.counters.stats(self.id, self.spec.period, injected, final))
 
     def publish_stats_now(self) -> None:
         """The stats message, and a new window for the per-period figures (queue, tick lag)."""

@@ -19,7 +19,6 @@ class Counters:
     ticks: int = 0
     late_ticks: int = 0
     late_s: float = 0.0  # free clock: how far late ticks moved the schedule on, in all (seconds)
-    skipped_ticks: int = 0  # ... in whole ticks: the ticks the agent let go by
     interventions: int = 0  # the safety filter: ticks it changed the command
     stalled_ticks: int = 0  # ... left it under a tenth of the law's speed
     braked_ticks: int = 0  # ... stopped the agent on data older than its bound
@@ -42,14 +41,15 @@ class Counters:
         b = histogram.to_bin(ms)
         hist[b] = hist.get(b, 0) + 1
 
-    def stats(self, agent: int, injected: tuple[int, int] = (0, 0), final: bool = False) -> msg.Stats:
-        """The stats message (``injected``: messages the fault injector dropped and passed)."""
+    def stats(self, agent: int, period: float, injected: tuple[int, int] = (0, 0), final: bool = False) -> msg.Stats:
+        """The stats message (``period``: the agent's tick period, in which the ticks it let go by are
+        counted; ``injected``: messages the fault injector dropped and passed)."""
         health = msg.Health(obstacle_queries_failed=self.obstacle_queries_failed, seq_received=self.seq_received,
                             seq_lost=self.seq_lost, injected_drops=injected[0], injected_passed=injected[1],
                             queue_max=self.window_queue_max, tick_lag_max_ms=float(self.window_lag_ms),
                             poses=self.poses, crossed=self.crossed, interventions=self.interventions,
                             stalled_ticks=self.stalled_ticks, braked_ticks=self.braked_ticks,
-                            stalled_long=int(self.stalled_long), skipped_ticks=self.skipped_ticks)
+                            stalled_long=int(self.stalled_long), skipped_ticks=int(self.late_s / period))
         heard, heard_poses = self.heard_lists()
         return msg.Stats(agent, self.sent, self.received, dict(self.rejections.counts), self.late_ticks, self.ticks,
                          dict(self.ages), dict(self.latency), final, health, heard,

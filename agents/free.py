@@ -76,8 +76,7 @@ def run_free(agent: Agent, injector: FaultInjector | None, stopped: Callable[[],
         c.window_lag_ms = max(c.window_lag_ms, 1000.0 * (now - next_tick))
         if now - next_tick > 0.5 * period:
             c.late_ticks += 1
-            c.late_s += now - next_tick
-            c.skipped_ticks = int(c.late_s / period)  # the ticks let go by: ticks + skipped is the schedule's
+            c.late_s += now - next_tick  # the ticks let go by (skipped_ticks): ticks + skipped is the schedule's
             next_tick = max(next_tick, now)  # skip, never queue up a backlog
         c.ticks += 1
         c.window_queue_max = max(c.window_queue_max, take_in(agent, injector))

@@ -72,7 +72,7 @@ def test_the_world_keeps_a_final_report_over_an_older_message_that_arrives_after
     def stats(ticks: int, final: bool) -> bytes:
         c = Counters(Rejections("agent 4"))
         c.ticks = ticks
-        return msg.encode(c.stats(4, final=final))
+        return msg.encode(c.stats(4, 0.05, final=final))
 
     rejected = Rejections("world")
     book = StatsBook(Keys.agent_of, rejected)
