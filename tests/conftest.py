@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import signal
 import subprocess
+import sys
 import threading
 from pathlib import Path
 
@@ -19,14 +20,20 @@ _FORKS: list = []
 _FORKS_LOCK = threading.Lock()
 
 
-def run_cli(*args: str, timeout: float = 120.0, cwd: Path | None = None) -> subprocess.CompletedProcess:
+def run_cli(*args: str, timeout: float = 120.0, cwd: Path | None = None,
+            fresh: bool = False) -> subprocess.CompletedProcess:
     """Run ``python ARGS`` (``-m MODULE ...`` or a script) to completion, as ``subprocess.run`` would with
     its output captured as text; killed (with what it started) on timeout, which raises
     ``subprocess.TimeoutExpired``. Each command is a process of its own, forked from an interpreter that
-    imported the project once (:class:`forked_cli.ForkServer`), with this process's environment."""
+    imported the project once (:class:`forked_cli.ForkServer`), with this process's environment; ``fresh``:
+    in an interpreter of its own, for a command whose end matters (a fork leaves by ``os._exit``, without
+    the interpreter's finalization: a live Rerun stream once arrived without its agents that way)."""
     from forked_cli import ForkServer
 
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    if fresh:
+        return subprocess.run([sys.executable, *args], capture_output=True, text=True, timeout=timeout,
+                              cwd=cwd or ROOT, env=env)
     with _FORKS_LOCK:
         server = _FORKS.pop() if _FORKS else None
     if server is None:
