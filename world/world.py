@@ -314,8 +314,9 @@ class World:
         self.recorder.log_network(self.clock.step, self.clock.t, figures)
         self.network_logged, self.network_received = now, self.received
 
-    def advance_prey(self, snap: Snapshot, dt: float) -> None:
-        self.prey = prey_motion.step(self.scenario.prey, self.prey, dt, snap.pos.reshape(-1, self.dims))
+    def next_prey(self, snap: Snapshot, dt: float) -> np.ndarray:
+        """Where the prey is ``dt`` after now, fleeing the agents at ``snap``."""
+        return prey_motion.step(self.scenario.prey, self.prey, dt, snap.pos.reshape(-1, self.dims))
 
     def publish(self, key: str, message: msg.Message) -> None:
         """A tick is the clock every agent follows, and the final one is how they learn the run is
@@ -364,35 +365,46 @@ class World:
                 self._event(f"world clock stalled {lag:.1f} s (the world was frozen or starved of CPU)")
             self.stalled = lag > STALL
             t_new = min((loop.time() - start) * self.spec.time_scale, duration)
-            self.advance_prey(live, t_new - clock.t)
+            self.prey = self.next_prey(live, t_new - clock.t)
             clock.t = t_new
             clock.step += 1
 
     async def run_lockstep(self, steps: int, progress: float, step_timeout: float) -> None:
-        loop = asyncio.get_running_loop()
+        """Tick k goes out once every live agent's pose of step k-1 is in (or ``step_timeout`` passed),
+        before step k-1 is measured and recorded: the agents compute step k while the world records."""
         clock = self.clock
         last_print = -math.inf
-        while clock.step <= steps and not self.stop.is_set():
+        self.publish(self.keys.tick, msg.Tick(clock.step, time.time(), *map(float, self.prey)))
+        while not self.stop.is_set():
             k = clock.step
-            self.publish(self.keys.tick, msg.Tick(k, time.time(), *map(float, self.prey)))
-            deadline = loop.time() + step_timeout
-            while not self.stop.is_set():
-                missing = self.intake.missing(k, self.census.alive)
-                if not missing or loop.time() > deadline:
-                    clock.missed_poses += len(missing)
-                    break
-                self.pose_arrived.clear()
-                try:
-                    await asyncio.wait_for(self.pose_arrived.wait(), deadline - loop.time())
-                except asyncio.TimeoutError:
-                    pass
+            await self._await_poses(k, step_timeout)
             poses = self.intake.at_step(k, self.census.alive)
+            prey = None
+            if k < steps and not self.stop.is_set():
+                prey = self.next_prey(poses, self.scenario.dt)
+                self.publish(self.keys.tick, msg.Tick(k + 1, time.time(), *map(float, prey)))
             last_print = self._progress(self.observe(poses), steps, progress, last_print)
-            if k == steps:
+            if prey is None:
                 break
-            self.advance_prey(poses, self.scenario.dt)
+            self.prey = prey
             clock.step += 1
             clock.t = clock.step * self.scenario.dt
+
+    async def _await_poses(self, k: int, timeout: float) -> None:
+        """Until every live agent's pose of step ``k`` is in, or ``timeout`` seconds (the ones missing then
+        are counted)."""
+        loop = asyncio.get_running_loop()
+        deadline = loop.time() + timeout
+        while not self.stop.is_set():
+            missing = self.intake.missing(k, self.census.alive)
+            if not missing or loop.time() > deadline:
+                self.clock.missed_poses += len(missing)
+                return
+            self.pose_arrived.clear()
+            try:
+                await asyncio.wait_for(self.pose_arrived.wait(), deadline - loop.time())
+            except asyncio.TimeoutError:
+                pass
 
     def _progress(self, metrics: dict[str, float] | None, steps: int, every: float, last: float) -> float:
         now = time.time()
