@@ -265,6 +265,52 @@ def test_the_world_repeats_the_final_tick_until_every_agent_has_said_goodbye(tmp
     assert load_summary(summary_path)["agents_reporting"] == 0  # the stand-in never reported
 
 
+def test_final_stats_that_arrive_after_their_agents_token_went_are_kept(tmp_path):
+    """An agent's final stats can arrive after the withdrawal of its liveliness token (on a loaded
+    machine a migrating run's world once saw an agent go, gave up, and lost them): the world waits 3 s
+    after an agent went without them. A stand-in agent holds its token 3.5 s into the world's end
+    (after the 3 s the world would otherwise have waited), withdraws it, and sends its final stats 1 s
+    later: they are counted."""
+    import threading
+
+    from agents.counters import Counters
+    from zswarm.host.procs import start_router
+    from zswarm.net import messages as msg
+    from zswarm.net.config import open_session, zenoh_config
+    from zswarm.net.keys import Keys
+    from zswarm.net.poses import Rejections
+
+    run = "latereport"
+    first_final = threading.Event()
+
+    def on_tick(sample) -> None:
+        try:
+            m = msg.decode(sample.payload.to_bytes())
+        except msg.DecodeError:
+            return
+        if isinstance(m, msg.Tick) and m.final:
+            first_final.set()
+
+    with processes() as kids:
+        endpoint = start_router(kids)
+        keys = Keys(run, 1.0)
+        with open_session(zenoh_config("client", [endpoint]), "t", retry_for=30.0) as session:
+            sub = session.declare_subscriber(keys.tick, on_tick)
+            token = session.liveliness().declare_token(keys.alive(0))
+            world, summary_path, _, _ = start_world(kids, endpoint, run, "moving-prey", tmp_path, "--set", "n_agents=1",
+                                                    "--duration", "1", "--start-timeout", "20")
+            assert first_final.wait(60), "no final tick"
+            time.sleep(3.5)
+            token.undeclare()
+            time.sleep(1.0)
+            report = Counters(Rejections("stand-in")).stats(0, 0.05, final=True)
+            session.put(keys.stats(0), msg.encode(report), encoding=msg.ENCODING)
+            assert wait_exit(world, 60) == 0
+            sub.undeclare()
+    summary = load_summary(summary_path)
+    assert summary["agents_final_reports"] == 1 and summary["agents_without_final_report"] == [], summary
+
+
 def test_a_machine_that_cannot_reach_its_router_stops_in_one_line_within_the_timeout(tmp_path):
     """--role agents (and --role world) started by hand against a router that is not there: one line,
     exit 1, within --connect-timeout, and no agent or world process started."""

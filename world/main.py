@@ -99,21 +99,27 @@ async def run_world(args: argparse.Namespace, spec: RunSpec, viewer: Viewer | No
         world.publish(keys.tick, final)
         # let the agents' final stats arrive: while an agent that has not reported is still alive (it
         # has yet to send them: on a loaded machine they trickle in over seconds), else FINAL_STATS_WAIT
-        # after the last one came; FINAL_STATS_MAX in all
+        # after the last one came or the last agent went without them; FINAL_STATS_MAX in all
         began = heard_at = loop.time()
         again = began + FINAL_TICK_REPEAT
         reported = sum(world.stats.final(i) for i in expected)
 
-        def still_to_come() -> bool:
-            return any(i in world.census.alive and not world.stats.final(i) for i in expected)
+        def still_to_come() -> set[int]:
+            return {i for i in expected if i in world.census.alive and not world.stats.final(i)}
 
-        while (reported < len(expected) and (still_to_come() or loop.time() < heard_at + FINAL_STATS_WAIT)
+        waiting = still_to_come()
+        while (reported < len(expected) and (waiting or loop.time() < heard_at + FINAL_STATS_WAIT)
                and loop.time() < began + FINAL_STATS_MAX):
             await asyncio.sleep(0.05)
             bridge.drain()
             now_reported = sum(world.stats.final(i) for i in expected)
             if now_reported > reported:
                 reported, heard_at = now_reported, loop.time()
+            left, waiting = waiting, still_to_come()
+            if any(not world.stats.final(i) for i in left - waiting):
+                # gone without its final stats: they may still be on their way (the withdrawal of its token
+                # can arrive first: on a loaded machine the world once saw it go, gave up and lost them)
+                heard_at = loop.time()
             if loop.time() >= again:  # an agent that missed the one final tick would run on, alone, forever
                 world.publish(keys.tick, final)
                 again += FINAL_TICK_REPEAT
