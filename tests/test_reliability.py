@@ -3,12 +3,14 @@ is killed and restarted (a new recording segment) or killed for good (its record
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
 import subprocess
 import sys
 import time
+from typing import Callable, Iterator
 
 import numpy as np
 
@@ -222,21 +224,15 @@ def test_router_crash_ends_the_run_with_a_valid_recording_and_summary(tmp_path):
     assert our_processes("routerdie") == [] and our_processes(f"127.0.0.1:{port}") == []
 
 
-def test_the_world_repeats_the_final_tick_until_every_agent_has_said_goodbye(tmp_path):
-    """An agent that missed the world's one final tick would run on alone forever: the world publishes it
-    again every 0.25 s for as long as an agent alive at the end has not sent its final stats (3 s after
-    the last final stats came, here none).
-    A stand-in agent here holds a liveliness token and never answers."""
-    import threading
-
+@contextlib.contextmanager
+def stand_in_agent(tmp_path, run: str, on_final: Callable[[], None]) -> Iterator[tuple]:
+    """A router, a 1-agent world of ``run`` (1 s) and, as its agent 0, a stand-in that holds a liveliness
+    token and never moves: yields (its session, its token, the run's keys, the world, its summary's
+    path); ``on_final()`` runs for each final tick the stand-in hears."""
+    from zswarm.host.procs import start_router
     from zswarm.net import messages as msg
     from zswarm.net.config import open_session, zenoh_config
     from zswarm.net.keys import Keys
-    from zswarm.host.procs import start_router
-
-    run = "lastword"
-    finals: list[float] = []
-    lock = threading.Lock()
 
     def on_tick(sample) -> None:
         try:
@@ -244,8 +240,7 @@ def test_the_world_repeats_the_final_tick_until_every_agent_has_said_goodbye(tmp
         except msg.DecodeError:
             return
         if isinstance(m, msg.Tick) and m.final:
-            with lock:
-                finals.append(time.monotonic())
+            on_final()
 
     with processes() as kids:
         endpoint = start_router(kids)
@@ -255,10 +250,28 @@ def test_the_world_repeats_the_final_tick_until_every_agent_has_said_goodbye(tmp
             token = session.liveliness().declare_token(keys.alive(0))
             world, summary_path, _, _ = start_world(kids, endpoint, run, "moving-prey", tmp_path, "--set", "n_agents=1",
                                                     "--duration", "1", "--start-timeout", "20")
-            assert wait_exit(world, 60) == 0
-            time.sleep(0.3)  # the last ticks in flight
-            token.undeclare()
+            yield session, token, keys, world, summary_path
             sub.undeclare()
+
+
+def test_the_world_repeats_the_final_tick_until_every_agent_has_said_goodbye(tmp_path):
+    """An agent that missed the world's one final tick would run on alone forever: the world publishes it
+    again every 0.25 s for as long as an agent alive at the end has not sent its final stats (3 s after
+    the last final stats came, here none).
+    A stand-in agent here holds a liveliness token and never answers."""
+    import threading
+
+    finals: list[float] = []
+    lock = threading.Lock()
+
+    def heard() -> None:
+        with lock:
+            finals.append(time.monotonic())
+
+    with stand_in_agent(tmp_path, "lastword", heard) as (_, token, _, world, summary_path):
+        assert wait_exit(world, 60) == 0
+        time.sleep(0.3)  # the last ticks in flight
+        token.undeclare()
     with lock:
         assert len(finals) >= 6, finals  # about 12 in its 3 s wait; a world that says it once sends 1
         assert finals[-1] - finals[0] > 2.0
@@ -274,39 +287,18 @@ def test_final_stats_that_arrive_after_their_agents_token_went_are_kept(tmp_path
     import threading
 
     from agents.counters import Counters
-    from zswarm.host.procs import start_router
     from zswarm.net import messages as msg
-    from zswarm.net.config import open_session, zenoh_config
-    from zswarm.net.keys import Keys
     from zswarm.net.poses import Rejections
 
-    run = "latereport"
     first_final = threading.Event()
-
-    def on_tick(sample) -> None:
-        try:
-            m = msg.decode(sample.payload.to_bytes())
-        except msg.DecodeError:
-            return
-        if isinstance(m, msg.Tick) and m.final:
-            first_final.set()
-
-    with processes() as kids:
-        endpoint = start_router(kids)
-        keys = Keys(run, 1.0)
-        with open_session(zenoh_config("client", [endpoint]), "t", retry_for=30.0) as session:
-            sub = session.declare_subscriber(keys.tick, on_tick)
-            token = session.liveliness().declare_token(keys.alive(0))
-            world, summary_path, _, _ = start_world(kids, endpoint, run, "moving-prey", tmp_path, "--set", "n_agents=1",
-                                                    "--duration", "1", "--start-timeout", "20")
-            assert first_final.wait(60), "no final tick"
-            time.sleep(3.5)
-            token.undeclare()
-            time.sleep(1.0)
-            report = Counters(Rejections("stand-in")).stats(0, 0.05, final=True)
-            session.put(keys.stats(0), msg.encode(report), encoding=msg.ENCODING)
-            assert wait_exit(world, 60) == 0
-            sub.undeclare()
+    with stand_in_agent(tmp_path, "latereport", first_final.set) as (session, token, keys, world, summary_path):
+        assert first_final.wait(60), "no final tick"
+        time.sleep(3.5)
+        token.undeclare()
+        time.sleep(1.0)
+        report = Counters(Rejections("stand-in")).stats(0, 0.05, final=True)
+        session.put(keys.stats(0), msg.encode(report), encoding=msg.ENCODING)
+        assert wait_exit(world, 60) == 0
     summary = load_summary(summary_path)
     assert summary["agents_final_reports"] == 1 and summary["agents_without_final_report"] == [], summary
 
