@@ -35,7 +35,7 @@ from zswarm.stopping import stop_on_signals
 
 #: Seconds the session stays open after the final report is put: a Zenoh session closed at once can
 #: drop what it has not sent yet. Measured with three 12-agent, 3-router runs side by side
-#: (tests/test_routers.py's moving agents, 2 cores): without it 4 of 12 runs lost one or two final
+#: (tests/test_migration.py's moving agents, 2 cores): without it 4 of 12 runs lost one or two final
 #: reports (each put, none arrived); with 0.3 s, 0 of 15.
 FINAL_LINGER_S = 0.3
 

@@ -115,6 +115,20 @@ def interrupt_at_step(proc: subprocess.Popen, endpoint: str, run: str, step: int
             proc.wait()
 
 
+def recorded_events(path: Path) -> list[str]:
+    """The texts of a recording's event log (``run/events``), in the order they were logged."""
+    from rerun.chunk import RrdReader
+
+    out = []
+    for chunk in RrdReader(str(path)).stream().to_chunks():
+        if str(chunk.entity_path).lstrip("/") == "run/events":
+            rb = chunk.to_record_batch()
+            text = [c for c in rb.schema.names if c.endswith("Text") or c.endswith(":text")]
+            for col in text:
+                out += [str(v[0]) for v in rb.column(col).to_pylist() if v]
+    return out
+
+
 def rerun_verify(path: Path) -> None:
     """``rerun rrd verify`` accepts the file."""
     rerun = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")

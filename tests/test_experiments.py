@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from conftest import ROOT, run_cli
-from swarm_procs import interrupt_when_exists, our_processes
+from swarm_procs import interrupt_when_exists, our_processes, recorded_events
 
 
 def launch(*args: str, cwd, timeout: float = 180) -> subprocess.CompletedProcess:
@@ -43,24 +43,11 @@ def test_kill_restart_and_world_outage(tmp_path):
     gaps = [b - a for a, b in zip(times, times[1:])]
     assert max(gaps) > 1.0
     # and the recording's event log says what happened, on the timeline
-    events = " | ".join(_events(tmp_path / "k.rrd"))
+    events = " | ".join(recorded_events(tmp_path / "k.rrd"))
     assert f"agent {victim} crashed" in events and f"agent {victim} returned" in events, events
     assert early[0]["how"] == "crashed" and "run ended: 5 agents stopped with it" in events, events
     assert "departed" not in events and "left" not in events  # the end of the run is no departure
     assert "world clock stalled" in events, events
-
-
-def _events(path: Path) -> list[str]:
-    from rerun.chunk import RrdReader
-
-    out = []
-    for chunk in RrdReader(str(path)).stream().to_chunks():
-        if str(chunk.entity_path).lstrip("/") == "run/events":
-            rb = chunk.to_record_batch()
-            text = [c for c in rb.schema.names if c.endswith("Text") or c.endswith(":text")]
-            for col in text:
-                out += [str(v[0]) for v in rb.column(col).to_pylist() if v]
-    return out
 
 
 def test_sweep_simulated_resumes_without_touching_finished_cells(tmp_path):

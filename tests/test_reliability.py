@@ -24,6 +24,7 @@ from swarm_procs import (
     load_summary,
     our_processes,
     processes,
+    recorded_events,
     rerun_verify,
     run_launch,
     start_agent,
@@ -276,6 +277,7 @@ def test_the_world_repeats_the_final_tick_until_every_agent_has_said_goodbye(tmp
         assert len(finals) >= 6, finals  # about 12 in its 3 s wait; a world that says it once sends 1
         assert finals[-1] - finals[0] > 2.0
     assert load_summary(summary_path)["agents_reporting"] == 0  # the stand-in never reported
+    assert "final reports: 0 of 1 after" in " | ".join(recorded_events(summary_path.with_suffix(".rrd")))
 
 
 def test_final_stats_that_arrive_after_their_agents_token_went_are_kept(tmp_path):

@@ -108,7 +108,7 @@ class World:
         self.observer = SwarmObserver(self.scenario, spec.combination)
         self.dims = self.scenario.dimensions
         self.obstacles = ObstacleService(*self.scenario.obstacle_arrays(), self.keys.obstacles, self.dims)
-        self.rejected = Rejections("world", self._event)
+        self.rejected = Rejections("world", self.event)
         self.census = Census()
         self.ending = False  # set when the world announces the final tick: agents going now are not departures
         self.clock = Clock()
@@ -158,7 +158,7 @@ class World:
                            self.observer.thresholds(), self.scenario.params.swarm.sensing_radius,
                            arena=self.scenario.arena(), dimensions=self.dims)
         if self.resumed is not None:
-            self._event(f"world restarted: segment {self.resumed.segment} continues after step "
+            self.event(f"world restarted: segment {self.resumed.segment} continues after step "
                         f"{self.resumed.step} (t = {self.resumed.t:.2f} s)")
 
     def config(self) -> dict[str, Any]:
@@ -226,7 +226,7 @@ class World:
                 self.settle_departures(force=True, only=who)
             if self.clock.step > 0 and who not in c.alive:  # after the start: a restart, or a late joiner
                 returning = any(d["id"] == who for d in c.departures)
-                self._event(f"agent {who} {'returned' if returning else 'joined'}")
+                self.event(f"agent {who} {'returned' if returning else 'joined'}")
             c.alive.add(who)
             self.intake.announced.setdefault(who, time.time())
             c.arrivals.append(event)
@@ -245,7 +245,7 @@ class World:
                 continue
             del c.pending[who]
             c.departures.append({k: v for k, v in event.items() if k != "seen"} | {"how": how})
-            self._event(f"agent {who} {how} at t = {event['t']:.2f} s"
+            self.event(f"agent {who} {how} at t = {event['t']:.2f} s"
                         + ("" if how == "left" else " (no final report: killed or failed)"))
 
     def answer_positions(self, _params: dict[str, str]) -> list[tuple[str, bytes]]:
@@ -257,7 +257,7 @@ class World:
         t, ids, pos = seen
         return [(self.keys.positions, msg.encode_positions(t, ids, pos))]
 
-    def _event(self, text: str) -> None:
+    def event(self, text: str) -> None:
         self.recorder.log_event(self.clock.step, self.clock.t, text)
 
     # --- one observed step ----------------------------------------------------------------------------
@@ -292,7 +292,7 @@ class World:
             return
         self.judged_wall = now
         for onset in self.timed.judge(now):
-            self._event(f"collision at one instant: agents {onset.i} and {onset.j} {onset.distance:.3f} apart "
+            self.event(f"collision at one instant: agents {onset.i} and {onset.j} {onset.distance:.3f} apart "
                         f"(poses sent {onset.stamp - self.started_wall:.2f} s after the world started)")
 
     def _log_network(self, every: float = 1.0, agents_every: float = 5.0) -> None:
@@ -362,7 +362,7 @@ class World:
             if lag > 0.5 * period:
                 clock.late_ticks += 1
             if lag > STALL and not self.stalled:  # once per stall, not once per tick that catches up
-                self._event(f"world clock stalled {lag:.1f} s (the world was frozen or starved of CPU)")
+                self.event(f"world clock stalled {lag:.1f} s (the world was frozen or starved of CPU)")
             self.stalled = lag > STALL
             t_new = min((loop.time() - start) * self.spec.time_scale, duration)
             self.prey = self.next_prey(live, t_new - clock.t)
@@ -448,7 +448,7 @@ class World:
             self.census.stopped_at_end += [w for w in sorted(self.census.alive)
                                            if self.stats.final(w) and w not in self.census.stopped_at_end]
         if self.census.stopped_at_end:
-            self._event(f"run ended: {len(self.census.stopped_at_end)} agents stopped with it")
+            self.event(f"run ended: {len(self.census.stopped_at_end)} agents stopped with it")
         result.update({"startup_s": self.census.all_alive_after, "departures": self.census.departures,
                        "stopped_at_end": sorted(self.census.stopped_at_end),
                        "requested_faults": s.faults.requested(), "missed_lockstep_poses": c.missed_poses,
