@@ -16,6 +16,7 @@ from agents import probe
 from agents.free import take_in
 from agents.main import Process, build_parser
 from conftest import free_port
+from zswarm.net import messages as msg
 from zswarm.net.config import zenoh_config
 from zswarm.net.runspec import spec_from_args
 
@@ -80,6 +81,10 @@ def test_a_ring_agent_times_a_neighbours_poses_and_not_its_own_echo():
                     tick(alone, neighbour, now=shut)
                     time.sleep(0.01)
                 assert samples(alone) == before and len(alone.bridge.channels) == subs
+                # a pose Zenoh was still handing over when the subscription closed is not timed either
+                late = msg.encode(msg.Pose(1, 999, time.time() - 0.05, -1, 0.9, 0.0, 0.0, 0.0))
+                alone.agent.sensing.latency_probe.heard(late, time.time())
+                assert samples(alone) == before
                 tick(alone, now=first + probe.EVERY_S)  # the next window: the probe is back
                 assert alone.agent.sensing.probe is not None and alone.agent.sensing.probe[0] == 1
             finally:
