@@ -425,7 +425,7 @@ def test_a_quiet_neighbour_whose_member_token_is_in_the_cells_is_guarded_whateve
     sensing.handle(("in", keys.member(cell, 3), b"", False, now))
     sensing.handle(("in", keys.member(keys.cell(0.0, 0.0), 0), b"", False, now))  # its own: ignored
     assert set(guarded()) == {(0.5, 0.0), (-0.9, 0.0)} and 0 not in sensing.members
-    assert guarded()[(-0.9, 0.0)] == pytest.approx(2.05, abs=0.01)
+    assert aged(guarded()[(-0.9, 0.0)], 2.05, time.time() - now)  # its whole age: 2 s, and a tick ahead
     sensing.handle(("in", keys.member(cell, 3), b"", True, now))  # it left that cell
     assert set(guarded()) == {(0.5, 0.0)}
     sensing.handle(("in", keys.member(cell, 3), b"", False, now))
