@@ -125,7 +125,7 @@ async def run_world(args: argparse.Namespace, spec: RunSpec, viewer: Viewer | No
                 again += FINAL_TICK_REPEAT
         if reported < len(expected):
             world.event(f"final reports: {reported} of {len(expected)} after {loop.time() - began:.1f} s "
-                         f"({len(waiting)} agents still alive without one)")
+                        f"({len(waiting)} agents still alive without one)")
         return world.finish()
     finally:
         teardown(bridge, declared, session)

@@ -159,7 +159,7 @@ class World:
                            arena=self.scenario.arena(), dimensions=self.dims)
         if self.resumed is not None:
             self.event(f"world restarted: segment {self.resumed.segment} continues after step "
-                        f"{self.resumed.step} (t = {self.resumed.t:.2f} s)")
+                       f"{self.resumed.step} (t = {self.resumed.t:.2f} s)")
 
     def config(self) -> dict[str, Any]:
         """What the run was asked to do, as the recording stores it."""
@@ -246,7 +246,7 @@ class World:
             del c.pending[who]
             c.departures.append({k: v for k, v in event.items() if k != "seen"} | {"how": how})
             self.event(f"agent {who} {how} at t = {event['t']:.2f} s"
-                        + ("" if how == "left" else " (no final report: killed or failed)"))
+                       + ("" if how == "left" else " (no final report: killed or failed)"))
 
     def answer_positions(self, _params: dict[str, str]) -> list[tuple[str, bytes]]:
         """The queryable ``keys.positions`` (on a Zenoh thread): where each live agent was last observed,
@@ -293,7 +293,7 @@ class World:
         self.judged_wall = now
         for onset in self.timed.judge(now):
             self.event(f"collision at one instant: agents {onset.i} and {onset.j} {onset.distance:.3f} apart "
-                        f"(poses sent {onset.stamp - self.started_wall:.2f} s after the world started)")
+                       f"(poses sent {onset.stamp - self.started_wall:.2f} s after the world started)")
 
     def _log_network(self, every: float = 1.0, agents_every: float = 5.0) -> None:
         """The network panel: the world's own counters each second, and the latency and data age the
