@@ -141,7 +141,7 @@ def test_cli_sim_json_and_recording(cli, tmp_path):
     rerun = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")
     verify = subprocess.run([rerun, "rrd", "verify", str(out)], capture_output=True, text=True, timeout=60)
     assert verify.returncode == 0, verify.stderr
-    # the scalar series, sent as columns every 20 steps: one row for every step, the last one included
+    # the scalar series, sent as columns every few steps: one row for every step, the last one included
     series = scalar_series(out)
     for path in ("metrics/centroid_goal_distance", "thresholds/capture_radius", "safety/filtered"):
         steps = [step for step, _ in series[path]]
@@ -164,13 +164,14 @@ def test_the_maps_labels_are_logged_when_the_agents_change_and_always_name_the_p
     out = tmp_path / "labels.rrd"
     rec = rr.RecordingStream("zswarm-test-labels")
     rec.save(str(out))
-    labels = swarm_log.Labels()
+    labels, series = swarm_log.Labels(), swarm_log.Series(rec, every=4)
     agents = [[0, 1, 2]] * 4 + [[0, 2]] * 3 + [[0, 1, 2]] * 2  # agent 1 leaves at step 4, is back at 7
     for k, ids in enumerate(agents):
         ids = np.array(ids)
-        swarm_log.set_time(rec, k, 0.05 * k)
+        swarm_log.set_time(rec, k, 0.05 * k, series)
         positions = np.column_stack([ids + 0.1 * k, np.zeros(len(ids))])
-        swarm_log.log_swarm(rec, 0.05 * k, ids, positions, np.zeros_like(positions), labels=labels)
+        swarm_log.log_swarm(series, 0.05 * k, ids, positions, np.zeros_like(positions), labels=labels)
+    series.flush()
     rec.flush()
     rec.disconnect()
     points = map_agents(out)

@@ -50,7 +50,7 @@ class WorldRecorder:
         self.graph_radius: float | None = None
         self.n_agents, self.dt = n_agents, dt
         self.rec = None
-        self.series = None  # the scalar series of self.rec (swarm_log.Series), sent every 20 steps
+        self.series = None  # the rows of self.rec's steps (swarm_log.Series), sent as columns every few steps
         self.labels = None  # which agents its map was last labelled for (swarm_log.Labels)
         self.segment = 0
         self.trail: deque[np.ndarray] = deque(maxlen=TRAIL)
@@ -112,7 +112,7 @@ class WorldRecorder:
         swarm_log.log_config(self.rec, config)
         swarm_log.log_obstacles(self.rec, centers, radii)
         swarm_log.log_threshold_styles(self.rec, self.thresholds)
-        self.series = swarm_log.Series(self.rec)
+        self.series = swarm_log.Series(self.rec, live=self.viewer is not None and self.viewer.wanted)
         self.labels = swarm_log.Labels()
         self.rec.flush()
 
@@ -131,13 +131,13 @@ class WorldRecorder:
         swarm_log.set_time(self.rec, step, t, self.series)
         if not self.trail or not np.array_equal(prey, self.trail[-1]):  # a goal that stays draws no trail
             self.trail.append(prey.copy())
-        swarm_log.log_swarm(self.rec, t, ids, pos, vel, headings=heading, stamps=stamps, labels=self.labels)
+        swarm_log.log_swarm(self.series, t, ids, pos, vel, headings=heading, stamps=stamps, labels=self.labels)
         if safety is not None:
-            swarm_log.log_safety(self.rec, pos, *safety, self.series)
-        swarm_log.log_prey(self.rec, prey, np.array(self.trail))
+            swarm_log.log_safety(self.series, pos, *safety)
+        swarm_log.log_prey(self.series, prey, np.array(self.trail))
         swarm_log.log_metrics(self.series, metrics, self.thresholds)
         if self.graph_radius is not None:
-            swarm_log.log_sensing_graph(self.rec, pos, self.graph_radius)
+            swarm_log.log_sensing_graph(self.series, pos, self.graph_radius)
 
     def log_network(self, step: int, t: float, figures: dict[str, float | None]) -> None:
         if self.rec is None:

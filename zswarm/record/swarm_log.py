@@ -12,6 +12,7 @@ beside ``x`` and ``y``; the plots are the same.
 from __future__ import annotations
 
 import json
+import time
 from typing import Any, Final, Iterable
 
 import numpy as np
@@ -55,21 +56,13 @@ PLOTS = (("distance to prey", ("mean_goal_distance", "centroid_goal_distance", "
          ("energy (eq 35; the Lyapunov trace of the paper's interaction)", ("energy",)))
 
 
+def _kind(positions: Any, two: Any, three: Any) -> Any:
+    """The archetype for points of this dimension: ``three`` for 3-D, else ``two``."""
+    return three if np.shape(positions)[-1] == 3 else two
+
+
 def _points(positions: np.ndarray, **kw: Any) -> Any:
-    return (rr.Points3D if np.shape(positions)[-1] == 3 else rr.Points2D)(positions, **kw)
-
-
-def _positions(positions: np.ndarray) -> Any:
-    """Points that update only their positions (a partial update: the other components logged last stay)."""
-    return (rr.Points3D if np.shape(positions)[-1] == 3 else rr.Points2D).from_fields(positions=positions)
-
-
-def _arrows(origins: np.ndarray, vectors: np.ndarray, **kw: Any) -> Any:
-    return (rr.Arrows3D if np.shape(origins)[-1] == 3 else rr.Arrows2D)(origins=origins, vectors=vectors, **kw)
-
-
-def _strips(strips: Any, **kw: Any) -> Any:
-    return (rr.LineStrips3D if np.shape(strips)[-1] == 3 else rr.LineStrips2D)(strips, **kw)
+    return _kind(positions, rr.Points2D, rr.Points3D)(positions, **kw)
 
 
 def blueprint(extra_plots: Iterable[tuple[str, tuple[str, ...]]] = (), network: bool = False,
@@ -158,79 +151,94 @@ class Labels:
         return True
 
 
-def log_swarm(rec: rr.RecordingStream, t: float, ids: np.ndarray, positions: np.ndarray,
+def log_swarm(series: Series, t: float, ids: np.ndarray, positions: np.ndarray,
               velocities: np.ndarray, sensing_radius: float | None = None,
               headings: np.ndarray | None = None, stamps: np.ndarray | None = None,
               labels: Labels | None = None) -> None:
     """Agents (with id labels), their velocity arrows, optional sensing discs and exact float64 state;
     ``headings`` (radians, NaN where none): a short white arrow from each agent the way it faces.
-    ``labels``: the recording's :class:`Labels` (without one, every step carries them)."""
+    ``labels``: the recording's :class:`Labels` (without one, every step carries them). Kept in
+    ``series`` and sent with its next columns, but for a step whose labels are due: logged at once."""
+    points = _kind(positions, rr.Points2D, rr.Points3D)
     if labels is None or labels.due(ids):
-        rec.log(AGENTS, _points(positions, radii=0.05, labels=[str(int(i)) for i in ids], class_ids=ids,
-                                show_labels=len(ids) <= 30))
+        series.rec.log(AGENTS, _points(positions, radii=0.05, labels=[str(int(i)) for i in ids], class_ids=ids,
+                                       show_labels=len(ids) <= 30))
     else:
-        rec.log(AGENTS, _positions(positions))
-    rec.log(VELOCITIES, _arrows(positions, velocities))
+        series.put(AGENTS, points, positions=positions)
+    series.put(VELOCITIES, _kind(positions, rr.Arrows2D, rr.Arrows3D), origins=positions, vectors=velocities)
     if sensing_radius is not None:
-        rec.log(SENSING, _points(positions, radii=sensing_radius, colors=(120, 160, 255, 25)))
+        series.put(SENSING, points, positions=positions,
+                   style=points.from_fields(radii=sensing_radius, colors=(120, 160, 255, 25)))
     state = {}
     if headings is not None:
         has = np.isfinite(headings)
         facing = HEADING_LENGTH * np.column_stack([np.cos(headings[has]), np.sin(headings[has])])
-        rec.log(HEADINGS, rr.Arrows2D(origins=positions[has], vectors=facing, colors=(240, 240, 240), radii=0.012))
+        series.put(HEADINGS, rr.Arrows2D, origins=positions[has], vectors=facing,
+                   style=rr.Arrows2D.from_fields(colors=(240, 240, 240), radii=0.012))
         state["heading"] = np.asarray(headings, dtype=np.float64)
     if stamps is not None:  # a free-clock world: when each agent sent the pose it holds (wall seconds)
         state["stamp"] = np.asarray(stamps, dtype=np.float64)
     if positions.shape[1] == 3:
         state["z"] = positions[:, 2].astype(np.float64)
         state["vz"] = velocities[:, 2].astype(np.float64)
-    rec.log(STATE, rr.AnyValues(t=np.array([t], dtype=np.float64), id=np.asarray(ids, dtype=np.int64),
-                                x=positions[:, 0].astype(np.float64),
-                                y=positions[:, 1].astype(np.float64), vx=velocities[:, 0].astype(np.float64),
-                                vy=velocities[:, 1].astype(np.float64), **state))
+    series.put(STATE, rr.AnyValues, t=np.array([t], dtype=np.float64), id=np.asarray(ids, dtype=np.int64),
+               x=positions[:, 0].astype(np.float64), y=positions[:, 1].astype(np.float64),
+               vx=velocities[:, 0].astype(np.float64), vy=velocities[:, 1].astype(np.float64), **state)
 
 
-def log_safety(rec: rr.RecordingStream, positions: np.ndarray, flags: np.ndarray, radius: float,
-               series: Series) -> None:
+def log_safety(series: Series, positions: np.ndarray, flags: np.ndarray, radius: float) -> None:
     """A translucent halo of twice ``radius`` (the body's radius: two halos overlap well before two
     agents touch) under each agent whose command the filter changed this step, coloured by what it
     did (:data:`SAFETY_COLOURS`: filtered, stalled, braked); the count of each as a time series."""
     flags = np.asarray(flags, dtype=int)
     acted = flags > 0
-    colours = [(*SAFETY_COLOURS[int(f)], 150) for f in flags[acted]]
+    colours = np.array([(*SAFETY_COLOURS[int(f)], 150) for f in flags[acted]], dtype=np.uint8).reshape(-1, 4)
+    points = _kind(positions, rr.Points2D, rr.Points3D)
     extra = {"draw_order": 5.0} if np.shape(positions)[-1] == 2 else {}  # under the agents (rerun's default 30)
-    rec.log(SAFETY, _points(positions[acted], radii=2.0 * radius, colors=colours, **extra))
+    series.put(SAFETY, points, positions=positions[acted], colors=colours,
+               style=points.from_fields(radii=2.0 * radius, **extra))
     for f, name in SAFETY_LABELS.items():
         series.add(f"safety/{name}", float(np.sum(flags == f)))
 
 
-def log_prey(rec: rr.RecordingStream, prey: np.ndarray, trail: np.ndarray) -> None:
-    rec.log(PREY, _points([prey], radii=0.08, colors=(255, 60, 60), labels=["prey"]))
+def log_prey(series: Series, prey: np.ndarray, trail: np.ndarray) -> None:
+    points = _kind(prey, rr.Points2D, rr.Points3D)
+    series.put(PREY, points, positions=np.asarray(prey, dtype=float)[None],
+               style=points.from_fields(radii=0.08, colors=(255, 60, 60), labels=["prey"]))
     if len(trail) > 1:
-        rec.log(PREY_TRAIL, _strips([trail], colors=(255, 120, 120)))
+        strips = _kind(prey, rr.LineStrips2D, rr.LineStrips3D)
+        series.put(PREY_TRAIL, strips, strips=[np.asarray(trail, dtype=float)],
+                   style=strips.from_fields(colors=(255, 120, 120)))
     z = {"z": np.array([prey[2]], np.float64)} if len(prey) == 3 else {}
-    rec.log(PREY_STATE, rr.AnyValues(x=np.array([prey[0]], np.float64), y=np.array([prey[1]], np.float64), **z))
+    series.put(PREY_STATE, rr.AnyValues, x=np.array([prey[0]], np.float64), y=np.array([prey[1]], np.float64),
+               **z)
 
 
 class Series:
-    """The scalar series of a run (its metrics, their threshold lines, the safety filter's counts), kept
-    for ``every`` steps and then sent as columns: one call per series, not one per series and step.
-    Logging one scalar costs about 25 us, and a step has about twenty: a fifth of what recording a
-    10-agent swarm cost (the points and the prey's trail are most of the rest). The rows are the same ones, on the ``step`` and ``sim_time`` timelines (not on the
-    logger's own ``log_time``); a live viewer sees them up to ``every`` steps late. :meth:`flush` before
-    the recording closes (:func:`~zswarm.record.recording.close_recording` does not know of it)."""
+    """The rows of a run's steps, kept and sent as columns: the scalar series (its metrics, their
+    threshold lines, the safety filter's counts: :meth:`add`) and the map's and the state's components
+    (:meth:`put`). One ``send_columns`` call per entity every ``every`` steps or ``seconds`` of wall
+    time, whichever comes first, not one ``log`` call per entity and step: a call costs 100-300 us,
+    and a step has about eight entities and twenty scalars (docs/benchmarks.md, "Recording"). The rows
+    are the same ones, on the ``step`` and ``sim_time`` timelines (not on the logger's own
+    ``log_time``); what never changes in an entity (a colour, a radius) is logged once, static.
+    ``live`` (a viewer watches): the map and the state are logged as each step comes, the scalars still
+    kept. :meth:`flush` before the recording closes (:func:`~zswarm.record.recording.close_recording`
+    does not know of it)."""
 
-    def __init__(self, rec: rr.RecordingStream, every: int = 20) -> None:
-        self.rec, self.every = rec, every
+    def __init__(self, rec: rr.RecordingStream, live: bool = False, every: int = 50, seconds: float = 1.0) -> None:
+        self.rec, self.live, self.every, self.seconds = rec, live, every, seconds
         self.rows: dict[str, tuple[list[int], list[float], list[float]]] = {}
-        self.step, self.t, self.steps = 0, 0.0, 0
+        self.parts: dict[str, tuple[Any, list[int], list[float], dict[str, list[Any]]]] = {}
+        self.step, self.t, self.kept = 0, 0.0, 0
+        self.sent_at = time.monotonic()
 
     def at(self, step: int, t: float) -> None:
-        """The step the next values belong to; every ``every`` steps, what was kept is sent."""
-        self.steps += 1
-        if self.steps % self.every == 0:
+        """The step the next rows belong to; what was kept is sent first when it is due."""
+        if self.kept >= self.every or (self.kept and time.monotonic() - self.sent_at >= self.seconds):
             self.flush()
         self.step, self.t = step, t
+        self.kept += 1
 
     def add(self, path: str, value: float) -> None:
         steps, times, values = self.rows.setdefault(path, ([], [], []))
@@ -238,12 +246,51 @@ class Series:
         times.append(self.t)
         values.append(float(value))
 
+    def put(self, path: str, kind: Any, style: Any = None, **components: Any) -> None:
+        """This step's row of entity ``path``: ``kind`` (an archetype) holds its ``components``, each a
+        batch (an array of rows, or a list); ``style``: the entity's components that never change,
+        logged once, static, when it is first put."""
+        part = self.parts.get(path)
+        if part is None:
+            if style is not None:
+                self.rec.log(path, style, static=True)
+            part = self.parts[path] = (kind, [], [], {})
+        if self.live:  # at the recording's time, which set_time has moved to this step
+            self.rec.log(path, kind(**components) if kind is rr.AnyValues else kind.from_fields(**components))
+            return
+        _, steps, times, batches = part
+        steps.append(self.step)
+        times.append(self.t)
+        for name, batch in components.items():
+            batches.setdefault(name, []).append(batch)
+
     def flush(self) -> None:
+        indexes: dict[tuple[int, ...], list[Any]] = {}  # the same steps' time columns, made once
+
+        def send(path: str, steps: list[int], times: list[float], columns: list[Any]) -> None:
+            key = tuple(steps)
+            if key not in indexes:
+                indexes[key] = [rr.TimeColumn("step", sequence=steps), rr.TimeColumn(TIMELINE, duration=times)]
+            self.rec.send_columns(path, indexes=indexes[key], columns=columns)
+
         for path, (steps, times, values) in self.rows.items():
-            self.rec.send_columns(path, indexes=[rr.TimeColumn("step", sequence=steps),
-                                                 rr.TimeColumn(TIMELINE, duration=times)],
-                                  columns=rr.Scalars.columns(scalars=values))
+            send(path, steps, times, rr.Scalars.columns(scalars=values))
         self.rows.clear()
+        for path, (kind, steps, times, batches) in self.parts.items():
+            if not steps:
+                continue
+            groups: dict[tuple[int, ...], dict[str, Any]] = {}  # the components whose rows have the same lengths
+            for name, rows in batches.items():
+                flat = np.concatenate(rows) if isinstance(rows[0], np.ndarray) else [x for row in rows for x in row]
+                groups.setdefault(tuple(len(row) for row in rows), {})[name] = flat
+            send(path, steps, times, [column for lengths, group in groups.items()
+                                      for column in (kind.columns(**group) if all(n == 1 for n in lengths) else
+                                                     kind.columns(**group).partition(list(lengths)))])
+            steps.clear()
+            times.clear()
+            batches.clear()
+        self.kept = 0
+        self.sent_at = time.monotonic()
 
 
 def log_metrics(series: Series, metrics: dict[str, float], thresholds: dict[str, float] | None = None) -> None:
@@ -267,7 +314,7 @@ def log_threshold_styles(rec: rr.RecordingStream, thresholds: dict[str, float]) 
         rec.log(f"safety/{name}", rr.SeriesLines(names=f"agents {name}", colors=SAFETY_COLOURS[flag]), static=True)
 
 
-def log_sensing_graph(rec: rr.RecordingStream, positions: np.ndarray, radius: float) -> None:
+def log_sensing_graph(series: Series, positions: np.ndarray, radius: float) -> None:
     """Who senses whom: a segment between every two agents within ``radius`` (a split swarm shows as
     separate graphs)."""
     from zswarm.model.neighbours import pairs_within
@@ -275,7 +322,9 @@ def log_sensing_graph(rec: rr.RecordingStream, positions: np.ndarray, radius: fl
     i, j = pairs_within(positions, radius)
     keep = i < j
     segments = np.stack([positions[i[keep]], positions[j[keep]]], axis=1)
-    rec.log(SENSING_GRAPH, _strips(segments, colors=(110, 150, 220, 110), radii=0.006))
+    strips = _kind(positions, rr.LineStrips2D, rr.LineStrips3D)
+    series.put(SENSING_GRAPH, strips, strips=segments,
+               style=strips.from_fields(colors=(110, 150, 220, 110), radii=0.006))
 
 
 def log_network(rec: rr.RecordingStream, figures: dict[str, float | None]) -> None:

@@ -258,7 +258,8 @@ def simulate(scenario: Scenario, seed: int, *, combination: Combination | None =
                                    "versions": versions(), "argv": argv or sys.argv})
         swarm_log.log_obstacles(rec, sim.obstacles.centers, sim.obstacles.radii)
         swarm_log.log_threshold_styles(rec, observer.thresholds())
-        series, labels = swarm_log.Series(rec), swarm_log.Labels()
+        series = swarm_log.Series(rec, live=viewer is not None and viewer.wanted)
+        labels = swarm_log.Labels()
     graph = sensing_graph if sensing_graph is not None else len(sim.positions) <= 100
     trail: list[np.ndarray] = []
     run = OneRun(sim)
@@ -299,10 +300,10 @@ def _log_step(rec, series, labels, sim: Simulator, v: np.ndarray, metrics: dict[
 
     swarm_log.set_time(rec, sim.step_index, sim.t, series)
     trail.append(sim.prey.copy())
-    swarm_log.log_swarm(rec, sim.t, sim.ids, sim.positions, v, sensing_radius, sim.headings, labels=labels)
+    swarm_log.log_swarm(series, sim.t, sim.ids, sim.positions, v, sensing_radius, sim.headings, labels=labels)
     if sim.safety is not None and sim.filtered is not None:
-        swarm_log.log_safety(rec, sim.positions, sim.filtered.flags(), sim.scenario.params.swarm.robot_radius, series)
-    swarm_log.log_prey(rec, sim.prey, np.array(trail[-400:]))
+        swarm_log.log_safety(series, sim.positions, sim.filtered.flags(), sim.scenario.params.swarm.robot_radius)
+    swarm_log.log_prey(series, sim.prey, np.array(trail[-400:]))
     swarm_log.log_metrics(series, metrics, thresholds)
     if graph_radius is not None:
-        swarm_log.log_sensing_graph(rec, sim.positions, graph_radius)
+        swarm_log.log_sensing_graph(series, sim.positions, graph_radius)
