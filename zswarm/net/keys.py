@@ -172,19 +172,19 @@ def cells_in_disc_margin(keys: Keys, point: Sequence[float], r: float) -> tuple[
     one cell size.
     """
     s = keys.cell_size
-    lo = [math.floor((c - r) / s) for c in point]  # the cells the disc's box spans, per axis
-    hi = [math.floor((c + r) / s) for c in point]
-    cells, margin = set(), s
-    for cell in itertools.product(*(range(a - 1, b + 2) for a, b in zip(lo, hi))):
-        d2, inside = 0.0, math.inf
-        for c, k in zip(point, cell):
-            c0 = k * s
-            d2 += (min(max(c, c0), c0 + s) - c) ** 2
-            inside = min(inside, c - c0, c0 + s - c)
-        if d2 <= r * r and all(a <= k <= b for k, a, b in zip(cell, lo, hi)):
-            cells.add(cell)
-        signed = math.sqrt(d2) if d2 > 0.0 else -inside
-        margin = min(margin, abs(signed - r))
+    p = np.asarray(point, dtype=float)
+    lo, hi = np.floor((p - r) / s).astype(np.int64), np.floor((p + r) / s).astype(np.int64)  # the disc's box
+    grid = np.stack(np.meshgrid(*(np.arange(a - 1, b + 2) for a, b in zip(lo, hi)), indexing="ij"), -1)
+    grid = grid.reshape(-1, len(p))  # the box's cells and a ring of one cell around them
+    c0 = grid * s
+    d2 = np.zeros(len(grid))
+    for k in range(len(p)):  # axis by axis, in this order: the same sums as one cell at a time
+        d2 += (np.minimum(np.maximum(p[k], c0[:, k]), c0[:, k] + s) - p[k]) ** 2
+    inside = np.minimum(p - c0, c0 + s - p).min(axis=1)
+    member = (d2 <= r * r) & np.all((grid >= lo) & (grid <= hi), axis=1)
+    signed = np.where(d2 > 0.0, np.sqrt(np.maximum(d2, 0.0)), -inside)
+    margin = min(s, float(np.abs(signed - r).min()))
+    cells = set(map(tuple, grid[member].tolist()))
     return cells, max(margin - ROUNDING, 0.0)
 
 
