@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import json
 import time
-from typing import Any, Final, Iterable
+from typing import Any, Callable, Final, Iterable
 
 import numpy as np
 import rerun as rr
@@ -168,13 +168,13 @@ def log_swarm(series: Series, t: float, ids: np.ndarray, positions: np.ndarray,
     series.put(VELOCITIES, _kind(positions, rr.Arrows2D, rr.Arrows3D), origins=positions, vectors=velocities)
     if sensing_radius is not None:
         series.put(SENSING, points, positions=positions,
-                   style=points.from_fields(radii=sensing_radius, colors=(120, 160, 255, 25)))
+                   style=lambda: points.from_fields(radii=sensing_radius, colors=(120, 160, 255, 25)))
     state = {}
     if headings is not None:
         has = np.isfinite(headings)
         facing = HEADING_LENGTH * np.column_stack([np.cos(headings[has]), np.sin(headings[has])])
         series.put(HEADINGS, rr.Arrows2D, origins=positions[has], vectors=facing,
-                   style=rr.Arrows2D.from_fields(colors=(240, 240, 240), radii=0.012))
+                   style=lambda: rr.Arrows2D.from_fields(colors=(240, 240, 240), radii=0.012))
         state["heading"] = np.asarray(headings, dtype=np.float64)
     if stamps is not None:  # a free-clock world: when each agent sent the pose it holds (wall seconds)
         state["stamp"] = np.asarray(stamps, dtype=np.float64)
@@ -196,7 +196,7 @@ def log_safety(series: Series, positions: np.ndarray, flags: np.ndarray, radius:
     points = _kind(positions, rr.Points2D, rr.Points3D)
     extra = {"draw_order": 5.0} if np.shape(positions)[-1] == 2 else {}  # under the agents (rerun's default 30)
     series.put(SAFETY, points, positions=positions[acted], colors=colours,
-               style=points.from_fields(radii=2.0 * radius, **extra))
+               style=lambda: points.from_fields(radii=2.0 * radius, **extra))
     for f, name in SAFETY_LABELS.items():
         series.add(f"safety/{name}", float(np.sum(flags == f)))
 
@@ -204,11 +204,11 @@ def log_safety(series: Series, positions: np.ndarray, flags: np.ndarray, radius:
 def log_prey(series: Series, prey: np.ndarray, trail: np.ndarray) -> None:
     points = _kind(prey, rr.Points2D, rr.Points3D)
     series.put(PREY, points, positions=np.asarray(prey, dtype=float)[None],
-               style=points.from_fields(radii=0.08, colors=(255, 60, 60), labels=["prey"]))
+               style=lambda: points.from_fields(radii=0.08, colors=(255, 60, 60), labels=["prey"]))
     if len(trail) > 1:
         strips = _kind(prey, rr.LineStrips2D, rr.LineStrips3D)
         series.put(PREY_TRAIL, strips, strips=[np.asarray(trail, dtype=float)],
-                   style=strips.from_fields(colors=(255, 120, 120)))
+                   style=lambda: strips.from_fields(colors=(255, 120, 120)))
     z = {"z": np.array([prey[2]], np.float64)} if len(prey) == 3 else {}
     series.put(PREY_STATE, rr.AnyValues, x=np.array([prey[0]], np.float64), y=np.array([prey[1]], np.float64),
                **z)
@@ -246,14 +246,14 @@ class Series:
         times.append(self.t)
         values.append(float(value))
 
-    def put(self, path: str, kind: Any, style: Any = None, **components: Any) -> None:
+    def put(self, path: str, kind: Any, style: Callable[[], Any] | None = None, **components: Any) -> None:
         """This step's row of entity ``path``: ``kind`` (an archetype) holds its ``components``, each a
-        batch (an array of rows, or a list); ``style``: the entity's components that never change,
-        logged once, static, when it is first put."""
+        batch (an array of rows, or a list); ``style``: makes the entity's components that never
+        change, logged once, static, when it is first put."""
         part = self.parts.get(path)
         if part is None:
             if style is not None:
-                self.rec.log(path, style, static=True)
+                self.rec.log(path, style(), static=True)
             part = self.parts[path] = (kind, [], [], {})
         if self.live:  # at the recording's time, which set_time has moved to this step
             self.rec.log(path, kind(**components) if kind is rr.AnyValues else kind.from_fields(**components))
@@ -324,7 +324,7 @@ def log_sensing_graph(series: Series, positions: np.ndarray, radius: float) -> N
     segments = np.stack([positions[i[keep]], positions[j[keep]]], axis=1)
     strips = _kind(positions, rr.LineStrips2D, rr.LineStrips3D)
     series.put(SENSING_GRAPH, strips, strips=segments,
-               style=strips.from_fields(colors=(110, 150, 220, 110), radii=0.006))
+               style=lambda: strips.from_fields(colors=(110, 150, 220, 110), radii=0.006))
 
 
 def log_network(rec: rr.RecordingStream, figures: dict[str, float | None]) -> None:
