@@ -219,7 +219,7 @@ class Series:
     threshold lines, the safety filter's counts: :meth:`add`) and the map's and the state's components
     (:meth:`put`). One ``send_columns`` call per entity every ``every`` steps or ``seconds`` of wall
     time, whichever comes first, not one ``log`` call per entity and step: a call costs 100-300 us,
-    and a step has about eight entities and twenty scalars (docs/benchmarks.md, "Recording"). The rows
+    and a step has about eight entities and twenty scalars (docs/cluster.md, "What a node costs"). The rows
     are the same ones, on the ``step`` and ``sim_time`` timelines (not on the logger's own
     ``log_time``); what never changes in an entity (a colour, a radius) is logged once, static.
     ``live`` (a viewer watches): the map and the state are logged as each step comes, the scalars still
