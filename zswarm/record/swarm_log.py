@@ -181,7 +181,7 @@ def log_swarm(series: Series, t: float, ids: np.ndarray, positions: np.ndarray,
     if positions.shape[1] == 3:
         state["z"] = positions[:, 2].astype(np.float64)
         state["vz"] = velocities[:, 2].astype(np.float64)
-    series.put(STATE, rr.AnyValues, t=np.array([t], dtype=np.float64), id=np.asarray(ids, dtype=np.int64),
+    series.put(STATE, rr.AnyValues, prompt=True, t=np.array([t], dtype=np.float64), id=np.asarray(ids, dtype=np.int64),
                x=positions[:, 0].astype(np.float64), y=positions[:, 1].astype(np.float64),
                vx=velocities[:, 0].astype(np.float64), vy=velocities[:, 1].astype(np.float64), **state)
 
@@ -210,8 +210,8 @@ def log_prey(series: Series, prey: np.ndarray, trail: np.ndarray) -> None:
         series.put(PREY_TRAIL, strips, strips=[np.asarray(trail, dtype=float)],
                    style=lambda: strips.from_fields(colors=(255, 120, 120)))
     z = {"z": np.array([prey[2]], np.float64)} if len(prey) == 3 else {}
-    series.put(PREY_STATE, rr.AnyValues, x=np.array([prey[0]], np.float64), y=np.array([prey[1]], np.float64),
-               **z)
+    series.put(PREY_STATE, rr.AnyValues, prompt=True, x=np.array([prey[0]], np.float64),
+               y=np.array([prey[1]], np.float64), **z)
 
 
 class Series:
@@ -219,24 +219,31 @@ class Series:
     threshold lines, the safety filter's counts: :meth:`add`) and the map's and the state's components
     (:meth:`put`). One ``send_columns`` call per entity every ``every`` steps or ``seconds`` of wall
     time, whichever comes first, not one ``log`` call per entity and step: a call costs 100-300 us,
-    and a step has about eight entities and twenty scalars (docs/cluster.md, "What a node costs"). The rows
-    are the same ones, on the ``step`` and ``sim_time`` timelines (not on the logger's own
-    ``log_time``); what never changes in an entity (a colour, a radius) is logged once, static.
-    ``live`` (a viewer watches): the map and the state are logged as each step comes, the scalars still
-    kept. :meth:`flush` before the recording closes (:func:`~zswarm.record.recording.close_recording`
-    does not know of it)."""
+    and a step has about eight entities and twenty scalars (docs/cluster.md, "What a node costs"). The
+    rows are the same ones, on the ``step`` and ``sim_time`` timelines (not on the logger's own
+    ``log_time``); what never changes in an entity (a colour, a radius) is logged once, static. The
+    ``prompt`` entities (the agents' and the prey's exact states, from which a run is replayed and a
+    replacement world resumes) are sent every ``prompt_seconds``: a world killed outright loses no more
+    of them than the recording's own buffer held. ``live`` (a viewer watches): the map and the states
+    are logged as each step comes, the scalars still kept. :meth:`flush` before the recording closes
+    (:func:`~zswarm.record.recording.close_recording` does not know of it)."""
 
-    def __init__(self, rec: rr.RecordingStream, live: bool = False, every: int = 50, seconds: float = 1.0) -> None:
-        self.rec, self.live, self.every, self.seconds = rec, live, every, seconds
+    def __init__(self, rec: rr.RecordingStream, live: bool = False, every: int = 50, seconds: float = 1.0,
+                 prompt_seconds: float = 0.2) -> None:
+        self.rec, self.live, self.every, self.seconds, self.prompt_seconds = rec, live, every, seconds, prompt_seconds
         self.rows: dict[str, tuple[list[int], list[float], list[float]]] = {}
-        self.parts: dict[str, tuple[Any, list[int], list[float], dict[str, list[Any]]]] = {}
+        self.parts: dict[str, tuple[Any, bool, list[int], list[float], dict[str, list[Any]]]] = {}
         self.step, self.t, self.kept = 0, 0.0, 0
-        self.sent_at = time.monotonic()
+        self.sent_at = self.prompt_at = time.monotonic()
 
     def at(self, step: int, t: float) -> None:
         """The step the next rows belong to; what was kept is sent first when it is due."""
-        if self.kept >= self.every or (self.kept and time.monotonic() - self.sent_at >= self.seconds):
-            self.flush()
+        if self.kept:
+            now = time.monotonic()
+            if self.kept >= self.every or now - self.sent_at >= self.seconds:
+                self.flush()
+            elif now - self.prompt_at >= self.prompt_seconds:
+                self.flush(prompt_only=True)
         self.step, self.t = step, t
         self.kept += 1
 
@@ -246,25 +253,27 @@ class Series:
         times.append(self.t)
         values.append(float(value))
 
-    def put(self, path: str, kind: Any, style: Callable[[], Any] | None = None, **components: Any) -> None:
+    def put(self, path: str, kind: Any, style: Callable[[], Any] | None = None, prompt: bool = False,
+            **components: Any) -> None:
         """This step's row of entity ``path``: ``kind`` (an archetype) holds its ``components``, each a
         batch (an array of rows, or a list); ``style``: makes the entity's components that never
-        change, logged once, static, when it is first put."""
+        change, logged once, static, when it is first put; ``prompt``: sent every ``prompt_seconds``."""
         part = self.parts.get(path)
         if part is None:
             if style is not None:
                 self.rec.log(path, style(), static=True)
-            part = self.parts[path] = (kind, [], [], {})
+            part = self.parts[path] = (kind, prompt, [], [], {})
         if self.live:  # at the recording's time, which set_time has moved to this step
             self.rec.log(path, kind(**components) if kind is rr.AnyValues else kind.from_fields(**components))
             return
-        _, steps, times, batches = part
+        _, _, steps, times, batches = part
         steps.append(self.step)
         times.append(self.t)
         for name, batch in components.items():
             batches.setdefault(name, []).append(batch)
 
-    def flush(self) -> None:
+    def flush(self, prompt_only: bool = False) -> None:
+        """Send what was kept (``prompt_only``: the prompt entities' rows only)."""
         indexes: dict[tuple[int, ...], list[Any]] = {}  # the same steps' time columns, made once
 
         def send(path: str, steps: list[int], times: list[float], columns: list[Any]) -> None:
@@ -273,11 +282,12 @@ class Series:
                 indexes[key] = [rr.TimeColumn("step", sequence=steps), rr.TimeColumn(TIMELINE, duration=times)]
             self.rec.send_columns(path, indexes=indexes[key], columns=columns)
 
-        for path, (steps, times, values) in self.rows.items():
-            send(path, steps, times, rr.Scalars.columns(scalars=values))
-        self.rows.clear()
-        for path, (kind, steps, times, batches) in self.parts.items():
-            if not steps:
+        if not prompt_only:
+            for path, (steps, times, values) in self.rows.items():
+                send(path, steps, times, rr.Scalars.columns(scalars=values))
+            self.rows.clear()
+        for path, (kind, prompt, steps, times, batches) in self.parts.items():
+            if not steps or (prompt_only and not prompt):
                 continue
             groups: dict[tuple[int, ...], dict[str, Any]] = {}  # the components whose rows have the same lengths
             for name, rows in batches.items():
@@ -289,8 +299,10 @@ class Series:
             steps.clear()
             times.clear()
             batches.clear()
-        self.kept = 0
-        self.sent_at = time.monotonic()
+        self.prompt_at = time.monotonic()
+        if not prompt_only:
+            self.kept = 0
+            self.sent_at = self.prompt_at
 
 
 def log_metrics(series: Series, metrics: dict[str, float], thresholds: dict[str, float] | None = None) -> None:
