@@ -160,7 +160,7 @@ def test_a_head_that_wants_a_token_lets_in_only_the_right_one(tmp_path, mode):
         assert s["security"] == {"tls": False, "acl": False, "ray_auth": "token"}
     else:
         assert out["open"]["rc"] == 0 and any("token authentication off" in line for line in out["open"]["stderr"]), (
-            out["open"])  # (once exit 2 in a loaded fresh clone, not yet explained: this says why next time)
+            out["open"])  # it exited 2 once in a loaded fresh clone, cause unknown: the message shows its answer
         ok = [line for line in out["open-ok"]["stderr"] if "network_util" not in line and "logging.cc" not in line]
         assert out["open-ok"]["rc"] == 2 and len(ok) == 1 and "500 agents stepping" in ok[0], ok
         assert json.loads((tmp_path / "open.json").read_text())["security"]["ray_auth"] is None

@@ -182,7 +182,7 @@ def cells_in_disc_margin(keys: Keys, point: Sequence[float], r: float) -> tuple[
         d2 += (np.minimum(np.maximum(p[k], c0[:, k]), c0[:, k] + s) - p[k]) ** 2
     inside = np.minimum(p - c0, c0 + s - p).min(axis=1)
     member = (d2 <= r * r) & np.all((grid >= lo) & (grid <= hi), axis=1)
-    signed = np.where(d2 > 0.0, np.sqrt(np.maximum(d2, 0.0)), -inside)
+    signed = np.where(d2 > 0.0, np.sqrt(d2), -inside)  # d2: a sum of squares
     margin = min(s, float(np.abs(signed - r).min()))
     cells = set(map(tuple, grid[member].tolist()))
     return cells, max(margin - ROUNDING, 0.0)
