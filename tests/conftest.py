@@ -11,6 +11,8 @@ from pathlib import Path
 
 import pytest
 
+from zswarm.process import one_blas_thread
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -92,25 +94,20 @@ LONGEST_FIRST = (
     "test_cluster", "test_distributed", "test_reliability", "test_design", "test_security", "test_usage",
     "test_law_processes", "test_experiments", "test_netns", "test_space_procs", "test_hostile",
     "test_robots", "test_scaling", "test_install", "test_render", "test_tune", "test_forged_pose", "test_sim",
-    "test_faults", "test_monitor", "test_routers", "test_runspec", "test_design_swarm", "test_batch", "test_study",
-    "test_live", "test_messages", "test_bench", "test_space", "test_export", "test_safety", "test_bridge",
+    "test_faults", "test_monitor", "test_routers", "test_migration", "test_runspec", "test_design_swarm",
+    "test_batch", "test_study", "test_live", "test_messages", "test_bench", "test_space", "test_export", "test_safety",
+    "test_bridge",
 )
-
-
-#: Handed out last, after every other module: test_migration (17 s). Its migrating run, in the suite's
-#: busiest minutes beside two busy processes, twice lost some agents' final reports (1 and 6 of 12; not
-#: explained yet); handed out last it passed in every such run.
-LAST = ("test_migration",)
 
 
 def pytest_collection_modifyitems(config, items) -> None:
     """The ``procs`` marker: ``-m "not procs"`` is the quick tier (the math, the messages, the checks).
-    The order: :data:`LONGEST_FIRST`, then the rest, then :data:`LAST` (a stable sort: tests keep their
-    order in a module)."""
+    The order: :data:`LONGEST_FIRST`, then the rest (a stable sort: tests keep their order in a
+    module)."""
     for item in items:
         if item.module.__name__ in PROCESS_MODULES or "cli" in getattr(item, "fixturenames", ()):
             item.add_marker(pytest.mark.procs)
-    rank = {name: k for k, name in enumerate(LONGEST_FIRST)} | {name: len(LONGEST_FIRST) + 1 for name in LAST}
+    rank = {name: k for k, name in enumerate(LONGEST_FIRST)}
     items.sort(key=lambda item: rank.get(item.module.__name__, len(LONGEST_FIRST)))
 
 
@@ -125,6 +122,7 @@ def pytest_configure(config) -> None:
     not be interrupted as the tests interrupt them: SIGINT is given its Python default back."""
     if not hasattr(config, "workerinput"):  # once, in the process that starts the workers
         compile_tree()
+        one_blas_thread(os.environ)  # the workers and what they start, as zswarm's own processes do
     if hasattr(config.option, "loadscopereorder"):
         config.option.loadscopereorder = False
     if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:

@@ -1,8 +1,4 @@
-"""Agents moved between routers as the swarm moves (``--migrate-every`` with ``--routers K``), make-before-break.
-
-The suite hands this module out among the last (tests/conftest.py): run in the suite's busiest minutes
-beside two busy processes, its world twice got only some of the agents' final reports (6 of 12 once).
-"""
+"""Agents moved between routers as the swarm moves (``--migrate-every`` with ``--routers K``), make-before-break."""
 
 from __future__ import annotations
 
