@@ -27,3 +27,26 @@ def test_three_meshed_routers_carry_one_swarm_that_catches_the_prey(tmp_path):
     assert s["cross_router_share"] == pytest.approx(cross_router_share(counts, {i: i % 3 for i in range(6)}))
     assert 0.3 < s["cross_router_share"] < 1 and s["cross_router_heard"] == 6
     assert our_processes("mesh3") == []
+
+
+def test_a_process_never_hands_out_one_port_twice(monkeypatch):
+    """The K routers of one run get K ports picked before any of them binds: drawn from a range, each
+    port once (a run's two routers once drew the same port, and the second could not listen)."""
+    import socket
+
+    from zswarm.errors import UsageError
+    from zswarm.ports import free_port
+
+    span = range(31990, 32000)  # no suite worker's range (tests/conftest.py)
+    free = []
+    for port in span:
+        with socket.socket() as s:
+            try:
+                s.bind(("127.0.0.1", port))
+            except OSError:
+                continue
+        free.append(port)
+    monkeypatch.setenv("ZSWARM_PORTS", f"{span[0]}-{span[-1]}")
+    assert sorted(free_port() for _ in free) == free
+    with pytest.raises(UsageError, match="widen the range"):
+        free_port()

@@ -11,6 +11,7 @@ from __future__ import annotations
 import os
 import random
 import socket
+from collections import deque
 
 from zswarm.errors import UsageError
 
@@ -34,19 +35,24 @@ def port_range() -> tuple[int, int] | None:
 LOOPBACK = "127.0.0.1"
 
 
+#: The ports :func:`free_port` handed out last in this process, not handed out again: the routers of
+#: one run (``--routers K``: K ports picked before any router binds) never get the same one.
+_GIVEN: deque[int] = deque(maxlen=256)
+
+
 def free_port(host: str = LOOPBACK) -> int:
-    """A TCP port nothing listens on at ``host`` now."""
+    """A TCP port nothing listens on at ``host`` now, and not one of this process's last ones."""
     span = port_range()
-    if span is None:
-        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-            s.bind((host, 0))
-            return s.getsockname()[1]
     for _ in range(200):
-        port = random.randint(*span)
+        port = 0 if span is None else random.randint(*span)
         with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
             try:
                 s.bind((host, port))
             except OSError:
                 continue
+            port = s.getsockname()[1]
+        if port not in _GIVEN:
+            _GIVEN.append(port)
             return port
-    raise UsageError(f"no free port in ZSWARM_PORTS={span[0]}-{span[1]} after 200 tries: widen the range")
+    raise UsageError("no free port after 200 tries" + ("" if span is None else
+                     f" in ZSWARM_PORTS={span[0]}-{span[1]}: widen the range"))
