@@ -33,11 +33,13 @@ from zswarm.net.rings import CELL_CAPACITY
 from zswarm.net.runspec import RunSpec, add_run_args, spec_from_args
 from zswarm.stopping import stop_on_signals
 
-#: Seconds the session stays open after the final report is put: a Zenoh session closed at once can
-#: drop what it has not sent yet. Measured with three 12-agent, 3-router runs side by side
-#: (tests/test_migration.py's moving agents, 2 cores): without it 4 of 12 runs lost one or two final
-#: reports (each put, none arrived); with 0.3 s, 0 of 15.
-FINAL_LINGER_S = 0.3
+#: After its final report an agent keeps its session open, and puts the report again each time the
+#: world repeats the final tick (it does so every 0.25 s while a report is missing, world/main.py), until
+#: the world has been quiet for FINAL_QUIET_S or FINAL_LINGER_MAX_S have passed. A session closed at once
+#: can drop what it has not sent yet, and on a starved machine a fixed wait (0.3 s) was not enough: a
+#: 12-agent, 3-router run in a busy suite lost 6 final reports, each put once.
+FINAL_QUIET_S = 0.6
+FINAL_LINGER_MAX_S = 3.0
 
 if TYPE_CHECKING:
     from agents.robot_link import RobotLink
@@ -175,13 +177,28 @@ class Process:
     def close(self, final_stats: bool) -> None:
         if self.agent.robot is not None:
             self.agent.robot.close()  # a zero Twist: a robot is never left driving on the last command
-        if final_stats:  # the run's totals: blocked rather than dropped on a congested link, sent at once
-            self.session.put(self.spec.keys.stats(self.id), self.agent.stats(final=True), encoding=msg.ENCODING,
-                             congestion_control=zenoh.CongestionControl.BLOCK, express=True)
-            time.sleep(FINAL_LINGER_S)  # a session closed at once can drop what it has not sent yet
+        if final_stats:
+            self.final_report()
         teardown(self.bridge, self.declared, self.session)
         if self.tracks is not None and self.agent.track:
             write_track(self.tracks, self.id, self.agent.track, self.spec.scenario.dimensions)
+
+    def final_report(self) -> None:
+        """The run's totals (blocked rather than dropped on a congested link, sent at once), put again on
+        every final tick the world repeats while a report is missing, until it is quiet
+        (:data:`FINAL_QUIET_S`)."""
+        repeats: list[bool] = []  # after the final tick, all the world sends on its tick key is that tick again
+        heard = self.session.declare_subscriber(self.spec.keys.tick, lambda sample: repeats.append(True))
+        report, deadline = self.agent.stats(final=True), time.monotonic() + FINAL_LINGER_MAX_S
+        seen = -1
+        while len(repeats) != seen and time.monotonic() < deadline:
+            seen = len(repeats)
+            self.session.put(self.spec.keys.stats(self.id), report, encoding=msg.ENCODING,
+                             congestion_control=zenoh.CongestionControl.BLOCK, express=True)
+            quiet = min(time.monotonic() + FINAL_QUIET_S, deadline)
+            while len(repeats) == seen and time.monotonic() < quiet:
+                time.sleep(0.02)
+        heard.undeclare()
 
 
 def write_track(folder: Path, agent_id: int, track: array, dims: int) -> None:

@@ -280,6 +280,46 @@ def test_the_world_repeats_the_final_tick_until_every_agent_has_said_goodbye(tmp
     assert "final reports: 0 of 1 after" in " | ".join(recorded_events(summary_path.with_suffix(".rrd")))
 
 
+def test_an_agent_puts_its_final_report_again_on_each_repeated_final_tick_until_the_world_is_quiet():
+    """A report put once can be lost (a session closed before it went out, a starved machine), and the
+    world repeats the final tick while one is missing: each repeat gets the report again, and the agent
+    closes once the world is quiet. Over a real router, with a stand-in world."""
+    import threading
+
+    import zenoh
+
+    from agents.main import FINAL_QUIET_S
+    from swarm_procs import agent_state
+    from zswarm.net import messages as msg
+    from zswarm.net.config import zenoh_config
+
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    with zenoh.open(zenoh_config("router", listen=[endpoint])) as router:
+        for repeats in (0, 3):
+            proc = agent_state(endpoint, f"finalputs{repeats}", 0, 0.5)
+            keys = proc.spec.keys
+            puts: list[float] = []
+            sub = router.declare_subscriber(keys.stats(0), lambda sample: puts.append(time.monotonic()))
+            final = msg.encode(msg.Tick(7, time.time(), 0.0, 0.0, final=True))
+
+            def world() -> None:
+                while not puts:
+                    time.sleep(0.01)
+                for _ in range(repeats):  # the world's repeats, 0.25 s apart
+                    time.sleep(0.25)
+                    router.put(keys.tick, final)
+            repeater = threading.Thread(target=world, daemon=True)
+            repeater.start()
+            began = time.monotonic()
+            proc.close(final_stats=True)
+            took = time.monotonic() - began
+            repeater.join(5)
+            time.sleep(0.2)  # the last put in flight
+            sub.undeclare()
+            assert len(puts) == 1 + repeats, (repeats, puts)
+            assert FINAL_QUIET_S <= took < 0.25 * repeats + FINAL_QUIET_S + 1.0, (repeats, took)
+
+
 def test_final_stats_that_arrive_after_their_agents_token_went_are_kept(tmp_path):
     """An agent's final stats can arrive after the withdrawal of its liveliness token (on a loaded
     machine a migrating run's world once saw an agent go, gave up, and lost them): the world waits 3 s
