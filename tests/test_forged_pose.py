@@ -124,7 +124,9 @@ def test_the_real_agent_is_back_in_its_neighbours_table_within_the_bound() -> No
             assert wait_for_world(second.agent, None, 10.0, lambda: False)
             second.announce()
             started, back, real = time.monotonic(), None, (0.35, 0.5)
+            silent, sent = 0.0, started  # the longest the real agent went without a pose (a starved test)
             while time.monotonic() - started < 4.0:
+                silent, sent = max(silent, time.monotonic() - sent), time.monotonic()
                 second.agent.publish_pose(-1)  # in its cell, with its member token there
                 take_in(second.agent, None)
                 take_in(first.agent, None)
@@ -132,7 +134,8 @@ def test_the_real_agent_is_back_in_its_neighbours_table_within_the_bound() -> No
                 if back is None and held == real:
                     back = time.monotonic() - started
                 elif back is not None:
-                    assert held == real, "the forger took agent 1 back"
+                    # (once the real agent fell silent that long, the rule gives the id to the track that sends)
+                    assert held == real or silent > TAKEOVER, ("the forger took agent 1 back", silent)
                 time.sleep(PERIOD)
             assert back is not None and back <= TAKEOVER + 1.0, back  # the bound, plus the token's way here
             assert first.agent.sensing.counters.rejections.counts.get("jump", 0) > 0

@@ -105,6 +105,41 @@ def test_a_stand_in_robot_obeys_its_limits_and_stops_when_commands_stop():
     assert robot.rejected == {"cdr": 1} and robot.commands == 2
 
 
+def test_a_stand_in_robot_starved_of_cpu_pauses_rather_than_leaps():
+    """Once behind its schedule (its thread starved), the stand-in robots' loop does not make up the
+    steps it missed in a burst: the robot would cover the missed time at once, and the agent that
+    follows its odometry would send a pose farther from its last than it can go (refused as a jump)."""
+    import time
+
+    import zenoh
+
+    from zswarm.net.config import zenoh_config
+    from zswarm.ros.robot_sim import run
+
+    robot = SimRobot(Robot(0, "/r", max_linear=0.5, max_angular=2.0), JAZZY, Odom(0, 0, 0), cmd_timeout=1e9)
+    robot.take(twist(JAZZY, 0.5, 0.0), now=time.time())
+    seen: list[tuple[float, float]] = []
+    step = robot.step
+    robot.step = lambda dt, now: seen.append((time.monotonic(), step(dt, now).x)) or robot.pose
+
+    class Starving:  # the loop's wait: the 5th sleeps 0.4 s (a starved thread) instead of 0.02
+        calls = 0
+
+        def is_set(self) -> bool:
+            return self.calls >= 30
+
+        def wait(self, timeout: float) -> bool:
+            self.calls += 1
+            time.sleep(0.4 if self.calls == 5 else timeout)
+            return False
+
+    with zenoh.open(zenoh_config("peer", listen=[])) as session:
+        run(session, JAZZY, [robot], 50.0, Starving())
+    # between any two steps, at most what 0.5 m/s covers in the wall time between them, give or take two
+    # steps' timing: no burst of the steps missed (that would be 0.4 s, 0.2 m, at once)
+    assert max(x1 - x0 - 0.5 * (t1 - t0) for k, (t0, x0) in enumerate(seen) for t1, x1 in seen[k + 1:]) <= 0.02
+
+
 @pytest.mark.parametrize("text,needle", [
     ('route = "dds"\n[[robot]]\nid = 0\nnamespace = "/r0"\n', "route must be one of"),
     ('distro = "iron"\n[[robot]]\nid = 0\nnamespace = "/r0"\n', "distro must be one of"),

@@ -122,7 +122,9 @@ def run(session, route: Route, robots: list[SimRobot], rate: float, stop: StopSi
                 if not r.silent:
                     payload, attachment = r.odometry()
                     pub.put(payload, attachment=attachment)
-            next_tick += period
+            # starved of CPU, the robots pause rather than leap: steps made up in a burst would move an
+            # agent's pose farther in one of its ticks than it can go, and its neighbours refuse that (jump)
+            next_tick = max(next_tick + period, time.monotonic())
             stop.wait(max(next_tick - time.monotonic(), 0.0))
         return "stopped"
     finally:
