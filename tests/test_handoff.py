@@ -63,8 +63,9 @@ def test_a_malformed_or_foreign_state_is_refused_and_changes_nothing():
 
 def test_the_world_keeps_a_final_report_over_an_older_message_that_arrives_after_it():
     """A moved agent's old process's last message can arrive after the new one's final report (another
-    path): a final report is not replaced by one with fewer ticks; otherwise the newest is the agent's
-    (a restarted agent counts anew); a report that does not decode is counted and the good one kept."""
+    path), and an agent's last periodic message (batched) after its final report (express): a final
+    report is replaced only by one with more ticks; otherwise the newest is the agent's (a restarted
+    agent counts anew); a report that does not decode is counted and the good one kept."""
     from world.report import StatsBook
     from zswarm.net import messages as msg
     from zswarm.net.keys import Keys
@@ -77,7 +78,8 @@ def test_the_world_keeps_a_final_report_over_an_older_message_that_arrives_after
     rejected = Rejections("world")
     book = StatsBook(Keys.agent_of, rejected)
     key = "zswarm/r/stats/4"
-    for payload in (stats(100, False), stats(480, True), stats(470, False), b"\x01junk", stats(0, True)):
+    for payload in (stats(100, False), stats(480, True), stats(470, False), b"\x01junk", stats(480, False),
+                    stats(0, True)):
         book.add(key, payload)
     got = book.get(4)
     assert got.ticks == 480 and got.final and book.final(4)

@@ -63,11 +63,12 @@ class StatsBook:
     validating each on arrival cost a 100-agent world more than all the poses it observes. Only the
     newest message of each agent matters: the messages are decoded when read (the end-of-run wait, the
     summary), and a message that does not decode is counted as rejected and the agent's last good one
-    kept. The newest by arrival, except that a final report is not replaced by a message with fewer
-    ticks: an agent moved to another node (``--migrate-every``) carries its counts on in another
-    process, whose messages take another path, and the last one its old process sent can arrive after
-    the new one's final report. (An agent killed and restarted starts its counts anew and sent no final
-    report: its new messages replace the old.)
+    kept. The newest by arrival, except that a final report is replaced only by a message with more
+    ticks: the agent's last periodic message, with as many ticks, is batched and its final report
+    express, so the final one can arrive first; and an agent moved to another node
+    (``--migrate-every``) carries its counts on in another process, whose messages take another path,
+    so the last one its old process sent can arrive after the new one's final report. (An agent killed
+    and restarted starts its counts anew and sent no final report: its new messages replace the old.)
     """
 
     def __init__(self, agent_of: Callable[[str], int | None], rejected: Rejections) -> None:
@@ -98,7 +99,7 @@ class StatsBook:
                 self.rejected.add("kind")
                 continue
             held = self.good.get(who)
-            if held is None or not held.final or m.ticks >= held.ticks:
+            if held is None or not held.final or m.ticks > held.ticks:
                 self.good[who] = m
         return self.good.get(who)
 
