@@ -94,9 +94,8 @@ LONGEST_FIRST = (
     "test_cluster", "test_distributed", "test_reliability", "test_design", "test_security", "test_usage",
     "test_law_processes", "test_experiments", "test_netns", "test_space_procs", "test_hostile",
     "test_robots", "test_scaling", "test_install", "test_render", "test_tune", "test_forged_pose", "test_sim",
-    "test_faults", "test_monitor", "test_routers", "test_runspec", "test_design_swarm",
-    "test_batch", "test_study", "test_live", "test_messages", "test_bench", "test_space", "test_export", "test_safety",
-    "test_bridge",
+    "test_faults", "test_monitor", "test_routers", "test_runspec", "test_design_swarm", "test_batch", "test_study",
+    "test_live", "test_messages", "test_bench", "test_space", "test_export", "test_safety", "test_bridge",
 )
 
 
