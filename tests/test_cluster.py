@@ -210,7 +210,10 @@ def test_a_driver_killed_mid_run_leaves_no_process_within_ten_seconds(tmp_path):
     driver, _ = start_local_run(tmp_path, mark, subprocess.DEVNULL)
     try:
         assert driver.poll() is None, "the run ended before it was killed"
-        assert len(left_behind(mark)) > 10  # Ray's nodes, the routers, the world, the agents
+        running = left_behind(mark)
+        assert len(running) > 10  # Ray's nodes, the routers, the world, the agents
+        # but no autoscaler and no log monitor: nothing scales a local cluster, and no worker log is read
+        assert not [p for p in running if "monitor.py" in p], running
         driver.send_signal(signal.SIGKILL)  # unshare and sh exec'd it: this pid is the driver itself
         driver.wait(timeout=10)
         left = wait_gone(mark, 10.0)

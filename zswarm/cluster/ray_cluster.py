@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from zswarm.cluster.ray_env import NODE_ARGS, SYSTEM_CONFIG, offline_env
+from zswarm.cluster.ray_env import HEAD_ONLY_ARGS, NODE_ARGS, SYSTEM_CONFIG, offline_env
 from zswarm.errors import UsageError
 from zswarm.ports import LOOPBACK
 
@@ -270,7 +270,7 @@ def connect(address: str, cores: int, insecure_ok: bool = False) -> RayCluster:
                 args = {"num_cpus": each, "node_ip_address": LOOPBACK, **NODE_ARGS}
                 with contextlib.redirect_stdout(io.StringIO()), loopback_only():
                     cluster.local = Cluster(initialize_head=True,
-                                            head_node_args={**args, "_system_config": SYSTEM_CONFIG})
+                                            head_node_args={**args, **HEAD_ONLY_ARGS, "_system_config": SYSTEM_CONFIG})
                     for _ in range(k - 1):
                         cluster.local.add_node(**args)
                 ray.init(address=cluster.local.address, _node_ip_address=LOOPBACK, **quiet)

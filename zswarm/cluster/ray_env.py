@@ -47,6 +47,11 @@ OBJECT_STORE_BYTES = 80 * 1024 * 1024
 #: What a node zswarm starts is given (``Cluster.add_node`` / ``ray.init`` of a local cluster).
 NODE_ARGS = {"object_store_memory": OBJECT_STORE_BYTES, "include_dashboard": False}
 
+#: What the head of a local cluster (``local:K``) is given besides: no autoscaler monitor (nothing
+#: scales a cluster of this machine's processes) and no log monitor (the driver asks for no worker
+#: logs: ``log_to_driver=False``).
+HEAD_ONLY_ARGS = {"no_monitor": True, "include_log_monitor": False}
+
 #: Ray's cluster launcher writes this file on a head; its presence skips the cloud-metadata probe.
 BOOTSTRAP = "ray_bootstrap_config.yaml"
 
