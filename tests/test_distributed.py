@@ -12,6 +12,7 @@ import time
 import numpy as np
 import pytest
 
+from zswarm.model.design import verdict
 from zswarm.model.scenarios import get_scenario
 from zswarm.host.procs import free_port, start_router
 from zswarm.record.replay import load_run, recompute
@@ -153,7 +154,10 @@ def test_two_runs_on_one_router_do_not_see_each_other(tmp_path):
     args = ("--set", "n_agents=2", "--set", "sensing_radius=1.0", "--duration", "4")
     with processes() as kids:
         endpoint = start_router(kids)
-        wa, sa, _, _ = start_world(kids, endpoint, "runA", "static-goal", tmp_path, *args, name="world-a")
+        # world A is handed its design verdict (as zswarm run hands it the one it reached); B judges its own
+        given = {"ok": False, "failures": ["as its launcher judged it"], "paper_failures": [], "interaction": "x"}
+        wa, sa, _, _ = start_world(kids, endpoint, "runA", "static-goal", tmp_path, *args, "--design",
+                                   json.dumps(given), name="world-a")
         wb, sb, _, _ = start_world(kids, endpoint, "runB", "static-goal", tmp_path, *args, name="world-b")
         for run, ids in (("runA", (0, 1)), ("runB", (2, 3))):
             for i, start in zip(ids, ("-3,0", "-3,0.6")):  # the same places
@@ -162,6 +166,8 @@ def test_two_runs_on_one_router_do_not_see_each_other(tmp_path):
     a, b = load_summary(sa), load_summary(sb)
     assert {int(k): set(v) for k, v in a["heard"].items()} == {0: {1}, 1: {0}}
     assert {int(k): set(v) for k, v in b["heard"].items()} == {2: {3}, 3: {2}}
+    scenario = get_scenario("static-goal", {"n_agents": 2, "sensing_radius": 1.0})
+    assert a["design"] == given and b["design"] == verdict(scenario.params, scenario.dt)
 
 
 def test_an_agent_frozen_for_a_second_counts_the_ticks_it_let_go_by(tmp_path):
@@ -269,6 +275,8 @@ def test_launch_runs_a_swarm_and_leaves_nothing_behind(tmp_path):
                   str(tmp_path / "l.rrd"), cwd=tmp_path, timeout=120)
     assert res.returncode == 0, res.stderr
     assert "rerun " in res.stdout and (tmp_path / "l.json").exists()
+    scenario = get_scenario("moving-prey", {"n_agents": 4})
+    assert json.loads((tmp_path / "l.json").read_text())["design"] == verdict(scenario.params, scenario.dt)
     rerun_verify(tmp_path / "l.rrd")
     assert our_processes("launchtest") == []
 

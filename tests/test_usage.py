@@ -152,6 +152,7 @@ CASES = [
     (["-m", "world", "--config", "{dir}"], "cannot read zenoh config"),
     (["-m", "world", "--record", "{missing}/w.rrd"], "does not exist"),
     (["-m", "world", "--resume", "--clock", "lockstep"], "free clock only"),
+    (["-m", "world", "--design", "oops"], "expects a design verdict in JSON"),
     # ROS 2 robots
     (["-m", "agents", "--id", "0", "--robots", "{missing}.toml"], "does not exist"),
     ([LAUNCH, "--robots", "{missing}.toml"], "does not exist"),

@@ -51,9 +51,23 @@ def build_parser() -> Parser:
     parser.add_argument("--intake", choices=("auto", "batch", "pose"), default="auto",
                         help="free clock: take a tick's poses in at once, as arrays (batch), or one at a time "
                              f"(pose); auto: batch from N = {BATCH_FROM} (below it, one at a time costs less)")
+    parser.add_argument("--design", metavar="JSON", type=design_verdict,
+                        help="the run's design verdict as its launcher judged it (zswarm run and launch.py pass "
+                             "it on, the same check done once); without it the world judges the set itself")
     add_viewer_args(parser, zenoh_connect="connect")
     add_zenoh_args(parser, viewer=True)
     return parser
+
+
+def design_verdict(text: str) -> dict:
+    """``--design``: a verdict as :func:`zswarm.model.design.verdict` gives it, in JSON."""
+    try:
+        given = json.loads(text)
+    except ValueError:
+        given = None
+    if not isinstance(given, dict) or "ok" not in given:
+        raise argparse.ArgumentTypeError(f"expects a design verdict in JSON (an object with \"ok\"), got {text[:60]!r}")
+    return given
 
 
 async def run_world(args: argparse.Namespace, spec: RunSpec, viewer: Viewer | None = None) -> dict:
@@ -75,7 +89,7 @@ async def run_world(args: argparse.Namespace, spec: RunSpec, viewer: Viewer | No
     try:
         world.open(args.resume)
         if world.resumed is None:  # a world that resumes a run joins a swarm under way: it judges at the end
-            world.judge_design()
+            world.judge_design(args.design)
         declared.append(bridge.queryable(keys.obstacles, world.obstacles.answer))
         declared.append(bridge.queryable(keys.positions, world.answer_positions))
         declared.append(bridge.subscribe_liveliness(keys.all_alive, "alive"))  # drained first: who is alive

@@ -135,10 +135,13 @@ class World:
         self.law = bind(self.scenario, spec.combination, probe=False).describe()  # what the agents run
         self.design_judge: threading.Thread | None = None
 
-    def judge_design(self) -> None:
+    def judge_design(self, given: dict[str, Any] | None = None) -> None:
         """Judge the run's set against the guidelines (its summary's ``design``) on a thread of its own,
         while the world waits for its agents: at N >= 300 the swarm check takes seconds, which the end of
-        the run no longer waits for."""
+        the run no longer waits for. ``given``: the verdict the launcher reached for the same set."""
+        if given is not None:
+            self.design = given
+            return
         def judge() -> None:
             self.design = verdict(self.scenario.params, self.scenario.dt)
         self.design_judge = threading.Thread(target=judge, name="design", daemon=True)

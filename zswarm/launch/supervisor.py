@@ -6,6 +6,7 @@ own fields; the plan it carries out is the checked, immutable :class:`~zswarm.la
 
 from __future__ import annotations
 
+import json
 import signal
 import subprocess
 import sys
@@ -259,6 +260,8 @@ class Launch:
             extra += ["--trajectory", str(plan.trajectory)]
         if resume:
             extra.append("--resume")
+        elif plan.design is not None:  # judged before the run started: the world need not judge it again
+            extra += ["--design", json.dumps(plan.design)]
         extra += self._viewer().to_argv()
         self.world = self.local.spawn_world(self.spec, self.endpoint, *extra, stdout=subprocess.PIPE)
         forward_lines(self.world, self._forward)
