@@ -38,6 +38,11 @@ def main() -> int:
                               "--num-cpus", "2", "--include-dashboard", "false", "--object-store-memory",
                               str(80 * 2**20)], env=head_env, capture_output=True, text=True)
     results = {"head": started.returncode}
+    # what a driver takes before it asks the head anything (the interpreter, zswarm's command line, Ray's
+    # import), here and now: on a loaded machine it is seconds, which the 5 s of the probe do not include
+    t = time.monotonic()
+    subprocess.run([sys.executable, "-c", "import ray, zswarm.cli.main"], env=env, capture_output=True, cwd=out_dir)
+    results["startup"] = time.monotonic() - t
     wrong = tmp / "wrong"
     wrong.write_text("0" * 64)
     cases = {"none": {}, "wrong": {"RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN_PATH": str(wrong)},

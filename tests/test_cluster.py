@@ -133,7 +133,10 @@ def test_a_guest_on_a_secure_clusters_node_reaches_nobody(tmp_path):
     s = json.loads((tmp_path / "g.json").read_text())
     assert s["security"] == {"tls": True, "acl": True, "ray_auth": "token"}
     assert s["messages_rejected"] == 0 and s["capture_time"] is not None and s["collisions"] == 0, s
-    assert s["world_ticks"] == 401 and s["agents_final_reports"] == 8  # no agent took the guest's final tick
+    # the run lasted its whole duration and every agent ticked to its end: none took the guest's final tick
+    # (counted as the migrating test counts them: a starved tick let go by is skipped, not lost)
+    assert s["duration"] == pytest.approx(20.0) and s["agents_final_reports"] == 8
+    assert s["ticks"] + s["skipped_ticks"] >= 0.97 * 8 * s["steps"], (s["ticks"], s["skipped_ticks"], s["steps"])
     assert wait_gone(mark, 10.0) == []
 
 
@@ -152,7 +155,8 @@ def test_a_head_that_wants_a_token_lets_in_only_the_right_one(tmp_path, mode):
     if mode == "token":
         for case in ("none", "wrong"):
             r = out[case]
-            assert r["rc"] == 2 and r["seconds"] < 5.0 + 3.0, r  # the probe's 5 s, and Python's start
+            # the probe's 5 s beyond what starting a driver takes at that moment (measured beside it)
+            assert r["rc"] == 2 and r["seconds"] < 5.0 + out["startup"] + 1.0, (r, out["startup"])
             assert len(r["stderr"]) == 1 and "wants a token and this driver has" in r["stderr"][0], r
         assert "no token" in out["none"]["stderr"][0] and "a wrong token" in out["wrong"]["stderr"][0]
         assert out["right"]["rc"] == 0, out["right"]
