@@ -178,28 +178,50 @@ def auto_address() -> str:
 
 
 AUTH_VARS = ("RAY_AUTH_MODE", "RAY_AUTH_TOKEN", "RAY_AUTH_TOKEN_PATH")
-#: Asks the head's GCS for one key, as a Ray node does when it joins: prints "ok", or "auth" when the head
-#: refuses the token (or its absence); a driver in token mode with no token at all makes Ray abort.
+#: Asks the head's GCS for one key, as a Ray node does when it joins, as a driver without a token; when
+#: the head refuses that and the driver holds a token (handed over as ``ZSWARM_PROBE_RAY_AUTH_*``), asks
+#: again in token mode, in the same interpreter (one import of Ray). Prints a line per ask: "ok", "auth"
+#: when the head refuses the token (or its absence), or "error ..."; a driver in token mode with no
+#: token at all makes Ray abort.
 _PROBE = """
+import os
+held = {{k[13:]: os.environ.pop(k) for k in list(os.environ) if k.startswith("ZSWARM_PROBE_")}}
 from ray._raylet import GcsClient
-try:
-    GcsClient(address={address!r}).internal_kv_get(b"zswarm", None, timeout=3)
-    print("ok")
-except Exception as exc:
-    print("auth" if type(exc).__name__ == "AuthenticationError" else "error " + str(exc)[:160])
+
+def ask():
+    try:
+        GcsClient(address={address!r}).internal_kv_get(b"zswarm", None, timeout=3)
+        return "ok"
+    except Exception as exc:
+        return "auth" if type(exc).__name__ == "AuthenticationError" else "error " + str(exc)[:160]
+
+answer = ask()
+print(answer, flush=True)
+if answer == "auth" and held:
+    from ray._raylet import AuthenticationTokenLoader, Config
+
+    os.environ.update(held)  # token mode, with this driver's token: Ray reads both again
+    Config.initialize("")
+    AuthenticationTokenLoader.instance().reset_cache()
+    print(ask(), flush=True)
 """
 AUTH_TIMEOUT = 5.0
 
 
-def _probe(address: str, env: dict[str, str]) -> str:
-    """"ok", "auth" or "error ..." for the head at ``address`` asked with ``env``'s token settings."""
+def _probe(address: str, token: dict[str, str]) -> list[str]:
+    """What the head at ``address`` answered a driver without a token, then (where it refused that and
+    ``token`` holds this driver's token settings) one with it: "ok", "auth" or "error ..." each."""
+    env = {k: v for k, v in os.environ.items() if k not in AUTH_VARS}
+    env.update({f"ZSWARM_PROBE_{k}": v for k, v in token.items()})  # not RAY_AUTH_*: the first ask goes without
     try:
         out = subprocess.run([sys.executable, "-c", _PROBE.format(address=address)], env=env, capture_output=True,
                              text=True, timeout=AUTH_TIMEOUT, stdin=subprocess.DEVNULL)
     except subprocess.TimeoutExpired:
-        return f"error no answer in {AUTH_TIMEOUT:g} s"
-    lines = out.stdout.strip().splitlines()
-    return lines[-1] if lines else "auth"  # Ray aborted: token mode without a token
+        return [f"error no answer in {AUTH_TIMEOUT:g} s"]
+    answers = out.stdout.strip().splitlines() or ["auth"]  # Ray aborted: token mode without a usable token
+    if answers == ["auth"] and token:
+        answers.append("auth")  # the same, on the second ask
+    return answers
 
 
 def head_auth(address: str) -> str | None:
@@ -207,14 +229,14 @@ def head_auth(address: str) -> str | None:
     wants one, that this driver holds the right one (``RAY_AUTH_TOKEN``, ``RAY_AUTH_TOKEN_PATH`` or
     ``~/.ray/auth_token``, as Ray reads it): UsageError in one line, within seconds, otherwise. Ray's
     own driver fails at once without a token but only after about 20 s with a wrong one."""
-    bare = {k: v for k, v in os.environ.items() if k not in AUTH_VARS}
-    answer = _probe(address, bare)
-    if answer == "ok":
-        return None
-    if answer != "auth":
-        raise UsageError(f"cannot reach the Ray cluster at {address}: {answer[6:]} (is its head running?)")
     has = any(os.environ.get(k) for k in AUTH_VARS[1:]) or (Path.home() / ".ray" / "auth_token").is_file()
-    if has and _probe(address, {**os.environ, "RAY_AUTH_MODE": "token"}) == "ok":
+    token = {k: os.environ[k] for k in AUTH_VARS[1:] if os.environ.get(k)} | {"RAY_AUTH_MODE": "token"} if has else {}
+    answers = _probe(address, token)
+    if answers[0] == "ok":
+        return None
+    if answers[0] != "auth":
+        raise UsageError(f"cannot reach the Ray cluster at {address}: {answers[0][6:]} (is its head running?)")
+    if has and answers[-1] == "ok":
         os.environ["RAY_AUTH_MODE"] = "token"  # for ray.init below
         return "token"
     why = "a wrong token" if has else "no token"
