@@ -99,7 +99,7 @@ LONGEST_FIRST = (
 )
 
 
-#: Handed out last, after every other module: test_migration (17 s). Its migrating run, in the suite's
+#: Handed out last, after every other module: test_migration (14 s). Its migrating run, in the suite's
 #: busiest minutes, loses some agents' final reports (7 of 12 once; the cause is not found:
 #: docs/benchmarks.md); handed out last it has passed in every run.
 LAST = ("test_migration",)
