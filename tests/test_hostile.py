@@ -72,11 +72,12 @@ def test_flood_of_hostile_messages_changes_nothing(tmp_path):
         endpoint = start_router(kids)
         # at the wall clock: at twice it (as other free-running swarms of the suite run), an agent under
         # the flood once took more than 20 s to end after the world had (CI, 4 workers; not explained).
-        # Alone it catches the prey at 22-23 s; a loaded machine once slowed it to 32.2 s. The run ends 5 s
-        # after the world says it is caught (45 s at most): what the flood must not change is that it
-        # catches it and stays together
+        # Alone it catches the prey at 22-23 s; in the loaded suite it once took 32.2 s, and once 43.1 s
+        # (it stayed together; cause not found). The run ends 5 s after the world says it is caught (60 s
+        # at most, so a slow capture costs no time unless it happens): what the flood must not change is
+        # that it catches it and stays together
         summary_path, record = tmp_path / f"{run}.json", tmp_path / f"{run}.rrd"
-        spec, rest = split_spec(run, "moving-prey", "--duration", "45")
+        spec, rest = split_spec(run, "moving-prey", "--duration", "60")
         world = host_of(kids).spawn_world(spec, endpoint, *rest, "--summary", str(summary_path), "--record",
                                           str(record), "--progress", "0.25", stdout=subprocess.PIPE)
         agents = [start_agent(kids, endpoint, run, "moving-prey", i) for i in range(10)]
@@ -101,7 +102,7 @@ def test_flood_of_hostile_messages_changes_nothing(tmp_path):
         caught = ended_after_capture(world, 5.0, 90.0)
         assert wait_exit(world, 120) == 0
         assert all(wait_exit(a, 20) == 0 for a in agents)
-    s = with_reference(summary_path, run, "moving-prey", "--duration", "45")
+    s = with_reference(summary_path, run, "moving-prey", "--duration", "60")
     assert sent > 1000
     rejected = s["rejected_by_reason"]
     # not "size": Zenoh may drop a 256 KiB message on a congested link before anyone sees it (shared
@@ -113,6 +114,6 @@ def test_flood_of_hostile_messages_changes_nothing(tmp_path):
     how["reference_capture_time"] = s["reference"]["capture_time"]
     assert caught is not None and s["capture_time"] == pytest.approx(caught, abs=0.01), how
     assert s["capture_time"] is not None and s["collisions"] == 0 and s["final_components"] == 1, how
-    assert s["capture_time"] + 4.0 <= s["duration"] < 45.0, how  # it held the prey, and the run ended early
+    assert s["capture_time"] + 4.0 <= s["duration"] < 60.0, how  # it held the prey, and the run ended early
     assert s["reference"]["collisions"] == 0
     assert s["agents_reporting"] == 10
