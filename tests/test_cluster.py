@@ -38,11 +38,12 @@ def three_nodes(tmp_path_factory):
     """``zswarm run --cluster local:3 --agents 12``: three Ray nodes (Ray's ``cluster_utils``) on this
     machine, at twice the wall clock (the reference catches the prey at 14.75 s of 25: the agents of a
     node are one scheduling group, and beside the rest of the suite on 2 cores a run of 20 once ended
-    before they caught it); agents are moved between the nodes every 3 s as the swarm moves."""
+    before they caught it; the world ends it 2 s after the capture); agents are moved between the nodes
+    every 3 s as the swarm moves."""
     tmp = tmp_path_factory.mktemp("cluster3")
     mark = uuid.uuid4().hex
     argv, env = offline(tmp, "-m", "zswarm", "run", "--cluster", "local:3", "--agents", "12", "--duration", "25",
-                        "--time-scale", "2", "--migrate-every", "3", "--record", str(tmp / "c.rrd"), mark=mark)
+                        "--time-scale", "2", "--end-after-capture", "2", "--migrate-every", "3", "--record", str(tmp / "c.rrd"), mark=mark)
     driver = subprocess.Popen(argv, env=env, cwd=tmp, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         out, err = driver.communicate(timeout=240)
@@ -63,6 +64,7 @@ def test_a_swarm_over_three_nodes_catches_the_prey_and_says_where_each_agent_ran
                                   "ticks", "world_late_ticks", "startup_s")}
     print(said)  # shown when it fails
     assert s["capture_time"] is not None and s["collisions"] == 0 and s["final_components"] == 1, said
+    assert s["capture_time"] + 2.0 <= s["duration"] < 25.0, said
     assert s["agents_reporting"] == 12 and s["messages_rejected"] == 0
     cluster = s["cluster"]
     nodes = cluster["nodes"]

@@ -281,6 +281,22 @@ def test_launch_runs_a_swarm_and_leaves_nothing_behind(tmp_path):
     assert our_processes("launchtest") == []
 
 
+def test_a_run_ends_the_time_asked_after_the_capture(tmp_path):
+    """--end-after-capture S: the world ends the run S simulated seconds after the prey is caught (the
+    reference catches it at 8.95 s of the 60 asked); in lockstep the run up to there is the reference's."""
+    record = tmp_path / "held.rrd"
+    res = run_cli(str(ROOT / "launch.py"), "--clock", "lockstep", "--agents", "4", "--duration", "60",
+                  "--end-after-capture", "1.5", "--run", "held", "--record", str(record), "--quiet", cwd=tmp_path,
+                  timeout=120)
+    assert res.returncode == 0, res.stderr
+    s = load_summary(record.with_suffix(".json"))
+    assert s["end_after_capture"] == 1.5 and s["capture_time"] == pytest.approx(8.95)
+    assert s["capture_time"] + 1.5 <= s["duration"] + 1e-9 < s["capture_time"] + 1.5 + s["dt"]
+    assert s["reference"]["capture_time"] == s["capture_time"] and s["agents_final_reports"] == 4
+    assert load_run(record).config["end_after_capture"] == 1.5
+    assert our_processes("held") == []
+
+
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_launch_stopped_by_a_signal_leaves_a_valid_recording_and_reaps_everyone(tmp_path, sig):
     marker = f"stoptest{int(sig)}"

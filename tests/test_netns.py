@@ -65,9 +65,9 @@ def test_router_and_world_on_one_host_agents_on_another(two_hosts, tmp_path, sec
     a, b = two_hosts
     # at twice real time: the run is the same in simulated time, the test half as long. 40 s: the reference
     # catches the prey at 26.7 s and a free run alone at about 23; a fresh clone's CI (4 workers on 2 cores)
-    # once slowed it past 30 s
+    # once slowed it past 30 s; the world ends the run 2 s after the capture
     common = ["--agents", "10", "--scenario", "moving-prey", "--duration", "40", "--time-scale", "2", "--run", "netns",
-              "--quiet"]
+              "--end-after-capture", "2", "--quiet"]
     launch = [sys.executable, str(ROOT / "launch.py")]
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     proto, identity = "tcp", []
@@ -96,4 +96,5 @@ def test_router_and_world_on_one_host_agents_on_another(two_hosts, tmp_path, sec
     summary = json.loads((tmp_path / "n.json").read_text())
     assert summary["agents_reporting"] == 10
     assert summary["capture_time"] is not None and summary["collisions"] == 0
+    assert summary["capture_time"] + 2.0 <= summary["duration"] < 40.0
     assert summary["security"]["tls"] is secure and summary["security"]["acl"] is secure, summary["security"]

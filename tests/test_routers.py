@@ -11,12 +11,13 @@ from swarm_procs import cross_router_share, our_processes, run_launch
 def test_three_meshed_routers_carry_one_swarm_that_catches_the_prey(tmp_path):
     record = tmp_path / "mesh.rrd"
     res = run_launch(tmp_path, "--routers", "3", "--agents", "6", "--duration", "24", "--time-scale", "2",
-                     "--run", "mesh3", "--record", str(record), "--quiet", timeout=180)
+                     "--end-after-capture", "2", "--run", "mesh3", "--record", str(record), "--quiet", timeout=180)
     assert res.returncode == 0, res.stderr
     s = json.loads(record.with_suffix(".json").read_text())
     assert len(s["routers"]) == 3 and len(set(s["routers"])) == 3
     assert s["agent_router"] == {str(i): i % 3 for i in range(6)}
     assert s["agents_reporting"] == 6 and s["capture_time"] is not None and s["collisions"] == 0
+    assert s["capture_time"] + 2.0 <= s["duration"] < 24.0  # ended 2 s after the capture
     # agents on different routers heard each other: every agent heard someone on another router
     heard = {int(k): set(v) for k, v in s["heard"].items()}
     for i, others in heard.items():

@@ -14,7 +14,7 @@ from typing import Sequence
 from world.recorder import WorldRecorder
 from world.intake import BATCH_FROM
 from world.world import World
-from zswarm.args import Parser, UsageError, run_main
+from zswarm.args import Parser, UsageError, positive_seconds, run_main
 from zswarm.files import check_run_files
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Bridge, teardown
@@ -46,6 +46,8 @@ def build_parser() -> Parser:
                              "recover the run so far from it and record the rest into the next segment "
                              "(RECORD.segN.rrd); free clock only")
     parser.add_argument("--progress", type=float, default=2.0, help="seconds between progress lines (0: none)")
+    parser.add_argument("--end-after-capture", type=positive_seconds, default=None, metavar="S",
+                        help="end the run S simulated seconds after the prey is caught (default: at --duration)")
     parser.add_argument("--sensing-graph", choices=("auto", "on", "off"), default="auto",
                         help="draw who senses whom in the recording's map (auto: for N <= 100)")
     parser.add_argument("--intake", choices=("auto", "batch", "pose"), default="auto",
@@ -77,7 +79,7 @@ async def run_world(args: argparse.Namespace, spec: RunSpec, viewer: Viewer | No
                              viewer, {"auto": None, "on": True, "off": False}[args.sensing_graph])
     batched = spec.clock == "free" and (args.intake == "batch" or
                                         (args.intake == "auto" and spec.scenario.n_agents >= BATCH_FROM))
-    world = World(spec, session, recorder, list(sys.argv), batched=batched)
+    world = World(spec, session, recorder, list(sys.argv), batched=batched, end_after_capture=args.end_after_capture)
     # free clock: what arrived waits in channels taken out at each world tick; lockstep: each pose wakes
     # the loop (the world waits for the poses of a step)
     bridge = Bridge(session, loop, world.handle, channels=spec.clock == "free",

@@ -99,10 +99,12 @@ class World:
     through the bridge built after it (:mod:`world.main`), which the free clock drains once per tick."""
 
     def __init__(self, spec: RunSpec, session: zenoh.Session, recorder: WorldRecorder, argv: list[str],
-                 batched: bool = False) -> None:
+                 batched: bool = False, end_after_capture: float | None = None) -> None:
         """``batched``: free clock only: the bridge hands it a tick's poses at once (:meth:`take_poses`;
-        :mod:`world.intake`); otherwise one at a time (:meth:`handle`)."""
+        :mod:`world.intake`); otherwise one at a time (:meth:`handle`). ``end_after_capture``: end the run
+        that many simulated seconds after the prey is caught (None: run the whole duration)."""
         self.spec, self.session, self.keys, self.recorder = spec, session, spec.keys, recorder
+        self.end_after_capture, self.caught_at = end_after_capture, None
         self.scenario = spec.scenario
         self.argv = argv
         self.observer = SwarmObserver(self.scenario, spec.combination)
@@ -169,7 +171,7 @@ class World:
         from zswarm.provenance import versions
 
         return {**self.spec.describe(), "law": self.law, "versions": versions(), "argv": self.argv,
-                "segment": self.recorder.segment,
+                "segment": self.recorder.segment, "end_after_capture": self.end_after_capture,
                 "resumed_from": None if self.resumed is None else self.resumed.to_dict()}
 
     # --- what the world hears -------------------------------------------------------------------------
@@ -354,7 +356,7 @@ class World:
             self.publish(self.keys.prey, msg.Prey(clock.step, time.time(), -1, *map(float, self.prey)))
             last_print = self._progress(self.observe(live), steps, progress, last_print)
             self.judge_contacts()
-            if clock.t >= duration - 1e-9:
+            if clock.t >= duration - 1e-9 or self.held_prey():
                 break
             next_tick += period
             try:
@@ -383,7 +385,7 @@ class World:
             await self._await_poses(k, step_timeout)
             poses = self.intake.at_step(k, self.census.alive)
             prey = None
-            if k < steps and not self.stop.is_set():
+            if k < steps and not self.stop.is_set() and not self.held_prey():
                 prey = self.next_prey(poses, self.scenario.dt)
                 self.publish(self.keys.tick, msg.Tick(k + 1, time.time(), *map(float, prey)))
             last_print = self._progress(self.observe(poses), steps, progress, last_print)
@@ -392,6 +394,14 @@ class World:
             self.prey = prey
             clock.step += 1
             clock.t = clock.step * self.scenario.dt
+
+    def held_prey(self) -> bool:
+        """``--end-after-capture S``: the prey was caught S simulated seconds ago or more."""
+        if self.end_after_capture is None:
+            return False
+        if self.caught_at is None:
+            self.caught_at = self.observer.summary.capture_time()
+        return self.caught_at is not None and self.clock.t >= self.caught_at + self.end_after_capture - 1e-9
 
     async def _await_poses(self, k: int, timeout: float) -> None:
         """Until every live agent's pose of step ``k`` is in, or ``timeout`` seconds (the ones missing then
@@ -457,7 +467,7 @@ class World:
                        "requested_faults": s.faults.requested(), "missed_lockstep_poses": c.missed_poses,
                        "world_late_ticks": c.late_ticks, "world_ticks": c.step + 1,
                        "poses_in_reach_per_s": self.reach.per_s(s.period),
-                       "world_segments": self.recorder.segment + 1,
+                       "world_segments": self.recorder.segment + 1, "end_after_capture": self.end_after_capture,
                        "snapshot_spread_max_s": self.snapshot_spread if s.clock == "free" else None,
                        **self._timed_result(),
                        "resumed_from": None if self.resumed is None else self.resumed.to_dict(),

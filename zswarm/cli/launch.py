@@ -18,7 +18,7 @@ import argparse
 from pathlib import Path
 from typing import Sequence
 
-from zswarm.args import ConnectAction, DEFAULT_VIEWER_URL, Parser, run_main, seconds
+from zswarm.args import ConnectAction, DEFAULT_VIEWER_URL, Parser, positive_seconds, run_main, seconds
 from zswarm.launch.chaos import parse_crash, parse_kill, parse_outage
 from zswarm.net.runspec import add_run_args
 from zswarm.record.live import add_viewer_args
@@ -90,6 +90,8 @@ def build_parser(prog: str = "zswarm run") -> Parser:
     p.add_argument("--robots", type=Path, default=None, metavar="FILE.toml",
                    help="drive ROS 2 robots: the agents this file names take their pose from their robot's "
                         "odometry and command it (docs/robots.md; try it with zswarm robot-sim)")
+    p.add_argument("--end-after-capture", type=positive_seconds, default=None, metavar="S",
+                   help="end the run S simulated seconds after the prey is caught (default: at --duration)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.add_argument("--require-design", action="store_true",
                    help="refuse to start (exit 2) when the set this run would use fails zswarm design")

@@ -59,6 +59,7 @@ class Plan:
     connect_timeout: float | None = None  # how long the world and agents retry their router (their default 15 s)
     tracks: Path | None = None  # each agent writes the poses it sent here; judged at the end
     migrate_every: float | None = None  # move agents between routers (nodes) every this many run seconds
+    end_after_capture: float | None = None  # the world ends the run this many run seconds after the capture
 
 
 def plan_from_args(args: argparse.Namespace, cores: int | None = None, memory_mib: float | None = None) -> Plan:
@@ -145,7 +146,7 @@ def plan_from_args(args: argparse.Namespace, cores: int | None = None, memory_mi
                 router_config=args.router_config, quiet=args.quiet, fork=args.fork, kill=args.kill, restart_after=args.restart_after,
                 world_outage=args.world_outage, world_crash=args.world_crash, viewer=viewer, design=design,
                 robots=args.robots, notes=tuple(notes), connect_timeout=args.connect_timeout,
-                tracks=tracks, migrate_every=args.migrate_every)
+                tracks=tracks, migrate_every=args.migrate_every, end_after_capture=args.end_after_capture)
 
 
 def check_migration(args: argparse.Namespace, spec: RunSpec) -> None:

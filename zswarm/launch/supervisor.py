@@ -258,6 +258,8 @@ class Launch:
                  "--progress", "0" if plan.quiet else "2", "--start-timeout", f"{world_start_timeout(len(plan.ids)):g}"]
         if plan.trajectory is not None:
             extra += ["--trajectory", str(plan.trajectory)]
+        if plan.end_after_capture is not None:
+            extra += ["--end-after-capture", repr(plan.end_after_capture)]
         if resume:
             extra.append("--resume")
         elif plan.design is not None:  # judged before the run started: the world need not judge it again
