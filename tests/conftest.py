@@ -81,7 +81,7 @@ PROCESS_MODULES = {
     "test_distributed", "test_reliability", "test_hostile", "test_space_procs", "test_usage", "test_experiments",
     "test_robots", "test_security", "test_netns", "test_render", "test_install", "test_routers", "test_migration",
     "test_faults", "test_monitor", "test_live", "test_latency", "test_api", "test_export", "test_bench", "test_soak",
-    "test_tune", "test_study", "test_cluster", "test_cluster_hosts", "test_joining", "test_fleet",
+    "test_tune", "test_study", "test_cluster", "test_joining", "test_fleet",
 }
 
 
@@ -89,11 +89,9 @@ PROCESS_MODULES = {
 #: workers, 2026-11-28). Under ``--dist loadfile`` each module goes whole to one worker, in this order,
 #: to whichever worker is free: the long ones first, so that what is handed out last, when the workers
 #: run out of work unevenly, is short. Modules not named (a few seconds or less) keep their order, after
-#: these. A long module left out of it is handed out late and becomes the suite's tail. The two-host
-#: cluster (test_cluster_hosts) starts once a first worker is free, not beside the 3-node cluster's start.
+#: these. A long module left out of it is handed out late and becomes the suite's tail.
 LONGEST_FIRST = (
-    "test_cluster", "test_distributed", "test_reliability", "test_design", "test_security", "test_cluster_hosts",
-    "test_usage",
+    "test_cluster", "test_distributed", "test_reliability", "test_design", "test_security", "test_usage",
     "test_law_processes", "test_experiments", "test_netns", "test_space_procs", "test_hostile",
     "test_robots", "test_scaling", "test_install", "test_render", "test_tune", "test_forged_pose", "test_sim",
     "test_faults", "test_monitor", "test_routers", "test_runspec", "test_design_swarm", "test_batch", "test_study",
