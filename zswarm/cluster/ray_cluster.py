@@ -218,10 +218,7 @@ def _probe(address: str, token: dict[str, str]) -> list[str]:
                              text=True, timeout=AUTH_TIMEOUT, stdin=subprocess.DEVNULL)
     except subprocess.TimeoutExpired:
         return [f"error no answer in {AUTH_TIMEOUT:g} s"]
-    answers = out.stdout.strip().splitlines() or ["auth"]  # Ray aborted: token mode without a usable token
-    if answers == ["auth"] and token:
-        answers.append("auth")  # the same, on the second ask
-    return answers
+    return out.stdout.strip().splitlines() or ["auth"]  # Ray aborted: token mode without a usable token
 
 
 def head_auth(address: str) -> str | None:
