@@ -120,6 +120,7 @@ def pytest_collection_modifyitems(config, items) -> None:
 WORKERS = 4
 
 
+@pytest.hookimpl(optionalhook=True)  # a hook of pytest-xdist: pytest without it (-p no:xdist) runs too
 def pytest_xdist_auto_num_workers(config) -> int | None:
     """``-n auto``: :data:`WORKERS` workers, and one more where the CPU is idle as the suite starts (at
     least half of it, over half a second). Workers beyond the cores fill the time tests spend waiting on
