@@ -99,21 +99,23 @@ LONGEST_FIRST = (
 )
 
 
-#: Handed out last, after every other module: test_migration (14 s). Its migrating run, in the suite's
-#: busiest minutes, loses some agents' final reports (7 of 12 once; the cause is not found:
-#: docs/benchmarks.md); handed out last it has passed in every run.
-LAST = ("test_migration",)
+#: Handed out after :data:`LONGEST_FIRST`, before the short modules: test_migration (14 s, most of it
+#: waiting on its swarm's clock). Its migrating run, in the suite's busiest minutes, lost some agents'
+#: final reports (7 of 12 once; the cause is not found: docs/benchmarks.md); by the time it is handed
+#: out here every module that starts swarms has been handed out too, and what runs beside its last
+#: seconds is the short in-process modules, not an idle machine waiting for it alone.
+AFTER_LONGEST = ("test_migration",)
 
 
 def pytest_collection_modifyitems(config, items) -> None:
     """The ``procs`` marker: ``-m "not procs"`` is the quick tier (the math, the messages, the checks).
-    The order: :data:`LONGEST_FIRST`, then the rest, then :data:`LAST` (a stable sort: tests keep their
+    The order: :data:`LONGEST_FIRST`, then :data:`AFTER_LONGEST`, then the rest (a stable sort: tests keep their
     order in a module)."""
     for item in items:
         if item.module.__name__ in PROCESS_MODULES or "cli" in getattr(item, "fixturenames", ()):
             item.add_marker(pytest.mark.procs)
-    rank = {name: k for k, name in enumerate(LONGEST_FIRST)} | {name: len(LONGEST_FIRST) + 1 for name in LAST}
-    items.sort(key=lambda item: rank.get(item.module.__name__, len(LONGEST_FIRST)))
+    rank = {name: k for k, name in enumerate(LONGEST_FIRST)} | {name: len(LONGEST_FIRST) for name in AFTER_LONGEST}
+    items.sort(key=lambda item: rank.get(item.module.__name__, len(LONGEST_FIRST) + 1))
 
 
 #: ``-n auto`` (the README's command): this many pytest-xdist workers, one more on an idle machine
@@ -161,6 +163,7 @@ def pytest_configure(config) -> None:
     not be interrupted as the tests interrupt them: SIGINT is given its Python default back."""
     if not hasattr(config, "workerinput"):  # once, in the process that starts the workers
         compile_tree()
+        rewrite_tests_once(config)
         one_blas_thread(os.environ)  # the workers and what they start, as zswarm's own processes do
     if hasattr(config.option, "loadscopereorder"):
         config.option.loadscopereorder = False
@@ -182,6 +185,30 @@ def compile_tree() -> None:
 
     for folder in ("zswarm", "agents", "world"):
         compileall.compile_dir(str(ROOT / folder), quiet=2)
+
+
+def rewrite_tests_once(config) -> None:
+    """Write each test module's assert-rewritten code into the cache pytest reads it from. pytest
+    rewrites the asserts of every test module as it collects it, in every worker, and caches the result
+    only where it may write bytecode: under ``PYTHONDONTWRITEBYTECODE`` (CI images often set it) five
+    workers each rewrote all of them, about 2.4 CPU-seconds each as the suite starts. The cache is read
+    whatever that setting says, and an entry is used only for the source it was made from (its hash), so
+    written once here the workers read it. Skipped where pytest's internals differ (they rewrite, as
+    before)."""
+    try:
+        from _pytest.assertion.rewrite import PYC_TAIL, _read_pyc, _rewrite_test, _write_pyc, assertstate_key, get_cache_dir
+
+        state = config.stash[assertstate_key]
+    except (ImportError, KeyError):
+        return
+    for fn in sorted((ROOT / "tests").glob("*.py")):
+        if not (fn.name.startswith("test_") or fn.name == "conftest.py"):
+            continue  # the helpers are not rewritten
+        pyc = get_cache_dir(fn) / (fn.name[:-3] + PYC_TAIL)
+        if _read_pyc(fn, pyc) is None:
+            pyc.parent.mkdir(exist_ok=True)
+            source_hash, code = _rewrite_test(fn, config)
+            _write_pyc(state, code, source_hash, pyc)
 
 
 def wait_for_port(port: int, timeout: float = 30.0) -> None:

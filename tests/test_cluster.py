@@ -99,28 +99,6 @@ def test_the_cluster_ran_with_nothing_but_loopback_and_left_nothing_behind(three
     assert not list(Path("/tmp").glob(f"zs-ray-{driver}-*"))  # its Ray folder too
 
 
-def test_a_pace_the_clusters_cores_cannot_hold_is_refused_before_any_agent_starts(tmp_path):
-    """A cluster started here has this machine's cores: refused before Ray is even imported (a ``ray``
-    that cannot be imported is put first on the path). Against a cluster that was running already, the
-    same line names its cores: the two-host test."""
-    mark = uuid.uuid4().hex
-    fake = tmp_path.parent / f"{tmp_path.name}-noray"
-    (fake / "ray").mkdir(parents=True)
-    (fake / "ray" / "__init__.py").write_text('raise ImportError("this refusal must not need Ray")\n')
-    argv, env = offline(tmp_path, "-m", "zswarm", "run", "--cluster", "local:2", "--agents", "500",
-                        "--time-scale", "10", mark=mark)
-    env["PYTHONPATH"] = f"{fake}:{env['PYTHONPATH']}"
-    res = subprocess.run(argv, env=env, cwd=tmp_path, capture_output=True, text=True, timeout=120)
-    lines = [ln for ln in res.stderr.splitlines() if "network_util" not in ln and "logging.cc" not in ln]
-    assert res.returncode == 2 and len(lines) == 1, res.stderr[-2000:]
-    machine = len(os.sched_getaffinity(0))
-    cores = min(2 * max(machine // 2, 1), machine)  # local:2 on this machine: two nodes of half its cores
-    assert "500 agents stepping 400 times a second" in lines[0] and f"the cluster has {cores}:" in lines[0], lines
-    assert "--time-scale" in lines[0]  # it names a pace that fits
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["links.txt", "routes.txt"]  # nothing recorded
-    assert wait_gone(mark, 10.0) == []
-
-
 def test_a_guest_on_a_secure_clusters_node_reaches_nobody(tmp_path):
     """zswarm run --cluster local:2 --secure DIR: TLS and access control on every node's router, Ray with
     a token; a guest with a valid certificate on the second node's router publishes a far pose of agent
@@ -209,23 +187,6 @@ def start_local_run(tmp_path: Path, mark: str, stderr: int) -> tuple[subprocess.
     except BaseException:
         end_run(driver, mark)
         raise
-
-
-def test_a_driver_killed_mid_run_leaves_no_process_within_ten_seconds(tmp_path):
-    mark = uuid.uuid4().hex
-    driver, _ = start_local_run(tmp_path, mark, subprocess.DEVNULL)
-    try:
-        assert driver.poll() is None, "the run ended before it was killed"
-        running = left_behind(mark)
-        assert len(running) > 10  # Ray's nodes, the routers, the world, the agents
-        # but no autoscaler and no log monitor: nothing scales a local cluster, and no worker log is read
-        assert not [p for p in running if "monitor.py" in p], running
-        driver.send_signal(signal.SIGKILL)  # unshare and sh exec'd it: this pid is the driver itself
-        driver.wait(timeout=10)
-        left = wait_gone(mark, 10.0)
-        assert left == [], left
-    finally:
-        end_run(driver, mark)
 
 
 def test_a_nodes_router_that_dies_stops_the_run_in_one_line_and_leaves_nothing(tmp_path):
@@ -335,3 +296,45 @@ def test_two_hosts_a_lost_worker_node_and_a_killed_driver(tmp_path):
         kill_all(node_processes(nodes_dir))  # both hosts' Ray
         remove_hosts(a, b)
         shutil.rmtree(nodes_dir, ignore_errors=True)
+
+
+# The two shortest tests last: pytest-xdist queues a worker's next module once its current one has two
+# tests left, and a module queued behind the two-host test (60-90 s) waited for all of it while the
+# other workers ran out of work.
+def test_a_driver_killed_mid_run_leaves_no_process_within_ten_seconds(tmp_path):
+    mark = uuid.uuid4().hex
+    driver, _ = start_local_run(tmp_path, mark, subprocess.DEVNULL)
+    try:
+        assert driver.poll() is None, "the run ended before it was killed"
+        running = left_behind(mark)
+        assert len(running) > 10  # Ray's nodes, the routers, the world, the agents
+        # but no autoscaler and no log monitor: nothing scales a local cluster, and no worker log is read
+        assert not [p for p in running if "monitor.py" in p], running
+        driver.send_signal(signal.SIGKILL)  # unshare and sh exec'd it: this pid is the driver itself
+        driver.wait(timeout=10)
+        left = wait_gone(mark, 10.0)
+        assert left == [], left
+    finally:
+        end_run(driver, mark)
+
+
+def test_a_pace_the_clusters_cores_cannot_hold_is_refused_before_any_agent_starts(tmp_path):
+    """A cluster started here has this machine's cores: refused before Ray is even imported (a ``ray``
+    that cannot be imported is put first on the path). Against a cluster that was running already, the
+    same line names its cores: the two-host test."""
+    mark = uuid.uuid4().hex
+    fake = tmp_path.parent / f"{tmp_path.name}-noray"
+    (fake / "ray").mkdir(parents=True)
+    (fake / "ray" / "__init__.py").write_text('raise ImportError("this refusal must not need Ray")\n')
+    argv, env = offline(tmp_path, "-m", "zswarm", "run", "--cluster", "local:2", "--agents", "500",
+                        "--time-scale", "10", mark=mark)
+    env["PYTHONPATH"] = f"{fake}:{env['PYTHONPATH']}"
+    res = subprocess.run(argv, env=env, cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    lines = [ln for ln in res.stderr.splitlines() if "network_util" not in ln and "logging.cc" not in ln]
+    assert res.returncode == 2 and len(lines) == 1, res.stderr[-2000:]
+    machine = len(os.sched_getaffinity(0))
+    cores = min(2 * max(machine // 2, 1), machine)  # local:2 on this machine: two nodes of half its cores
+    assert "500 agents stepping 400 times a second" in lines[0] and f"the cluster has {cores}:" in lines[0], lines
+    assert "--time-scale" in lines[0]  # it names a pace that fits
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["links.txt", "routes.txt"]  # nothing recorded
+    assert wait_gone(mark, 10.0) == []
