@@ -253,3 +253,23 @@ def test_the_arena_frames_every_agent_obstacle_and_the_prey_all_run_long():
         for _ in range(scenario.steps):  # wherever its motion takes it during the run (agents held at spawn)
             assert inside(prey) == prey_framed, (name, prey)
             prey = step(scenario.prey, prey, scenario.dt, sim.positions)
+
+
+def test_the_reference_of_a_run_that_ends_after_the_capture_ends_by_the_same_rule():
+    """``--end-after-capture 2`` on moving-prey (the reference catches the prey at 26.7 s of 30): a run
+    that caught it at 23.35 s ended at 25.35 s, where the reference has caught nothing; its reference is
+    simulated to 2 s after its own capture instead. A run without the rule keeps its own duration."""
+    from swarm_procs import split_spec
+
+    from zswarm.launch.reference import reference_comparison
+
+    spec = split_spec("r", "moving-prey", "--duration", "30", "--safety", "barrier")[0]
+    run = {"duration": 25.35, "capture_time": 23.35, "end_after_capture": 2.0}
+    ref = reference_comparison(run, spec)["reference"]
+    alone = simulate(get_scenario("moving-prey"), 0, duration=30.0, safety="barrier").summary
+    assert ref["capture_time"] == alone["capture_time"] == pytest.approx(26.7)
+    ended = simulate(get_scenario("moving-prey"), 0, duration=28.7, safety="barrier").summary
+    assert ref == {k: ended[k] for k in ref}  # ended 2 s after its capture, not at 30
+    assert ref["min_pair_distance"] == ended["min_pair_distance"]
+    cut = reference_comparison({**run, "end_after_capture": None}, spec)["reference"]
+    assert cut["capture_time"] is None  # cut at the run's own 25.35 s

@@ -22,10 +22,10 @@ from zswarm.record.replay import load_run, recompute
 
 @pytest.fixture(scope="module")
 def demo_3d(tmp_path_factory):
-    """``launch.py --scenario moving-prey-3d --agents 10`` for up to 24 s at the wall clock (the reference
-    catches the prey at 17.35 s), ending 2 s after the capture. At twice the wall clock, in a suite run
-    beside two busy processes, the agents ran 65 % of their ticks, braked on old poses in 589 of them, and
-    had not caught it at 26 s."""
+    """``launch.py --scenario moving-prey-3d --agents 10`` for up to 24 s at the wall clock, ending 2 s
+    after the capture (the reference catches the prey at 17.35 s). At twice the wall clock, in a suite
+    run beside two busy processes, the agents ran 65 % of their ticks, braked on old poses in 589 of
+    them, and had not caught it at 26 s."""
     tmp = tmp_path_factory.mktemp("demo3d")
     record = tmp / "demo3d.rrd"
     res = run_launch(tmp, "--scenario", "moving-prey-3d", "--agents", "10", "--duration", "24",
