@@ -195,7 +195,8 @@ def rewrite_tests_once(config) -> None:
     written once here the workers read it. Skipped where pytest's internals differ (they rewrite, as
     before)."""
     try:
-        from _pytest.assertion.rewrite import PYC_TAIL, _read_pyc, _rewrite_test, _write_pyc, assertstate_key, get_cache_dir
+        from _pytest.assertion.rewrite import (PYC_TAIL, _read_pyc, _rewrite_test, _write_pyc, assertstate_key,
+                                               get_cache_dir)
 
         state = config.stash[assertstate_key]
     except (ImportError, KeyError):

@@ -2,8 +2,9 @@
 with the same equations (:mod:`zswarm.sim`), stored in the run's summary as ``reference`` and
 ``vs_reference`` (distributed minus reference). A run that ends S after the capture
 (``--end-after-capture S``) is compared with a reference that ends by the same rule: S after its own
-capture, or at the duration asked where it catches nothing sooner. The world never runs the simulator itself: the
-tools that start it (``zswarm run``, sweeps, tests) add this after it has written its summary."""
+capture, or at the duration asked where it catches nothing sooner. The world never runs the simulator
+itself: the tools that start it (``zswarm run``, sweeps, tests) add this after it has written its
+summary."""
 
 from __future__ import annotations
 
@@ -26,20 +27,20 @@ def reference_comparison(result: dict[str, Any], spec: RunSpec) -> dict[str, Any
 
     scenario = spec.scenario
 
-    def reference(duration: float) -> dict[str, Any]:
+    def simulated(duration: float) -> dict[str, Any]:
         return simulate(scenario, spec.seed, combination=spec.combination, safety=spec.safety,
                         duration=max(duration, scenario.dt)).summary
 
     try:
         after = result.get("end_after_capture")
         if after is None:
-            ref = reference(float(result.get("duration") or 0.0))
+            ref = simulated(float(result.get("duration") or 0.0))
         else:  # the reference ends by the run's rule: ``after`` seconds after its own capture, or when asked
             asked = spec.steps * scenario.dt
-            ref = reference(asked)
+            ref = simulated(asked)
             caught = ref["capture_time"]
             if caught is not None and caught + after < asked:
-                ref = reference(caught + after)
+                ref = simulated(caught + after)
     except Failure as exc:  # the law failed in the simulation too: said, and the run's own summary kept
         return {"reference": {"error": str(exc)}, "vs_reference": None}
     reference = {k: ref[k] for k in COMPARED}
