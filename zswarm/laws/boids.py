@@ -5,9 +5,9 @@
 Each rule asks for a desired velocity and steers toward it with a bounded force:
 
     steer(desired) = limit(desired - v_i, F_max)
-    separation: desired = v_max unit(mean_{j: r_ij < R_sep} unit(r_i - r_j) / r_ij)
-    alignment:  desired = v_max unit(mean_j v_j)
-    cohesion:   desired = v_max unit(mean_j r_j - r_i)                       (seek the neighbours' centre)
+    separation: desired = v_max unit(mean_{j: 0 < r_ij < R_sep} unit(r_i - r_j) / r_ij)   (none if that is 0)
+    alignment:  desired = v_max unit(mean_{j: 0 < r_ij < R} v_j)
+    cohesion:   desired = v_max unit(mean_{j: 0 < r_ij < R} r_j - r_i)       (seek the neighbours' centre)
     target:     desired = v_max unit(target - r_i)                           (seek the target)
     a = w_sep sep + w_ali ali + w_coh coh + w_tgt tgt,   v <- limit(v_i + a dt, v_max)
 
@@ -63,15 +63,17 @@ class Boids(SwarmLaw):
 
         away = r[..., None, :] - law.neighbour_position
         dist = norm(away)
-        near = obs.neighbour_mask & (dist < p.r_neighbour)
-        close = obs.neighbour_mask & (dist < p.r_sep) & (dist > 0.0)
+        apart = obs.neighbour_mask & (dist > 0.0)  # Reynolds' 0 < d: a boid at its own position is nobody
+        near = apart & (dist < p.r_neighbour)
+        close = apart & (dist < p.r_sep)
         push = unit(away) / np.where(dist > 0.0, dist, 1.0)[..., None]
         sep = masked_sum(push, close) / np.maximum(close.sum(axis=-1), 1)[..., None]
         count = np.maximum(near.sum(axis=-1), 1)[..., None]
         ali = masked_sum(law.neighbour_velocity, near) / count
         centre = masked_sum(law.neighbour_position, near) / count
         some = near.any(axis=-1)[..., None]
-        a = p.w_sep * np.where(close.any(axis=-1)[..., None], steer(top_b * unit(sep)), 0.0)
+        # separation steers only when the summed push has a length (pushes that cancel ask for nothing)
+        a = p.w_sep * np.where(norm(sep)[..., None] > 0.0, steer(top_b * unit(sep)), 0.0)
         a += p.w_ali * np.where(some, steer(top_b * unit(ali)), 0.0)
         a += p.w_coh * np.where(some, steer(top_b * unit(centre - r)), 0.0)
         a += p.w_tgt * steer(top_b * unit(law.target - r))
