@@ -18,7 +18,6 @@ from __future__ import annotations
 import asyncio
 import math
 import time
-import traceback
 from array import array
 from typing import Any
 
@@ -26,12 +25,9 @@ import numpy as np
 
 from agents.reach import Reach
 from agents.sensing import Body, Sensing
-from zswarm.model import body as bodies
-from zswarm.laws.bound import BoundLaw
+from zswarm.control.step import Acted, ControlStep
+from zswarm.laws.bound import LawFailed
 from zswarm.laws.contract import Neighbour, Observation, Obstacle
-from zswarm.model.agent_law import point_step
-from zswarm.model.metrics import obstacle_clearance
-from zswarm.model.safety import Acted, Safety, filter_one
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Bridge
 from zswarm.net.injector import FaultInjector
@@ -40,13 +36,11 @@ from zswarm.net.runspec import RunSpec
 STATS_PERIOD = 1.0
 
 
-def starting_body(spec: RunSpec, start: tuple[float, ...]) -> Body:
-    """The agent's own state at ``start``, at rest (a headed body facing the prey's start)."""
-    spec_body = bodies.body_spec(spec.scenario.params)
-    first = bodies.start(spec_body, np.array(start, dtype=float), np.asarray(spec.scenario.prey_start))
+def starting_body(control: ControlStep, start: tuple[float, ...], facing: tuple[float, ...]) -> Body:
+    """The agent's own state at ``start``, at rest (a headed body facing ``facing``, the prey's start)."""
+    heading = float(control.start(np.array([[start]], dtype=float), np.asarray(facing, dtype=float)).heading[0, 0])
     z = (float(start[2]), 0.0) if len(start) == 3 else (None, None)
-    return Body(float(start[0]), float(start[1]), heading=float(first.heading) if spec_body.headed else None,
-                z=z[0], vz=z[1])
+    return Body(float(start[0]), float(start[1]), heading=None if math.isnan(heading) else heading, z=z[0], vz=z[1])
 
 
 class Agent:
@@ -56,18 +50,19 @@ class Agent:
     inbound links and the ROS 2 robot that drives its body."""
 
     def __init__(self, spec: RunSpec, agent_id: int, body: Body, sensing: Sensing, reach: Reach, bridge: Bridge,
-                 law: BoundLaw, injector: FaultInjector | None = None, robot: Any = None, staleness: float = 0.5,
-                 lockstep_wait: float = 0.25, safety: Safety | None = None, track: array | None = None) -> None:
-        """``track``: where every pose it sends is kept as (stamp, position...) for ``--tracks``."""
+                 control: ControlStep, injector: FaultInjector | None = None, robot: Any = None,
+                 staleness: float = 0.5, lockstep_wait: float = 0.25, track: array | None = None) -> None:
+        """``control``: its control step (:func:`zswarm.control.step.control_step` for its own id);
+        ``track``: where every pose it sends is kept as (stamp, position...) for ``--tracks``."""
         self.spec, self.id, self.body, self.sensing, self.reach, self.bridge = spec, agent_id, body, sensing, reach, bridge
-        self.law, self.injector, self.robot, self.safety, self.track = law, injector, robot, safety, track
-        self.law_state = law.start_state()  # the law's own per-agent state (zswarm.laws.contract)
-        self.law_failure: str | None = None  # the traceback of a law that raised: the agent brakes and leaves
+        self.control, self.injector, self.robot, self.track = control, injector, robot, track
+        self.law = control.groups[0].law
+        self.law_failure: str | None = None  # the law's failure, in one line: the agent brakes and leaves
         self.keys = spec.keys
         self.dt = spec.scenario.dt
-        self.body_spec = bodies.body_spec(spec.scenario.params)
-        # a unicycle's tracked point ahead of its axle, where the filter acts (its own and its neighbours')
-        self.lookahead = self.body_spec.lookahead if self.body_spec.headed else 0.0
+        self.v_max = spec.scenario.params.swarm.v_max
+        # how far ahead of a unicycle's axle the filter acts (its neighbours' poses carry their headings)
+        self.lookahead = spec.scenario.params.body.lookahead
         self.counters = sensing.counters
         self.staleness, self.lockstep_wait = staleness, lockstep_wait
         self.seq = 0
@@ -86,34 +81,40 @@ class Agent:
     # --- control ---------------------------------------------------------------------------------------
 
     def move(self, goal: tuple[float, ...], step: int | None = None) -> None:
-        """The command sat(-grad U_i) from what it senses (eq 5 with the speed limit), through the safety
-        filter, and one step of its body under it (:func:`zswarm.model.body.step`; the point body in
-        plain floats, the same arithmetic), or, beside a robot, the command sent to the robot as a
-        Twist (a silent robot is stopped and the agent leaves: :meth:`agents.robot_link.RobotLink.check`).
-        ``step``: the lockstep step whose poses it steers on (None: free, the newest)."""
+        """One control step (:meth:`zswarm.control.step.ControlStep.one`) from what it senses: its law's
+        command, through the safety filter, and its body's step under it, or, beside a robot, the command
+        sent to the robot as a Twist (a silent robot is stopped and the agent leaves:
+        :meth:`agents.robot_link.RobotLink.check`). ``step``: the lockstep step whose poses it steers on
+        (None: free, the newest). A law that raises or answers with something other than a velocity
+        leaves the agent braking (:attr:`law_failure` says why, in one line; the clock loops end the
+        process on it)."""
         if self.robot is not None:
             self.robot.check(time.time())
             if not self.follow_robot():
                 return
-        late = step is None and self.safety is not None and self.late_world()
+        filtered = self.control.filter is not None
+        late = step is None and filtered and self.late_world()
         neighbours, guarded = self.sensing.sense(step, self.staleness, self.spec.time_scale, self.dt,
-                                                 self.lookahead, guard=self.safety is not None and not late)
-        v_d = self.safe(self.command(goal, neighbours, step), guarded, late)
-        if self.robot is not None:
-            self.robot.drive(v_d)
-            return
+                                                 self.lookahead, guard=filtered and not late)
         b = self.body
-        if self.body_spec.kind == "point":
-            (b.x, b.y, b.z), (b.vx, b.vy, b.vz) = point_step(b.x, b.y, b.z, v_d, self.dt)
+        try:
+            one = self.control.one(self.observation(goal, neighbours, step), guarded, late, b.velocity, b.heading)
+        except LawFailed as exc:
+            self.law_failure = str(exc)
+            b.vx = b.vy = 0.0
+            b.vz = None if b.z is None else 0.0
+            if self.robot is not None:
+                self.robot.drive((0.0, 0.0))
             return
-        state = bodies.BodyState(np.array(b.position), np.array(b.velocity),
-                                 np.array(np.nan if b.heading is None else b.heading))
-        moved = bodies.step(self.body_spec, state, np.array(v_d), self.dt)
-        position, velocity = moved.position.tolist(), moved.velocity.tolist()
-        b.x, b.y, b.vx, b.vy = position[0], position[1], velocity[0], velocity[1]
-        if b.z is not None:
-            b.z, b.vz = position[2], velocity[2]
-        b.heading = float(moved.heading) if self.body_spec.headed else None
+        if filtered:
+            self.count(one.acted)
+        if self.robot is not None:
+            self.robot.drive(one.command)
+            return
+        (b.x, b.y, *z), (b.vx, b.vy, *vz) = one.position, one.velocity
+        if z:
+            b.z, b.vz = z[0], vz[0]
+        b.heading = one.heading
 
     def follow_robot(self) -> bool:
         """Beside a robot: its body is where the robot's odometry says (False: none heard yet)."""
@@ -129,21 +130,11 @@ class Agent:
         hears is that late (a machine or network far behind, a lost router), so a neighbour that came
         close since may not have been heard at all. The filter cannot bound that; the agent brakes."""
         stamp = self.sensing.prey_stamp
-        return stamp is not None and (time.time() - stamp) * self.spec.time_scale + self.dt > self.safety.max_age
+        (_, safety), = self.control.filter.groups
+        return stamp is not None and (time.time() - stamp) * self.spec.time_scale + self.dt > safety.max_age
 
-    def safe(self, v_d: tuple[float, ...], guarded: list[tuple[tuple[float, ...], float]],
-             late: bool) -> tuple[float, ...]:
-        """The command the safety filter lets through (:func:`zswarm.model.safety.filter_one`), from
-        every neighbour it guards against and the age of what it knows of each
-        (:meth:`agents.sensing.Sensing.sense`); ``late``: the world is late, it brakes
-        (:meth:`late_world`). Counted in its stats."""
-        if self.safety is None:
-            return v_d
-        if late:  # nothing it heard can bound anything
-            command, done = (0.0,) * len(v_d), Acted(any(v_d), any(v_d), True)
-        else:
-            point = bodies.tracked_point(self.body.position, self.body.heading, self.lookahead)
-            command, done = filter_one(self.safety, point, v_d, guarded, self.sensing.obstacles)
+    def count(self, done: Acted | None) -> None:
+        """What the safety filter did this tick, in its stats (and the flag its pose carries)."""
         c = self.counters
         stalled = done is not None and done.stalled
         if done is not None:
@@ -153,39 +144,25 @@ class Agent:
         self.safety_flag = 0 if done is None else done.flag
         c.stalled_run = c.stalled_run + 1 if stalled else 0
         c.stalled_long |= c.stalled_run * self.dt >= 1.0
-        return command
-
-    def command(self, goal: tuple[float, ...], neighbours: list[msg.Pose], step: int | None = None) -> tuple[float, ...]:
-        """The desired velocity from what it sensed, through the law contract (:mod:`zswarm.laws`).
-        ``apf`` in 2-D takes its plain-float single form (:meth:`zswarm.laws.apf.Apf.floats`: at one
-        agent's size numpy's per-call cost is most of the work); every other law gets the agent's
-        :class:`~zswarm.laws.contract.Observation`: its neighbours within the sensing radius with their
-        velocities and ages (0 in lockstep, where the step's poses are exact), the obstacles within it,
-        the target. A law that raises or answers with something other than a velocity leaves the agent
-        braking (:attr:`law_failure` holds the traceback; the clock loops end the process on it)."""
-        b, s, law = self.body, self.sensing, self.law
-        if law.is_apf and b.z is None:
-            return law.law.floats(b.position, goal, s.obstacles, [p.position for p in neighbours])
-        try:
-            v, self.law_state = law.decide(self.observation(goal, neighbours, step))
-        except Exception:  # noqa: BLE001 - a user's law may raise anything: this agent brakes and leaves
-            self.law_failure = traceback.format_exc()
-            return (0.0,) * len(goal)
-        return tuple(v.tolist())
 
     def observation(self, goal: tuple[float, ...], neighbours: list[msg.Pose], step: int | None) -> Observation:
-        """What the law sees this tick (:class:`zswarm.laws.contract.Observation`)."""
+        """What the law sees this tick (:class:`zswarm.laws.contract.Observation`): its neighbours within
+        the sensing radius with their velocities and ages (0 in lockstep, where the step's poses are
+        exact), the obstacles within it, the target."""
         b, s = self.body, self.sensing
         radius, now, scale = s.radius, time.time(), self.spec.time_scale
-        seen = tuple(Neighbour(np.array(p.position), np.array(p.velocity),
-                               0.0 if step is not None else max(now - p.stamp, 0.0) * scale)
-                     for p in neighbours if b.distance(p) <= radius)
-        position = np.array(b.position)
-        centers, radii = s.obstacle_arrays
-        gap = obstacle_clearance(position, centers, radii)
-        obstacles = tuple(Obstacle(c, float(r)) for c, r, g in zip(centers, radii, gap) if g <= radius)
-        return Observation(position, np.array(b.velocity), seen, obstacles, np.array(goal, dtype=float),
-                           self.law.context.v_max, self.dt, self.law_state)
+        seen = [p for p in neighbours if b.distance(p) <= radius]
+        if seen:
+            pos, vel = np.array([p.position for p in seen]), np.array([p.velocity for p in seen])
+            near = tuple(Neighbour(pos[k], vel[k], 0.0 if step is not None else max(now - p.stamp, 0.0) * scale)
+                         for k, p in enumerate(seen))
+        else:
+            near = ()
+        here, dims = b.position, len(b.position)
+        obstacles = tuple(Obstacle(np.array(o[:dims]), o[dims]) for o in s.obstacles
+                          if math.dist(here, o[:dims]) - o[dims] <= radius)
+        return Observation(np.array(here), np.array(b.velocity), near, obstacles, np.array(goal, dtype=float),
+                           self.v_max, self.dt)
 
     # --- outbound --------------------------------------------------------------------------------------
 

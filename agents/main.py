@@ -23,8 +23,7 @@ from agents.reach import Reach
 from agents.sensing import Sensing
 from zswarm.args import Parser, UsageError, run_main
 from zswarm.laws.bound import EXIT_LAW_FAILED
-from zswarm.laws.registry import bind
-from zswarm.model.safety_tally import safety_of
+from zswarm.control.step import control_step
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Bridge, Deliver, Inbound, teardown
 from zswarm.net.config import add_zenoh_args, config_from_args, open_session
@@ -126,9 +125,10 @@ class Process:
         start = start_position(spec, args.id, args.start)
         self.spec, self.id = spec, args.id
         p, keys = spec.scenario.params, spec.keys
-        law = bind(spec.scenario, spec.combination, probe=False)  # zswarm run probed it before any process
+        # its own control step (zswarm run probed the laws before any process started)
+        control = control_step([spec.scenario], [spec.combination], spec.safety, agents=[args.id])
         self.session = open_session(config_from_args(args), what=f"agent {args.id}", retry_for=args.connect_timeout)
-        body = starting_body(spec, start)
+        body = starting_body(control, start, spec.scenario.prey_start)
         # free clock: samples wait in ring channels (in an inbox, stamped on arrival, when a delay is
         # injected from the arrival time) and are taken in once per tick; lockstep: each one wakes the loop
         rings = loop is None and not (spec.faults.latency or spec.faults.jitter)
@@ -146,9 +146,8 @@ class Process:
                              channels=rings, capacity=CELL_CAPACITY,
                              reply_filter=injector.filter_replies if injector is not None else None)
         self.tracks: Path | None = args.tracks
-        self.agent = Agent(spec, args.id, body, sensing, Reach(sensing, self.bridge), self.bridge, law, injector,
-                           link, args.staleness, args.lockstep_wait, safety_of(spec.scenario, spec.safety),
-                           track=array("d") if args.tracks is not None else None)
+        self.agent = Agent(spec, args.id, body, sensing, Reach(sensing, self.bridge), self.bridge, control, injector,
+                           link, args.staleness, args.lockstep_wait, track=array("d") if args.tracks is not None else None)
         self.injector = injector
         self.declared = [self.bridge.subscribe_liveliness(keys.all_alive, "alive"),
                          self.bridge.subscribe(keys.prey, "prey"), self.bridge.subscribe(keys.tick, "tick")]
@@ -284,12 +283,11 @@ async def run_lockstep_agent(spec: RunSpec, args: argparse.Namespace) -> int:
 
 
 def law_failed(agent: Agent) -> int:
-    """0, or, after its law failed, the law's traceback on stderr (the agent's log) and
-    :data:`EXIT_LAW_FAILED`: the launcher counts it as a crash and the other agents carry on."""
+    """0, or, after its law failed, one line on stderr (the agent's log) and :data:`EXIT_LAW_FAILED`: the
+    launcher counts it as a crash and the other agents carry on."""
     if agent.law_failure is None:
         return 0
-    print(f"agent {agent.id}: its law {agent.law.name} failed; it braked and left the swarm:\n{agent.law_failure}",
-          file=sys.stderr, end="", flush=True)
+    print(f"agent {agent.id}: {agent.law_failure}; it braked and left the swarm", file=sys.stderr, flush=True)
     return EXIT_LAW_FAILED
 
 

@@ -18,7 +18,7 @@ import time
 
 from agents.cell_view import CellView
 from agents.sensing import Sensing
-from zswarm.model.neighbours import step_reach
+from zswarm.paper.neighbours import step_reach
 from zswarm.net.bridge import Bridge
 from zswarm.net.keys import cells_in_disc
 

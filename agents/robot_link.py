@@ -3,7 +3,7 @@
 The agent takes its pose from the robot's odometry (``<namespace>/odom``, nav_msgs/msg/Odometry, or a
 geometry_msgs/msg/PoseStamped topic), turned from the robot's odom frame into the world's, and sends
 its desired velocity as ``<namespace>/cmd_vel`` (geometry_msgs/msg/Twist): a forward speed and a turn
-rate, worked out as the unicycle body does (:func:`zswarm.model.body.unicycle_inputs`) and never above
+rate, worked out as the unicycle body does (:func:`zswarm.control.body.unicycle_inputs`) and never above
 the robot's limits or the scenario's v_max. On rmw_zenoh every command carries the attachment a ROS 2
 subscriber needs (:class:`zswarm.ros.wire.Attachment`).
 
@@ -22,7 +22,7 @@ import time
 import numpy as np
 
 from zswarm.errors import Failure
-from zswarm.model import body as bodies
+from zswarm.control import body as bodies
 from zswarm.ros import graph
 from zswarm.ros.motion import Odom, read_pose, twist
 from zswarm.ros.robots import TWIST, Robot

@@ -23,8 +23,8 @@ import numpy as np
 from agents.counters import Counters
 from agents.obstacle_view import ObstacleView
 from agents.probe import LatencyProbe
-from zswarm.model.body import tracked_point
-from zswarm.model.faults import OBSTACLE_SOURCE, PREY_SOURCE
+from zswarm.control.body import tracked_point
+from zswarm.swarm.faults import OBSTACLE_SOURCE, PREY_SOURCE
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Inbound
 from zswarm.net.poses import Entry, PoseTable, Rejections, vouched_by
@@ -34,7 +34,7 @@ from zswarm.net.runspec import RunSpec
 @dataclass
 class Body:
     """The agent's own state: where it is, the velocity it last moved with, its heading (a body with one:
-    :mod:`zswarm.model.body`), how many control steps it took; z and vz in a 3-D run (None in 2-D)."""
+    :mod:`zswarm.control.body`), how many control steps it took; z and vz in a 3-D run (None in 2-D)."""
 
     x: float
     y: float

@@ -7,9 +7,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from zswarm.model.agent_law import agent_velocity
-from zswarm.model.params import DEFAULT_PARAMS, PAPER_PARAMS
-from zswarm.model.law import make_law, sense_one
+from zswarm.laws.apf import _velocity_2d as agent_velocity
+from zswarm.paper.params import DEFAULT_PARAMS, PAPER_PARAMS
+from zswarm.paper.field import make_law, sense_one
 
 coord = st.floats(-4, 4, allow_nan=False)
 

@@ -3,16 +3,19 @@ allowed), never up, the two engines never import each other, and no module impor
 through others (a circle).
 
     cli            every command: arguments in, a report out      may import anything; no module over 150 lines
-    bench          the benchmarks' measurements (net, soak, ...)   cluster, launch, net, sim, record, model, base
-    cluster        a run over a Ray cluster (nodes, placement)    launch, net, sim, record, model, base
-    launch         starting and supervising runs (plan, chaos)     host, net, sim, record, model, base
-    host           starting processes: routers, the world, agents  net, model, base
-    tune           searching parameter sets (zswarm tune)         sim, record, model, base
-    agents, world  the two process programs                       net, record (world only), model, base
-    sim | net      the engines: reference simulator | runtime     model, record (sim only), base
-    record         Rerun recordings: write, read back, repair     model, base
-    laws           the law contract, the built-in laws, loading   model, base
-    model          the paper's math, scenarios, metrics, faults   base
+    bench          the benchmarks' measurements (net, soak, ...)   cluster, launch, ... and everything below
+    cluster        a run over a Ray cluster (nodes, placement)    launch, host, net, ros, sim, tune's floor
+    launch         starting and supervising runs (plan, chaos)     host, ros, net, sim and everything below
+    host           starting processes: routers, the world, agents  net and everything below
+    tune           searching parameter sets (zswarm tune)         sim, record, design and below
+    agents, world  the two process programs                       net, ros (agents), record (world), design (world)
+    sim | net      the engines: reference simulator | runtime     record (sim only), design and below
+    record         Rerun recordings and figures                   design, swarm, paper
+    design         the design checks (Props 1-5, swarm, body)     swarm, control, laws, paper
+    swarm          scenarios, prey, faults, metrics, the tally     control, laws, paper
+    control        the control step: law, filter, body             laws, paper
+    laws           the law contract, the built-in laws, loading   paper
+    paper          the paper's mathematics and parameters         base
     base           zswarm.errors, args, files, provenance, ports,  nothing of zswarm
                    stopping, process
 """
@@ -31,21 +34,28 @@ BASE = {"zswarm", "zswarm.errors", "zswarm.args", "zswarm.files", "zswarm.proven
         "zswarm.stopping", "zswarm.process"}
 ALLOWED: dict[str, set[str]] = {
     "base": {"base"},
-    "model": {"base", "model"},
-    "laws": {"base", "model", "laws"},
-    "record": {"base", "model", "record"},
-    "sim": {"base", "model", "laws", "record", "sim"},
-    "net": {"base", "model", "net"},
-    "ros": {"base", "model", "ros"},
-    "host": {"base", "model", "net", "host"},
-    "agents": {"base", "model", "laws", "net", "ros", "agents"},
-    "world": {"base", "model", "laws", "net", "record", "world"},
-    "tune": {"base", "model", "laws", "record", "sim", "tune"},
-    "launch": {"base", "model", "laws", "record", "sim", "net", "host", "ros", "launch"},
-    "cluster": {"base", "model", "laws", "record", "sim", "net", "host", "ros", "launch", "cluster"},
-    "bench": {"base", "model", "laws", "record", "sim", "net", "host", "launch", "cluster", "bench"},
-    "cli": {"base", "model", "laws", "record", "sim", "net", "host", "tune", "launch", "cluster", "bench", "ros", "cli"},
-    "api": {"base", "model", "laws", "record", "sim"},  # zswarm/__init__: the notebook API
+    "paper": {"base", "paper"},
+    "laws": {"base", "paper", "laws"},
+    "control": {"base", "paper", "laws", "control"},
+    "swarm": {"base", "paper", "laws", "control", "swarm"},
+    "design": {"base", "paper", "laws", "control", "swarm", "design"},
+    "record": {"base", "paper", "swarm", "design", "record"},
+    "sim": {"base", "paper", "laws", "control", "swarm", "design", "record", "sim"},
+    "net": {"base", "paper", "laws", "control", "swarm", "net"},
+    "ros": {"base", "paper", "control", "swarm", "ros"},
+    "host": {"base", "paper", "laws", "control", "swarm", "net", "host"},
+    "agents": {"base", "paper", "laws", "control", "swarm", "net", "ros", "agents"},
+    "world": {"base", "paper", "laws", "control", "swarm", "design", "net", "record", "world"},
+    "tune": {"base", "paper", "laws", "control", "swarm", "design", "record", "sim", "tune"},
+    "launch": {"base", "paper", "laws", "control", "swarm", "design", "record", "sim", "net", "host", "ros",
+               "launch"},
+    "cluster": {"base", "paper", "laws", "control", "swarm", "design", "record", "sim", "net", "host", "ros",
+                "launch", "cluster"},
+    "bench": {"base", "paper", "laws", "control", "swarm", "design", "record", "sim", "net", "host", "launch",
+              "cluster", "bench"},
+    "cli": {"base", "paper", "laws", "control", "swarm", "design", "record", "sim", "net", "host", "tune", "launch",
+            "cluster", "bench", "ros", "cli"},
+    "api": {"base", "paper", "laws", "control", "swarm", "design", "record", "sim"},  # zswarm/__init__
 }
 
 
@@ -133,12 +143,12 @@ def test_every_import_respects_the_layers():
 
 @pytest.mark.parametrize("where,line", [
     ("world/world.py", "from zswarm.sim.simulator import simulate"),
-    ("zswarm/model/metrics.py", "from zswarm.net import messages"),
+    ("zswarm/swarm/metrics.py", "from zswarm.net import messages"),
     ("zswarm/sim/simulator.py", "from zswarm.net.keys import Keys"),
     ("zswarm/net/bridge.py", "import zswarm.sim.channel"),
     ("zswarm/record/replay.py", "from zswarm.cli.replay import run_replay"),
     ("agents/agent.py", "from zswarm.record import swarm_log"),
-    ("zswarm/model/params.py", "from zswarm.cli import main"),
+    ("zswarm/paper/params.py", "from zswarm.cli import main"),
     ("zswarm/tune/search.py", "from zswarm.net.runspec import RunSpec"),
     ("zswarm/sim/batch.py", "from zswarm.tune.space import Space"),
     ("zswarm/launch/plan.py", "from zswarm.cli.launch import build_parser"),

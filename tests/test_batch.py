@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from zswarm.model.faults import FaultModel
-from zswarm.model.scenarios import get_scenario
+from zswarm.swarm.faults import FaultModel
+from zswarm.swarm.scenarios import get_scenario
 from zswarm.sim.batch import Member, simulate_batch
 from zswarm.sim.simulator import simulate
 
@@ -26,7 +26,7 @@ def _mixed_batch() -> list[Member]:
         Member(get_scenario("moving-prey-straight"), 7),
         Member(prey, 8,
                FaultModel(dropout=0.5, seed=8)),
-        # the interactions of zswarm.model.neighbour_law, a faulty one among them
+        # the interactions of zswarm.paper.neighbour_law, a faulty one among them
         Member(get_scenario("moving-prey", {"interaction": "mean+gate"}), 9),
         Member(get_scenario("moving-prey", {"interaction": "cutoff+nearest", "k_nearest": 3}), 10,
                FaultModel(latency=0.1, dropout=0.3, seed=10)),

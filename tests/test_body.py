@@ -1,4 +1,4 @@
-"""Bodies (zswarm.model.body): what a command does, the same in the simulators and on the wire."""
+"""Bodies (zswarm.control.body): what a command does, the same in the simulators and on the wire."""
 
 from __future__ import annotations
 
@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from zswarm.errors import ParamError
-from zswarm.model import body as bodies
-from zswarm.model.params import Params
-from zswarm.model.scenarios import get_scenario
+from zswarm.control import body as bodies
+from zswarm.paper.params import Params
+from zswarm.swarm.scenarios import get_scenario
 from zswarm.net import messages as msg
 from zswarm.sim.batch import Member, simulate_batch
 from zswarm.sim.simulator import Simulator, simulate
@@ -21,12 +21,12 @@ def run_states(scenario, steps: int):
     sim = Simulator(scenario, 0)
     states, moved = [], []
     for _ in range(steps):
-        _, command = sim.potential_and_velocity(sim.positions, sim.prey)
-        v = sim.moving(command)
+        stepped = sim.command()
+        v = stepped.state.velocity[0]
         states.append(sim.state)
         moved.append(v)
-        sim.advance(command)
-        np.testing.assert_array_equal(sim.state.velocity, v)  # moving() is what advance() moves with
+        sim.advance(stepped)
+        np.testing.assert_array_equal(sim.state.velocity, v)  # what advance() moves with
     states.append(sim.state)
     return states, moved
 

@@ -7,7 +7,7 @@ import numpy as np
 
 from zswarm.laws.contract import Neighbour, Observation, Observations
 from zswarm.laws.registry import bind
-from zswarm.model.scenarios import get_scenario
+from zswarm.swarm.scenarios import get_scenario
 
 
 def _boids(**weights: float):

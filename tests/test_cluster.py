@@ -156,7 +156,7 @@ def test_a_lockstep_run_over_two_nodes_equals_the_reference(tmp_path):
     lockstep over two Ray nodes, held to the reference simulator at every step."""
     import numpy as np
 
-    from zswarm.model.scenarios import get_scenario
+    from zswarm.swarm.scenarios import get_scenario
     from zswarm.sim.simulator import simulate
 
     mark = uuid.uuid4().hex

@@ -6,11 +6,12 @@ import math
 import numpy as np
 import pytest
 
-from zswarm.model.design import check, epsilon, prop1_curve
-from zswarm.model.formation import closed_form_spacing, equilibria, pair_potential
-from zswarm.model.params import DEFAULT_PARAMS, PAPER_PARAMS, PotentialParams
-from zswarm.model.law import field
-from zswarm.model.potentials import formation_terms, goal_terms, obstacle_terms, saturate
+from zswarm.design.guidelines import check, prop1_curve
+from zswarm.paper.formation import epsilon
+from zswarm.paper.formation import closed_form_spacing, equilibria, pair_potential
+from zswarm.paper.params import DEFAULT_PARAMS, PAPER_PARAMS, PotentialParams
+from zswarm.paper.field import field
+from zswarm.paper.potentials import formation_terms, goal_terms, obstacle_terms, saturate
 
 PAPER = PAPER_PARAMS.potential
 
@@ -282,7 +283,7 @@ def test_every_parameter_set_the_tools_print_is_accepted_back(cli, tmp_path):
     """What `design --json` prints as a set (params, and nearest.params) is read back unchanged as a
     TOML file for --params, every field included (names such as body and interaction too)."""
     from zswarm.args import read_params_file
-    from zswarm.model.params import FIELDS, Params
+    from zswarm.paper.params import FIELDS, Params
 
     printed = json.loads(cli("-m", "zswarm", "design", "--set", "body=unicycle", "--set", "interaction=mean+gate",
                              "--set", "k_nearest=7", "--json").stdout)["params"]
@@ -313,7 +314,7 @@ def test_the_table_states_one_verdict_and_the_papers_column_sums_up_as_printed(c
 
 
 def test_nearest_says_what_blocks_when_nothing_passes():
-    from zswarm.model.nearest import REMEDIES, NoPassingSet, nearest_passing
+    from zswarm.design.nearest import REMEDIES, NoPassingSet, nearest_passing
 
     hopeless = DEFAULT_PARAMS.with_values({"robot_radius": 5.0})  # agents wider than their spacing
     found = nearest_passing(hopeless, names=["c_o"], squeezes=1)

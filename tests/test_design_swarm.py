@@ -7,11 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from zswarm.model.design import check
-from zswarm.model.design_swarm import SQUEEZE_MAX, packing_bound, pulling_count
-from zswarm.model.neighbour_law import PairList, neighbour_force, neighbour_law
-from zswarm.model.params import DEFAULT_PARAMS
-from zswarm.model.potentials import goal_terms, obstacle_terms
+from zswarm.design.guidelines import check
+from zswarm.design.swarm_checks import SQUEEZE_MAX, packing_bound, pulling_count
+from zswarm.paper.neighbour_law import PairList, neighbour_force, neighbour_law
+from zswarm.paper.params import DEFAULT_PARAMS
+from zswarm.paper.potentials import goal_terms, obstacle_terms
 
 
 def _random_packing(rng, radius, d_min, tries=20000):

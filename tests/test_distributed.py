@@ -12,8 +12,8 @@ import time
 import numpy as np
 import pytest
 
-from zswarm.model.design import verdict
-from zswarm.model.scenarios import get_scenario
+from zswarm.design.guidelines import verdict
+from zswarm.swarm.scenarios import get_scenario
 from zswarm.host.procs import free_port, start_router
 from zswarm.record.replay import load_run, recompute
 from zswarm.sim.simulator import Simulator, simulate
@@ -46,7 +46,7 @@ def test_lockstep_swarm_reproduces_the_reference_and_catches_the_prey(tmp_path, 
     reference for the first part of theirs, which is what this test is about: static-goal through its
     split at the large obstacle (15 s; tests/test_sim.py runs it to the goal), mean+gate (slower: 34.9 s)
     for 10 s, mean+gate+swirl for 6 s (agents within 3.5 of the prey circulate about it: some from the
-    start), the other bodies for 5 s (zswarm.model.body; tests/test_body.py runs them to the capture),
+    start), the other bodies for 5 s (zswarm.control.body; tests/test_body.py runs them to the capture),
     3-D for 5 s (tests/test_space_procs.py runs it to the capture as processes). Both safety modes:
     goal-near-obstacle is the case where the filter acts (the paper's law would crush its 8 agents
     into 28 collisions; tests/test_safety_runs.py)."""
@@ -90,7 +90,7 @@ def test_lockstep_swarm_reproduces_the_reference_and_catches_the_prey(tmp_path, 
         sim = Simulator(get_scenario(scenario, {"body": body}), 0, safety=safety)
         for f in run.frames:
             np.testing.assert_allclose(f.headings, sim.state.heading, atol=1e-6)
-            sim.advance(sim.potential_and_velocity(sim.positions, sim.prey)[1])
+            sim.advance(sim.command())
     else:
         assert all(f.headings is None for f in run.frames)
     assert run.config["seed"] == 0 and "versions" in run.config and run.summary["collisions"] == 0

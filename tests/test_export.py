@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from conftest import run_cli
-from zswarm.model.scenarios import get_scenario
+from zswarm.swarm.scenarios import get_scenario
 from zswarm.record.replay import load_run, recompute
 from zswarm.sim.simulator import simulate
 

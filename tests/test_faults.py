@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from zswarm.model.faults import FaultModel, LinkFaults, parse_duration, parse_duration_list
+from zswarm.swarm.faults import FaultModel, LinkFaults, parse_duration, parse_duration_list
 
 from conftest import ROOT, run_cli
 
@@ -72,7 +72,7 @@ def test_injected_dropout_and_delay_are_observed(tmp_path):
 
 
 def test_simulator_faults_are_seeded_observed_and_inactive_faults_change_nothing():
-    from zswarm.model.scenarios import get_scenario
+    from zswarm.swarm.scenarios import get_scenario
     from zswarm.sim.simulator import simulate
 
     scenario = get_scenario("moving-prey")

@@ -114,7 +114,7 @@ def test_every_duration_flag_takes_units_and_a_bare_number_is_seconds(command):
     (fault delays are the one exception, documented: a bare ``--latency 100`` is milliseconds)."""
     from zswarm.cli import launch, sweep
     from zswarm.cli.main import build_parser
-    from zswarm.model.faults import parse_duration
+    from zswarm.swarm.faults import parse_duration
 
     required = {"sweep": ["--out", "x"], "tune": ["--out", "x"], "monitor": ["--run", "x"], "robot-sim": ["--robots", "r.toml"]}
     parser = {"run": launch.build_parser(), "sweep": sweep.build_parser()}.get(command)

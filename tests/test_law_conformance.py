@@ -10,7 +10,7 @@ import pytest
 
 from zswarm.laws.contract import Neighbour, Obstacle, Observation, Observations
 from zswarm.laws.registry import BUILTIN, bind
-from zswarm.model.scenarios import get_scenario
+from zswarm.swarm.scenarios import get_scenario
 
 SCENARIO = {2: "moving-prey", 3: "moving-prey-3d"}
 

@@ -3,8 +3,8 @@ import math
 import numpy as np
 import pytest
 
-from zswarm.model.metrics import MetricContext, Summary, algebraic_connectivity, components, step_metrics
-from zswarm.model.neighbours import ObstacleIndex
+from zswarm.swarm.metrics import MetricContext, Summary, algebraic_connectivity, components, step_metrics
+from zswarm.paper.neighbours import ObstacleIndex
 
 
 def ctx(radius=1.0, obstacles=((5.0, 5.0, 0.5),)):
@@ -86,7 +86,7 @@ def test_summary_counts_collision_onsets_and_capture():
 
 def test_a_summary_of_no_steps_has_no_values_and_does_not_fail():
     """A world whose agents never came observes nothing: its summary says so instead of crashing."""
-    from zswarm.model.metrics import SUMMARY_KEYS
+    from zswarm.swarm.metrics import SUMMARY_KEYS
 
     empty = Summary(capture_radius=0.5, epsilon=1.0).result()
     assert empty["steps_observed"] == 0 and empty["capture_time"] is None and empty["collisions"] == 0

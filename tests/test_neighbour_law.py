@@ -1,4 +1,4 @@
-"""The interactions of zswarm.model.neighbour_law: each force against its potential, the gate, and the
+"""The interactions of zswarm.paper.neighbour_law: each force against its potential, the gate, and the
 same law in the agent's floats, the vectorized field and the batched simulator."""
 
 from __future__ import annotations
@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from zswarm.errors import ParamError
-from zswarm.model.agent_law import agent_velocity
-from zswarm.model.interaction import parse_interaction
-from zswarm.model.neighbour_law import CUTOFF_INNER, PairList, cutoff_weight, neighbour_force, neighbour_law
-from zswarm.model.params import DEFAULT_PARAMS, PAPER_PARAMS
-from zswarm.model.law import field, make_law, sense_one
+from zswarm.laws.apf import _velocity_2d as agent_velocity
+from zswarm.paper.interaction import parse_interaction
+from zswarm.paper.neighbour_law import CUTOFF_INNER, PairList, cutoff_weight, neighbour_force, neighbour_law
+from zswarm.paper.params import DEFAULT_PARAMS, PAPER_PARAMS
+from zswarm.paper.field import field, make_law, sense_one
 
 R = 1.5
 
@@ -181,7 +181,7 @@ def test_interaction_names_parse_and_fail_in_one_line():
 
 
 def test_the_modules_doc_states_the_gates_constants_as_the_code_has_them():
-    from zswarm.model import neighbour_law as nl
+    from zswarm.paper import neighbour_law as nl
 
     doc = " ".join(nl.__doc__.split())
     assert f"g_in = {nl.GATE_INNER} g_out" in doc

@@ -2,7 +2,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from zswarm.model.neighbours import ObstacleIndex, cell_pairs, pairs_within
+from zswarm.paper.neighbours import ObstacleIndex, cell_pairs, pairs_within
 
 
 @settings(max_examples=100, deadline=None)

@@ -1,8 +1,8 @@
-"""One law, one prey motion, one body step: every consumer equals :func:`zswarm.model.law.field`.
+"""One law, one prey motion: every consumer equals :func:`zswarm.paper.field.field`.
 
 The reference simulator (a batch of one, flat pairs from its cell grid), the batched simulator (a
-batch of many, dense blocks), a 3-D agent (the law on one row) and a 2-D agent (the plain-float
-specialisation) command the same velocity, to 1e-12, on random states, for every interaction,
+batch of many, dense blocks), a 3-D agent (the law on one row) and a 2-D agent (apf's plain-float
+single form) command the same velocity, to 1e-12, on random states, for every interaction,
 combination, formation flag and dimension. Break any of them (a sign, a term, a sum) and this fails.
 """
 
@@ -13,14 +13,14 @@ import dataclasses
 import numpy as np
 import pytest
 
-from zswarm.model import body as bodies
-from zswarm.model import prey as prey_motion
-from zswarm.model.agent_law import agent_velocity, point_step
-from zswarm.model.law import compile_law, sense_one, swarm_field
-from zswarm.model.neighbours import ObstacleIndex
-from zswarm.model.potentials import saturate
-from zswarm.model.prey import PreyMotion
-from zswarm.model.scenarios import get_scenario
+from zswarm.control import body as bodies
+from zswarm.swarm import prey as prey_motion
+from zswarm.laws.apf import _velocity_2d as agent_velocity
+from zswarm.paper.field import compile_law, sense_one, swarm_field
+from zswarm.paper.neighbours import ObstacleIndex
+from zswarm.paper.potentials import saturate
+from zswarm.swarm.prey import PreyMotion
+from zswarm.swarm.scenarios import get_scenario
 from zswarm.sim.batch import BatchSimulator, Member
 
 INTERACTIONS = ["paper", "mean", "cutoff", "gate", "nearest", "swirl", "mean+gate", "mean+gate+swirl",
@@ -53,7 +53,7 @@ def test_every_consumer_commands_what_the_one_law_commands(name, interaction, co
         prey = centre + rng.uniform(-2.0, 2.0, (len(members), batch.dims))
         batch.state = bodies.BodyState(x, np.zeros_like(x), np.full(x.shape[:2], np.nan))
         batch.prey = prey
-        got_batch = batch.velocities()
+        got_batch = batch.command().command
         for r, m in enumerate(members):
             s = m.scenario
             law = compile_law(s.params, m.combination, s.formation)
@@ -73,19 +73,6 @@ def test_every_consumer_commands_what_the_one_law_commands(name, interaction, co
                                            [tuple(q) for q in others], radius, law.p, law.combination,
                                            law.formation, law.v_max, law.neighbours)
                 np.testing.assert_allclose(agent, want[i], rtol=0, atol=1e-12, err_msg=f"agent {i} of run {r}")
-
-
-def test_the_agents_float_point_body_is_the_body_step():
-    rng = np.random.default_rng(3)
-    spec = bodies.BodySpec("point", 1.0)
-    for dims in (2, 3):
-        for _ in range(200):
-            x, v, dt = rng.normal(0, 3, dims), rng.normal(0, 1, dims), float(rng.uniform(0.001, 0.2))
-            moved = bodies.step(spec, bodies.BodyState(x, np.zeros(dims), np.array(np.nan)), v, dt)
-            (px, py, pz), velocity = point_step(x[0], x[1], x[2] if dims == 3 else None, tuple(v), dt)
-            assert [px, py, pz][:dims] == moved.position.tolist()  # exactly: the same arithmetic
-            assert list(velocity)[:dims] == moved.velocity.tolist()
-            assert (pz is None) == (dims == 2)
 
 
 MOTIONS = [PreyMotion("static"), PreyMotion("straight", 0.4, 30.0, climb_deg=10.0),

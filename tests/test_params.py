@@ -2,7 +2,7 @@ import math
 
 import pytest
 
-from zswarm.model.params import (
+from zswarm.paper.params import (
     DEFAULT_PARAMS,
     FIELDS,
     MAX_AGENTS,

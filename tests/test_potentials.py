@@ -5,10 +5,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from zswarm.model.formation import formation_offset
-from zswarm.model.params import DEFAULT_PARAMS, PAPER_PARAMS, PotentialParams
-from zswarm.model.law import field, make_law, sense_one
-from zswarm.model.potentials import formation_terms, goal_terms, obstacle_offsets, obstacle_terms, saturate
+from zswarm.paper.formation import formation_offset
+from zswarm.paper.params import DEFAULT_PARAMS, PAPER_PARAMS, PotentialParams
+from zswarm.paper.field import field, make_law, sense_one
+from zswarm.paper.potentials import formation_terms, goal_terms, obstacle_offsets, obstacle_terms, saturate
 
 H = 1e-6
 coord = st.floats(-3.0, 3.0, allow_nan=False)

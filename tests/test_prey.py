@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from zswarm.model.prey import PreyMotion, step
+from zswarm.swarm.prey import PreyMotion, step
 
 
 def test_circle_keeps_radius_and_speed():

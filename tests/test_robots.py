@@ -15,7 +15,7 @@ import pytest
 
 from conftest import ROOT
 from swarm_procs import Watch, load_summary, processes, rerun_verify, wait_exit
-from zswarm.model.scenarios import get_scenario
+from zswarm.swarm.scenarios import get_scenario
 from zswarm.net.config import open_session, zenoh_config
 from zswarm.host.procs import start_router
 from zswarm.record.replay import load_run

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from zswarm.args import Parser
 from zswarm.launch.chaos import Event, schedule
 from zswarm.errors import UsageError
-from zswarm.model.faults import FaultModel
+from zswarm.swarm.faults import FaultModel
 from zswarm.net.runspec import CLOCKS, RunSpec, add_run_args, spec_from_args
 
 

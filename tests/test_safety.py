@@ -1,4 +1,4 @@
-"""The safety filter (zswarm.model.safety): exact, closest, and safe where the law alone is not."""
+"""The safety filter (zswarm.control.safety): exact, closest, and safe where the law alone is not."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from zswarm.model import safety as sf
-from zswarm.model.scenarios import get_scenario
+from zswarm.control import safety as sf
+from zswarm.swarm.scenarios import get_scenario
 
 quadprog = pytest.importorskip("quadprog")
 
@@ -157,45 +157,11 @@ def test_bad_mode_is_one_line():
         sf.parse_mode("orca")
 
 
-@pytest.mark.parametrize("dims", [2, 3])
-def test_the_agents_float_filter_equals_the_vectorized_one(dims):
-    """An agent process filters in floats (filter_one); the simulators use rows + apply: the same."""
-    rng = np.random.default_rng(10 + dims)
-    s = sf.Safety(distance=0.1, clearance=0.05, v_max=1.0, period=0.05, sensing_radius=1.0)
-    acted = braked = detours = 0
-    for case in range(400):
-        point = rng.uniform(-1, 1, size=dims)
-        k, m = int(rng.integers(0, 7)), int(rng.integers(0, 3))
-        q = point + rng.uniform(-0.5, 0.5, size=(k, dims))
-        u_hat = rng.uniform(-0.7, 0.7, size=dims)
-        if case >= 300 and k:  # a neighbour just ahead, straight in the way: stalls, and detours
-            q[0] = point + rng.uniform(0.1, 0.12) * (u_hat + rng.normal(0, 0.05, dims)) / np.linalg.norm(u_hat)
-        age = rng.choice([0.0, 0.0, 0.0, 0.0, 0.1, 0.4, 1.0], size=k)
-        if case >= 300:
-            age[:] = 0.0
-        centres = point + rng.uniform(-0.6, 0.6, size=(m, dims))
-        radii = rng.uniform(0, 0.2, size=m)
-        got, done = sf.filter_one(s, tuple(point), tuple(u_hat), [(tuple(x), float(a)) for x, a in zip(q, age)],
-                                  [(*c, r) for c, r in zip(centres.tolist(), radii.tolist())])
-        want = sf.apply(u_hat[None], sf.rows(s, 1, np.zeros(k, np.intp), point - q, age, np.zeros(m, np.intp),
-                                             point - centres, radii))
-        np.testing.assert_allclose(got, want.command[0], atol=1e-12)
-        assert (done is not None and done.acted) == bool(want.acted[0])
-        assert (done is not None and done.braked) == bool(want.braked[0])
-        assert (done is not None and done.stalled) == bool(want.stalled[0])
-        acted += bool(want.acted[0])
-        braked += bool(want.braked[0])
-        straight = sf.apply(u_hat[None], sf.rows(s, 1, np.zeros(k, np.intp), point - q, age, np.zeros(m, np.intp),
-                                                 point - centres, radii), detour=False)
-        detours += not np.allclose(straight.command, want.command)
-    assert acted > 50 and braked > 5 and detours > 10, (acted, braked, detours)
-
-
 def test_the_batched_simulator_filters_each_run_as_the_reference_does_alone():
     """One implementation: a batch mixing filtered, unfiltered and filtered-under-faults runs; each run
     is the run simulate() makes alone (1e-9 at every step), with the same interventions. The paper's
     law crushes goal-near-obstacle's 8 agents into collisions; the filter leaves none."""
-    from zswarm.model.faults import FaultModel
+    from zswarm.swarm.faults import FaultModel
     from zswarm.sim.batch import Member, simulate_batch
     from zswarm.sim.simulator import simulate
 
@@ -215,8 +181,8 @@ def test_the_batched_simulator_filters_each_run_as_the_reference_does_alone():
 
 
 def test_the_design_report_says_what_the_filter_guarantees():
-    from zswarm.model.design import check
-    from zswarm.model.design_text import render
+    from zswarm.design.guidelines import check
+    from zswarm.design.text import render
 
     point = check(get_scenario("moving-prey").params, swarm=False, dt=0.05)
     assert point.safety["holds"] and point.safety["max_age"] == pytest.approx((1.0 - 0.1 * (1 + sf.HAIR)) / 1.0)
@@ -324,7 +290,7 @@ def test_under_a_common_delay_a_quiet_neighbour_deep_inside_stays_guarded_in_age
     import time
 
     from agents.sensing import Body, Sensing
-    from zswarm.model.faults import FaultModel
+    from zswarm.swarm.faults import FaultModel
     from zswarm.net import messages as msg
     from zswarm.net.runspec import RunSpec
     from zswarm.sim.batch_channel import BatchChannel
@@ -402,7 +368,7 @@ def test_a_quiet_neighbour_whose_member_token_is_in_the_cells_is_guarded_whateve
     import time
 
     from agents.sensing import Body, Sensing
-    from zswarm.model.faults import FaultModel
+    from zswarm.swarm.faults import FaultModel
     from zswarm.net import messages as msg
     from zswarm.net.runspec import RunSpec
     from zswarm.sim.batch_channel import BatchChannel
@@ -484,7 +450,7 @@ def test_a_quiet_neighbour_whose_poses_came_through_a_slower_path_is_given_that_
     assert aged(got[(-0.9, 0.0)], 5.05, took)  # guarded with its whole age
 
     # the simulators let them go by the same rule, in steps (their tokens far outside the cells)
-    from zswarm.model.faults import FaultModel
+    from zswarm.swarm.faults import FaultModel
     from zswarm.sim.batch_channel import BatchChannel
 
     channel, k = BatchChannel(6, [FaultModel()], 0.05, np.array([1.0]), np.array([1.0])), 200

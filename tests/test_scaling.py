@@ -1,4 +1,4 @@
-"""Registered scenarios grown to N agents: the rule of zswarm.model.scaling, and a set that passes."""
+"""Registered scenarios grown to N agents: the rule of zswarm.swarm.scaling, and a set that passes."""
 
 from __future__ import annotations
 
@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from zswarm.errors import UsageError
-from zswarm.model.design import check
-from zswarm.model.scaling import PAPER_MAX_N, start_distance
-from zswarm.model.scenarios import PASSAGE, SCENARIOS, get_scenario
+from zswarm.design.guidelines import check
+from zswarm.swarm.scaling import PAPER_MAX_N, start_distance
+from zswarm.swarm.scenarios import PASSAGE, SCENARIOS, get_scenario
 
 
 def _area(box):

@@ -7,9 +7,9 @@ import pytest
 from swarm_procs import map_agents, scalar_series
 
 from zswarm.args import UsageError
-from zswarm.model.law import sense_one
-from zswarm.model.prey import step
-from zswarm.model.scenarios import SCENARIOS, get_scenario, load_scenario_file
+from zswarm.paper.field import sense_one
+from zswarm.swarm.prey import step
+from zswarm.swarm.scenarios import SCENARIOS, get_scenario, load_scenario_file
 from zswarm.sim.simulator import Simulator, simulate
 
 
@@ -61,9 +61,8 @@ def test_vectorized_step_equals_each_agent_deciding_alone():
     scenario = get_scenario("static-goal", {"sensing_radius": 1.5})
     sim = Simulator(scenario, 3)
     for _ in range(40):
-        _, v = sim.potential_and_velocity(sim.positions, sim.prey)
-        sim.advance(v)
-    _, v = sim.potential_and_velocity(sim.positions, sim.prey)
+        sim.advance(sim.command())
+    v = sim.command().command[0]
     centers, radii = scenario.obstacle_arrays()
     p = scenario.params.swarm
     for k, pos in enumerate(sim.positions):

@@ -11,14 +11,14 @@ import pytest
 
 from conftest import run_cli
 from zswarm.errors import UsageError
-from zswarm.model.design import check
-from zswarm.model.design_swarm import packing_bound
-from zswarm.model.faults import FaultModel
-from zswarm.model.neighbours import pairs_within
-from zswarm.model.params import DEFAULT_PARAMS
-from zswarm.model.law import field
-from zswarm.model.prey import PreyMotion, step
-from zswarm.model.scenarios import get_scenario
+from zswarm.design.guidelines import check
+from zswarm.design.swarm_checks import packing_bound
+from zswarm.swarm.faults import FaultModel
+from zswarm.paper.neighbours import pairs_within
+from zswarm.paper.params import DEFAULT_PARAMS
+from zswarm.paper.field import field
+from zswarm.swarm.prey import PreyMotion, step
+from zswarm.swarm.scenarios import get_scenario
 from zswarm.record.replay import load_run
 from zswarm.sim.batch import Member, simulate_batch
 from zswarm.sim.simulator import simulate
@@ -138,7 +138,7 @@ def test_a_3d_scenario_file_reads_and_runs(tmp_path):
                  'duration = 12.0\n[params]\nn_agents = 6\nsensing_radius = 1.2\n'
                  '[prey]\nkind = "straight"\nspeed = 0.1\nheading_deg = 90.0\nclimb_deg = 30.0\n'
                  '[[obstacles]]\nx = 0.0\ny = 0.0\nz = 1.2\nradius = 0.3\n')
-    from zswarm.model.scenarios import load_scenario_file
+    from zswarm.swarm.scenarios import load_scenario_file
 
     scenario = load_scenario_file(f)
     assert scenario.dimensions == 3 and scenario.obstacle_arrays()[0].tolist() == [[0.0, 0.0, 1.2]]

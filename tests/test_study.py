@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import json
 
-from zswarm.model.design import check
-from zswarm.model.params import Params
-from zswarm.model.scenarios import get_scenario
+from zswarm.design.guidelines import check
+from zswarm.paper.params import Params
+from zswarm.swarm.scenarios import get_scenario
 from zswarm.sim.outcome import run_outcome
 from zswarm.sim.simulator import simulate
 

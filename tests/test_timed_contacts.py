@@ -1,4 +1,4 @@
-"""Collisions judged at one instant (zswarm.model.timed_contacts): the free clock's judge counts two
+"""Collisions judged at one instant (zswarm.swarm.timed_contacts): the free clock's judge counts two
 agents only where they were closer than 2 d^r at the same time, on the senders' clock."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from zswarm.model.timed_contacts import TimedContacts, judge_tracks
+from zswarm.swarm.timed_contacts import TimedContacts, judge_tracks
 
 D = 0.2  # the collision distance 2 d^r
 

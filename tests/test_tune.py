@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 
 from conftest import ROOT, run_cli
-from zswarm.model.design import check
-from zswarm.model.scenarios import get_scenario
+from zswarm.design.guidelines import check
+from zswarm.swarm.scenarios import get_scenario
 from zswarm.tune.history import History
 from zswarm.tune.objective import Task
 from zswarm.tune.search import Settings, search
@@ -145,7 +145,7 @@ def test_finalists_are_the_best_distinct_qualified_candidates():
 @pytest.mark.parametrize("order", ["file first", "set first"])
 def test_set_wins_over_a_params_file_in_either_order(tmp_path, order):
     from zswarm.cli.main import build_parser
-    from zswarm.model.params import DEFAULT_PARAMS
+    from zswarm.paper.params import DEFAULT_PARAMS
 
     f = tmp_path / "p.toml"
     f.write_text("[params]\nc_o = 4.0\nl_a = 2.0\n")

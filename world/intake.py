@@ -1,6 +1,6 @@
 """How the world takes poses in, and hands them to an observed step as arrays.
 
-Every pose it accepts also goes into the free clock's judge (:mod:`zswarm.model.timed_contacts`).
+Every pose it accepts also goes into the free clock's judge (:mod:`zswarm.swarm.timed_contacts`).
 Two ways in, one set of rules (:mod:`zswarm.net.poses`):
 
 - one at a time (lockstep, and a free clock below :data:`BATCH_FROM` agents): each decoded pose into
@@ -16,7 +16,7 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
-from zswarm.model.timed_contacts import TimedContacts
+from zswarm.swarm.timed_contacts import TimedContacts
 from zswarm.net import messages as msg
 from zswarm.net.pose_batch import ACCEPTED, REASON, PoseArrays
 from zswarm.net.poses import PoseTable, Rejections, vouched_by

@@ -62,7 +62,7 @@ def build_parser() -> Parser:
 
 
 def design_verdict(text: str) -> dict:
-    """``--design``: a verdict as :func:`zswarm.model.design.verdict` gives it, in JSON."""
+    """``--design``: a verdict as :func:`zswarm.design.guidelines.verdict` gives it, in JSON."""
     try:
         given = json.loads(text)
     except ValueError:

@@ -17,7 +17,7 @@ import numpy as np
 
 from zswarm.errors import UsageError
 from zswarm.files import write_json
-from zswarm.model.observer import SwarmObserver
+from zswarm.swarm.observer import SwarmObserver
 
 TRAIL = 400  # prey positions drawn behind it
 GRAPH_MAX_AGENTS = 100  # the sensing graph is drawn by default up to this N

@@ -2,7 +2,7 @@
 
 It answers obstacle queries with only the obstacles within the asked radius
 (:class:`~world.obstacles.ObstacleService`), moves and publishes the prey, and subscribes to every
-pose only to measure and record: the observer of :mod:`zswarm.model.observer` (the simulator's and
+pose only to measure and record: the observer of :mod:`zswarm.swarm.observer` (the simulator's and
 replay's too), the :class:`~world.recorder.WorldRecorder`, and a summary JSON at the end.
 
 Clocks:
@@ -29,10 +29,10 @@ from world.obstacles import ObstacleService
 from world.recorder import Resumed, WorldRecorder
 from world.report import StatsBook, transport_summary
 from zswarm.laws.registry import bind
-from zswarm.model.design import verdict
-from zswarm.model import prey as prey_motion
-from zswarm.model.observer import SwarmObserver
-from zswarm.model.timed_contacts import TimedContacts
+from zswarm.design.guidelines import verdict
+from zswarm.swarm import prey as prey_motion
+from zswarm.swarm.observer import SwarmObserver
+from zswarm.swarm.timed_contacts import TimedContacts
 from zswarm.net import histogram
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Bridge, Inbound
@@ -288,7 +288,7 @@ class World:
         return metrics
 
     def judge_contacts(self, every: float = 0.25, force: bool = False) -> None:
-        """Free clock: judge the instants every agent's poses are in (:mod:`zswarm.model.timed_contacts`),
+        """Free clock: judge the instants every agent's poses are in (:mod:`zswarm.swarm.timed_contacts`),
         every ``every`` seconds (each call walks every instant since the last, so calling less often
         loses nothing; a call costs about 3.5 ms at N = 1000); each collision found there is an event of
         the recording."""

@@ -28,18 +28,18 @@ from typing import TYPE_CHECKING, Any
 __version__ = "0.1.0"
 
 if TYPE_CHECKING:
-    from zswarm.model.scenarios import Scenario
+    from zswarm.swarm.scenarios import Scenario
 
 _LAZY = {
-    "check": ("zswarm.model.design", "check"),
-    "DesignReport": ("zswarm.model.design", "DesignReport"),
-    "Params": ("zswarm.model.params", "Params"),
-    "DEFAULT_PARAMS": ("zswarm.model.params", "DEFAULT_PARAMS"),
-    "PAPER_PARAMS": ("zswarm.model.params", "PAPER_PARAMS"),
-    "Scenario": ("zswarm.model.scenarios", "Scenario"),
-    "SCENARIOS": ("zswarm.model.scenarios", "SCENARIOS"),
-    "FaultModel": ("zswarm.model.faults", "FaultModel"),
-    "SwarmObserver": ("zswarm.model.observer", "SwarmObserver"),
+    "check": ("zswarm.design.guidelines", "check"),
+    "DesignReport": ("zswarm.design.guidelines", "DesignReport"),
+    "Params": ("zswarm.paper.params", "Params"),
+    "DEFAULT_PARAMS": ("zswarm.paper.params", "DEFAULT_PARAMS"),
+    "PAPER_PARAMS": ("zswarm.paper.params", "PAPER_PARAMS"),
+    "Scenario": ("zswarm.swarm.scenarios", "Scenario"),
+    "SCENARIOS": ("zswarm.swarm.scenarios", "SCENARIOS"),
+    "FaultModel": ("zswarm.swarm.faults", "FaultModel"),
+    "SwarmObserver": ("zswarm.swarm.observer", "SwarmObserver"),
     "simulate": ("zswarm.sim.simulator", "simulate"),
     "Simulator": ("zswarm.sim.simulator", "Simulator"),
     "read_recording": ("zswarm.record.replay", "load_run"),
@@ -56,7 +56,7 @@ def load_scenario(name: str, law: Any = None, law_params: dict[str, float] | Non
     """A registered scenario (``zswarm.SCENARIOS``) or a ``.toml`` file, with parameter overrides and
     the law its agents run: a name (``zswarm.laws()``), or a function or ``SwarmLaw`` class defined
     in the notebook (registered under ``module:name`` so every consumer finds it by name)."""
-    from zswarm.model.scenarios import get_scenario
+    from zswarm.swarm.scenarios import get_scenario
 
     if law is not None:
         overrides["law"] = law if isinstance(law, str) else f"{law.__module__}:{law.__qualname__}"

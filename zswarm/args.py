@@ -44,7 +44,7 @@ def run_main(fn: Callable[[Sequence[str] | None], int], argv: Sequence[str] | No
 
 def add_param_args(parser: argparse.ArgumentParser) -> None:
     """``--params FILE.toml`` and ``--set NAME=VALUE`` (repeatable) for any field of
-    :mod:`zswarm.model.params`; ``--set`` wins over the file, whatever their order."""
+    :mod:`zswarm.paper.params`; ``--set`` wins over the file, whatever their order."""
     parser.add_argument("--set", dest="assignments", action="append", default=[], metavar="NAME=VALUE",
                         help="override a parameter (repeatable), e.g. --set c_o=3 --set l_a=1/2")
     parser.add_argument("--params", dest="assignments", action=ParamsFile, metavar="FILE.toml",

@@ -22,7 +22,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from zswarm.model.params import FIELDS, ParamError, Params
+from zswarm.paper.params import FIELDS, ParamError, Params
 
 INTERACTIONS = ("paper", "mean", "gate", "nearest", "cutoff", "mean+gate", "mean+gate+cutoff", "mean+nearest")
 POTENTIAL = [name for name, spec in FIELDS.items() if spec.group == "potential"]
@@ -32,7 +32,7 @@ POTENTIAL = [name for name, spec in FIELDS.items() if spec.group == "potential"]
 def sample_set(rng: np.random.Generator, base: Params, spread: float) -> Params:
     """One random set around ``base``; drawn again until it is a valid parameter set that its interaction
     can use (the gate needs a pair spacing)."""
-    from zswarm.model.neighbour_law import neighbour_law
+    from zswarm.paper.neighbour_law import neighbour_law
 
     while True:
         change: dict[str, Any] = {n: float(base.flat()[n]) * math.exp(rng.uniform(-1, 1) * math.log(spread))
@@ -58,8 +58,8 @@ class Case:
 
 def judge_and_run(task: tuple[Case, int]) -> dict[str, Any]:
     """One set: its design verdict, and its runs on seeds 0..seeds-1 (in a worker process)."""
-    from zswarm.model.design import check
-    from zswarm.model.scenarios import get_scenario
+    from zswarm.design.guidelines import check
+    from zswarm.swarm.scenarios import get_scenario
     from zswarm.sim.outcome import run_outcome
 
     case, seeds = task
@@ -76,7 +76,7 @@ def judge_and_run(task: tuple[Case, int]) -> dict[str, Any]:
 
 def cases(scenarios: list[str], agents: list[int], sets: int, spread: float, seed: int) -> list[Case]:
     """For each scenario and N: its own set, the same with the paper's interaction, ``sets`` random ones."""
-    from zswarm.model.scenarios import get_scenario
+    from zswarm.swarm.scenarios import get_scenario
 
     rng = np.random.default_rng(seed)
     out = []

@@ -32,8 +32,8 @@ class Case:
 
 def run_case(case: Case) -> dict[str, Any]:
     """One run of the reference simulator: the figures a row sums up."""
-    from zswarm.model.faults import FaultModel
-    from zswarm.model.scenarios import get_scenario
+    from zswarm.swarm.faults import FaultModel
+    from zswarm.swarm.scenarios import get_scenario
     from zswarm.sim.simulator import simulate
 
     overrides = {**dict(case.extra), "law": case.law, **({"n_agents": case.agents} if case.agents else {})}

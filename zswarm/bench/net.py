@@ -20,7 +20,7 @@ from typing import Any
 
 from zswarm.bench.measure import CpuWindow, pss_mb, rss_mb
 from zswarm.launch.world_watch import wait_for_start
-from zswarm.model.faults import FaultModel
+from zswarm.swarm.faults import FaultModel
 from zswarm.host.local import LocalHost
 from zswarm.host.procs import Child, Children, agent_argv
 from zswarm.net.runspec import RunSpec

@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from zswarm.model.safety import HAIR
+from zswarm.control.safety import HAIR, Filtered, judged
 
 TIME_HORIZON = 2.0  # s: RVO2's examples use 10 at speed 2; this swarm is dense, so a shorter horizon
 SIDES = 32
@@ -64,3 +64,8 @@ class Orca:
             v = self.sim.get_agent_velocity(i)
             out[i] = v.to_tuple() if hasattr(v, "to_tuple") else tuple(v)
         return out
+
+    def __call__(self, wanted: np.ndarray, obs, guard, state) -> Filtered:
+        """ORCA in the safety filter's place (:data:`zswarm.control.step.Filter`): one swarm, (1, N, D)."""
+        v = self.command(state.position[0], state.velocity[0], wanted[0])
+        return judged(wanted[0], v, np.zeros(len(v), dtype=bool))

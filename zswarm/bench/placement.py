@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from zswarm.launch.placement import PLACEMENTS, place, replace
-from zswarm.model.scenarios import get_scenario
+from zswarm.swarm.scenarios import get_scenario
 from zswarm.net.keys import in_reach
 
 

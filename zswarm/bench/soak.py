@@ -30,7 +30,7 @@ import numpy as np
 
 from zswarm.bench.measure import rss_mb
 from zswarm.bench.net import field_spec, start_field
-from zswarm.model.faults import FaultModel
+from zswarm.swarm.faults import FaultModel
 from zswarm.host.procs import Children
 
 FLAT_MB_PER_MIN = 1.0

@@ -15,8 +15,8 @@ import json
 import time
 
 from zswarm.errors import UsageError
-from zswarm.model.faults import FaultModel, parse_duration
-from zswarm.model.scenarios import get_scenario
+from zswarm.swarm.faults import FaultModel, parse_duration
+from zswarm.swarm.scenarios import get_scenario
 from zswarm.provenance import machine
 
 
@@ -51,8 +51,7 @@ def run_bench_batch(args: argparse.Namespace) -> int:
     for m in batch:
         sim = Simulator(m.scenario, m.seed, faults=m.faults)
         for _ in range(steps + 1):
-            _, v = sim.potential_and_velocity(sim.positions, sim.prey)
-            sim.advance(v)
+            sim.advance(sim.command())
     t_bare = time.perf_counter() - start
     worst = max(abs(o.final_centroid_goal_distance - s["final_centroid_goal_distance"])
                 for o, s in zip(together, alone))

@@ -1,9 +1,9 @@
 """``zswarm bench bodies``: what each body costs on the registered scenarios.
 
-Each scenario's own set, with only the body changed (:mod:`zswarm.model.body`), run on seeds 0..K-1 in
+Each scenario's own set, with only the body changed (:mod:`zswarm.control.body`), run on seeds 0..K-1 in
 the reference simulator: collisions, the closest two agents and an agent and an obstacle came, runs
 that reached the goal or prey and the median time they took, against the point body (the paper's).
-It also prints each set's body check (:mod:`zswarm.model.design_body`) beside what happened.
+It also prints each set's body check (:mod:`zswarm.design.bodies`) beside what happened.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _run(task: tuple[str, str, int, dict[str, Any]]) -> dict[str, Any]:
-    from zswarm.model.scenarios import get_scenario
+    from zswarm.swarm.scenarios import get_scenario
     from zswarm.sim.outcome import run_outcome
 
     name, body, seed, extra = task
@@ -40,9 +40,9 @@ def _run(task: tuple[str, str, int, dict[str, Any]]) -> dict[str, Any]:
 def run(args: argparse.Namespace) -> int:
     from multiprocessing import get_context
 
-    from zswarm.model.design import check
-    from zswarm.model.params import parse_assignments
-    from zswarm.model.scenarios import get_scenario
+    from zswarm.design.guidelines import check
+    from zswarm.paper.params import parse_assignments
+    from zswarm.swarm.scenarios import get_scenario
     from zswarm.provenance import machine
 
     extra = parse_assignments(args.assignments)

@@ -40,7 +40,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from zswarm.model.scenarios import SCENARIOS
+    from zswarm.swarm.scenarios import SCENARIOS
     from zswarm.provenance import machine, versions
 
     for name in args.scenarios:

@@ -46,7 +46,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def _run(task: tuple[str, int, str, int, dict[str, Any], float]) -> dict[str, Any]:
     import dataclasses
 
-    from zswarm.model.scenarios import get_scenario
+    from zswarm.swarm.scenarios import get_scenario
     from zswarm.sim.outcome import run_outcome
 
     name, n, interaction, seed, extra, factor = task
@@ -73,8 +73,8 @@ def summarize(runs: list[dict[str, Any]]) -> dict[str, Any]:
 def run(args: argparse.Namespace) -> int:
     from multiprocessing import get_context
 
-    from zswarm.model.params import parse_assignments
-    from zswarm.model.scenarios import get_scenario
+    from zswarm.paper.params import parse_assignments
+    from zswarm.swarm.scenarios import get_scenario
     from zswarm.provenance import machine
 
     extra = parse_assignments(args.assignments)

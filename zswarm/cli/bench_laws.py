@@ -34,10 +34,10 @@ def run(args: argparse.Namespace) -> int:
     from zswarm.bench.laws import Case, row, run_case, table
     from zswarm.files import check_writable
     from zswarm.laws.registry import bind, known
-    from zswarm.model.faults import FaultModel, parse_duration_list
-    from zswarm.model.params import parse_assignments
-    from zswarm.model.safety import parse_mode
-    from zswarm.model.scenarios import get_scenario
+    from zswarm.swarm.faults import FaultModel, parse_duration_list
+    from zswarm.paper.params import parse_assignments
+    from zswarm.control.safety import parse_mode
+    from zswarm.swarm.scenarios import get_scenario
     from zswarm.provenance import machine
 
     extra = parse_assignments(args.assignments)

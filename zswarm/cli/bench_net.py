@@ -49,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
     if args.record is not None:
         check_writable(args.record, (".rrd",))
     from zswarm.laws.registry import bind
-    from zswarm.model.scenarios import get_scenario
+    from zswarm.swarm.scenarios import get_scenario
 
     bind(get_scenario("bench-field", {"law": args.law}))  # a law that does not load: refused here, in one line
     results = [measure(n, args.duration, args.floor, args.routers, args.repeat, args.safety, args.law)

@@ -30,7 +30,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _run(task: tuple[str, str, int, dict[str, Any]]) -> dict[str, Any]:
-    from zswarm.model.scenarios import get_scenario
+    from zswarm.swarm.scenarios import get_scenario
     from zswarm.sim.outcome import run_outcome
 
     name, mode, seed, extra = task
@@ -40,7 +40,7 @@ def _run(task: tuple[str, str, int, dict[str, Any]]) -> dict[str, Any]:
         from zswarm.bench.orca import Orca
 
         orca = Orca(scenario.n_agents, scenario.params, scenario.dt, *scenario.obstacle_arrays())
-        out = run_outcome(scenario, seed, shield=lambda sim, v: orca.command(sim.positions, sim.state.velocity, v))
+        out = run_outcome(scenario, seed, shield=orca)
     else:
         out = run_outcome(scenario, seed, safety=mode)
     return {"scenario": name, "mode": mode, "seed": seed, "seconds": time.time() - start, **out.to_dict()}
@@ -50,8 +50,8 @@ def run(args: argparse.Namespace) -> int:
     from multiprocessing import get_context
 
     from zswarm.bench.orca import available
-    from zswarm.model.params import parse_assignments
-    from zswarm.model.scenarios import get_scenario
+    from zswarm.paper.params import parse_assignments
+    from zswarm.swarm.scenarios import get_scenario
     from zswarm.provenance import machine
 
     bad = [m for m in args.modes if m not in MODES]

@@ -33,7 +33,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from zswarm.bench.world_load import measure
-    from zswarm.model.scenarios import get_scenario
+    from zswarm.swarm.scenarios import get_scenario
     from zswarm.provenance import machine
 
     get_scenario(args.scenario)  # an unknown scenario: one line, before anything starts

@@ -9,10 +9,10 @@ from pathlib import Path
 from typing import Any
 
 from zswarm.args import UsageError, add_law_arg, add_param_args
-from zswarm.model.design import check, no_guidelines
-from zswarm.model.design_text import render
-from zswarm.model.nearest import Found, nearest_passing
-from zswarm.model.params import DEFAULT_PARAMS, PAPER_PARAMS, Params, parse_assignments
+from zswarm.design.guidelines import check, no_guidelines
+from zswarm.design.text import render
+from zswarm.design.nearest import Found, nearest_passing
+from zswarm.paper.params import DEFAULT_PARAMS, PAPER_PARAMS, Params, parse_assignments
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -42,7 +42,7 @@ def judged(args: argparse.Namespace) -> tuple[Params, float | None]:
         return base.with_overrides(args.assignments), None
     if args.paper:
         raise UsageError("--paper and --scenario both choose the set to start from; give one")
-    from zswarm.model.scenarios import get_scenario
+    from zswarm.swarm.scenarios import get_scenario
 
     scenario = get_scenario(args.scenario, parse_assignments(args.assignments))
     return scenario.params, scenario.dt

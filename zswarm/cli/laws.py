@@ -23,8 +23,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from zswarm.laws.registry import bind, describe, known
-    from zswarm.model.params import parse_assignments
-    from zswarm.model.scenarios import get_scenario
+    from zswarm.paper.params import parse_assignments
+    from zswarm.swarm.scenarios import get_scenario
 
     sets = parse_assignments(args.assignments)
     names = [sets["law"]] if "law" in sets else known()

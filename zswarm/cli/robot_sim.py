@@ -35,8 +35,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from zswarm.model.params import parse_assignments
-    from zswarm.model.scenarios import get_scenario
+    from zswarm.paper.params import parse_assignments
+    from zswarm.swarm.scenarios import get_scenario
     from zswarm.net.config import config_from_args, open_session
     from zswarm.ros import robot_sim
     from zswarm.ros.robots import load_robots

@@ -9,9 +9,9 @@ import time
 from pathlib import Path
 
 from zswarm.args import add_law_arg, add_param_args, positive_int, positive_seconds, seed_arg
-from zswarm.model.params import parse_assignments
-from zswarm.model.potentials import COMBINATIONS
-from zswarm.model.scenarios import SCENARIOS, get_scenario
+from zswarm.paper.params import parse_assignments
+from zswarm.paper.potentials import COMBINATIONS
+from zswarm.swarm.scenarios import SCENARIOS, get_scenario
 
 
 def add_sim_arguments(parser: argparse.ArgumentParser) -> None:
@@ -52,7 +52,7 @@ def run_sim(args: argparse.Namespace) -> int:
 
     from zswarm.args import UsageError
     from zswarm.laws.registry import bind
-    from zswarm.model.design import judged
+    from zswarm.design.guidelines import judged
 
     if args.record is not None and args.record.is_file() and not args.force:
         raise UsageError(f"{args.record} exists; give another path or --force")
@@ -111,8 +111,7 @@ def run_bench_sim(args: argparse.Namespace) -> int:
         sim = Simulator(scenario, seed=0)
         start = time.perf_counter()
         for _ in range(steps):
-            _, v = sim.potential_and_velocity(sim.positions, sim.prey)
-            sim.advance(v)
+            sim.advance(sim.command())
         seconds = time.perf_counter() - start
         runs.append({"n_agents": n, "steps": steps, "seconds": seconds, "steps_per_second": steps / seconds})
         if not args.json:

@@ -19,7 +19,7 @@ from typing import Sequence
 from zswarm.args import Parser, UsageError, add_law_arg, add_param_args, positive_seconds, seed_arg
 from zswarm.files import out_dir, write_json
 from zswarm.launch.sweep import Cell, aggregate, cell_spec, run_cell_distributed, simulate_cell, write_curves, write_tables
-from zswarm.model.faults import FaultModel, parse_duration_list
+from zswarm.swarm.faults import FaultModel, parse_duration_list
 
 def build_parser(prog: str = "zswarm sweep") -> Parser:
     p = Parser(prog=prog, description="Sweep latency x dropout, distributed and simulated.")
@@ -47,7 +47,7 @@ def build_parser(prog: str = "zswarm sweep") -> Parser:
 
 
 def parse_lists(args: argparse.Namespace) -> tuple[list[float], list[float], list[str]]:
-    from zswarm.model.safety import parse_mode
+    from zswarm.control.safety import parse_mode
 
     try:
         modes = list(dict.fromkeys(parse_mode(m) for m in args.safety.split(",") if m.strip()))
@@ -66,16 +66,16 @@ def parse_lists(args: argparse.Namespace) -> tuple[list[float], list[float], lis
 def main(argv: Sequence[str] | None, prog: str = "zswarm sweep") -> int:
     args = build_parser(prog).parse_args(argv)
     lat, drop, modes = parse_lists(args)
-    from zswarm.model.faults import parse_duration
+    from zswarm.swarm.faults import parse_duration
 
     try:
         jitter = parse_duration(args.jitter)
     except ValueError as exc:
         raise UsageError(str(exc)) from None
-    from zswarm.model.scenarios import get_scenario
+    from zswarm.swarm.scenarios import get_scenario
 
     from zswarm.laws.registry import bind
-    from zswarm.model.params import parse_assignments
+    from zswarm.paper.params import parse_assignments
 
     args.overrides = {**parse_assignments(args.assignments), **({"n_agents": args.agents} if args.agents is not None else {})}
     bind(get_scenario(args.scenario, args.overrides))  # a bad scenario, parameter or law stops here

@@ -17,9 +17,9 @@ from pathlib import Path
 from zswarm.args import add_law_arg, add_param_args, non_negative, positive_float, positive_int, positive_seconds, seed_arg
 from zswarm.errors import UsageError
 from zswarm.files import write_json
-from zswarm.model.params import parse_assignments
-from zswarm.model.potentials import COMBINATIONS
-from zswarm.model.scenarios import SCENARIOS, get_scenario
+from zswarm.paper.params import parse_assignments
+from zswarm.paper.potentials import COMBINATIONS
+from zswarm.swarm.scenarios import SCENARIOS, get_scenario
 from zswarm.tune.feasibility import CHECKS
 from zswarm.tune.pipeline import HOLDOUT_OFFSET, VALIDATION_OFFSET, Plan
 from zswarm.tune.space import TUNABLE
@@ -110,7 +110,7 @@ def _plan(args: argparse.Namespace):
 def run(args: argparse.Namespace) -> int:
     from zswarm.cli.tune_confirm import confirm
     from zswarm.cli.tune_print import Bar, print_failure, print_result
-    from zswarm.model.design_text import render
+    from zswarm.design.text import render
     from zswarm.tune.pipeline import choose, finish, no_set, search_phase
 
     plan, space, task, faults = _plan(args)

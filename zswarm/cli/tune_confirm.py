@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from zswarm.model.params import Params
+from zswarm.paper.params import Params
 from zswarm.tune.compare import aggregate
 from zswarm.tune.space import TUNABLE
 

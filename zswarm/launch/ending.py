@@ -38,13 +38,13 @@ def finish_recording(plan: Plan, world_code: int, started_at: float, routing: di
 
 def add_tracks(plan: Plan, say: Callable[..., None]) -> None:
     """``--tracks``: the collisions judged at one instant from what every agent sent
-    (:func:`zswarm.model.timed_contacts.judge_tracks`), into the summary as ``tracks``, and said."""
+    (:func:`zswarm.swarm.timed_contacts.judge_tracks`), into the summary as ``tracks``, and said."""
     import json
 
     import numpy as np
 
     from zswarm.files import write_json
-    from zswarm.model.timed_contacts import judge_tracks
+    from zswarm.swarm.timed_contacts import judge_tracks
 
     files = sorted(plan.tracks.glob("agent-*.npy"))
     tracks = [(int(f.name.split("-")[1]), np.load(f)) for f in files]

@@ -20,8 +20,8 @@ from typing import TYPE_CHECKING, Sequence
 from zswarm.laws.registry import bind
 from zswarm.errors import UsageError
 from zswarm.files import check_run_files
-from zswarm.model.params import parse_assignments
-from zswarm.model.scenarios import get_scenario
+from zswarm.paper.params import parse_assignments
+from zswarm.swarm.scenarios import get_scenario
 from zswarm.net.config import endpoint_host_port
 from zswarm.net.runspec import RunSpec, spec_from_args
 from zswarm.record.live import Viewer, viewer_from_args
@@ -340,7 +340,7 @@ def judge_design(spec: RunSpec, required: bool) -> dict:
     """The design verdict of the set the run will use; one line when it fails, or when the law has no
     guidelines (then whether the filter is on), or (with ``required``) a usage error before anything
     starts."""
-    from zswarm.model.design import judged
+    from zswarm.design.guidelines import judged
 
     result, line = judged(spec.scenario.params, spec.scenario.dt, design_command(spec), required)
     if line is not None:

@@ -328,7 +328,7 @@ class Launch:
             if (code not in (None, 0) and c.name.startswith("agent") and c.name not in self.crashed
                     and c.name not in self.expected_exits):
                 self.crashed.add(c.name)
-                why = " (its law failed: the traceback is above)" if code == EXIT_LAW_FAILED else ""
+                why = " (its law failed: the line above says why)" if code == EXIT_LAW_FAILED else ""
                 _say(f"{c.name} exited with code {code}{why}; the others carry on")
 
     def _stage(self, event: Event, t: float) -> None:

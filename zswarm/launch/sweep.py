@@ -20,7 +20,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from zswarm.launch.run_once import run_once
-from zswarm.model.faults import FaultModel
+from zswarm.swarm.faults import FaultModel
 from zswarm.net.runspec import RunSpec
 
 OUTCOMES = ("capture_time", "collisions", "min_obstacle_clearance", "max_components", "final_components",

@@ -1,49 +1,95 @@
 """``apf``: the paper's law (Kim, Wang & Shin 2006, eqs 5-15, 25-28, 35-36) behind the law contract,
-with every interaction of :mod:`zswarm.model.interaction`. Its parameters are the scenario's own (the
-potential, the interaction, the combination, ``--set c_o=...``); it has no ``[law]`` table.
+with every interaction of :mod:`zswarm.paper.interaction`. Its parameters are the scenario's own (the
+potential, the interaction, the combination, ``--set c_o=...``); it has no ``[law]`` table, and the
+paper's design guidelines (``zswarm design``) hold for it.
 
-The batched form is :func:`zswarm.model.law.field` on dense blocks; the single form is the same law in
-plain floats in 2-D (:mod:`zswarm.model.agent_law`, ten times cheaper at one agent's size) and
-:meth:`zswarm.model.law.Law.velocity` in 3-D. Both keep what lies within the sensing radius (neighbours
-by their sensed position, obstacles by their nearest boundary point), as the paper's agent senses it;
-``tests/test_law_conformance.py`` holds the two forms equal.
+    v_i = sat(F_i, v_max),   F_i = -grad_i U_i                                       (eq 5, eq 36)
+
+The batched form is the one law, :func:`zswarm.paper.field.field`, on dense blocks; runs with other
+potentials step in the same call, each run's parameters as columns (:meth:`Apf.merge`). The single form
+in 2-D is the same arithmetic in plain floats, term by term and in the same order, written for the
+handful of obstacles and neighbours one agent senses (at that size numpy's per-call cost would be most of
+the work: 0.1 ms against 0.01 ms); in 3-D it is the field on one row. Both keep what lies within the
+sensing radius (neighbours by their sensed position, obstacles by their nearest boundary point), as the
+paper's agent senses it; ``tests/test_law_conformance.py`` holds the two forms equal for every
+interaction and combination.
+
+- goal (eqs 7-8): U^g = c_g (1 - e^{-|psi_g|^2/l_g^2}), F^g = -2 c_g/l_g^2 e^{...} psi_g;
+- obstacles (eqs 9-11, circles through their nearest boundary point): U^o = sum c_o e^{-|psi_o|^2/l_o^2},
+  F^o = sum 2/l_o^2 c_o e^{...} psi_o;
+- combination: additive (eqs 12-13) F = F^o + F^g; multiplicative (eqs 14-15)
+  F = (U^g/c_g) F^o + (1 + U^o/c_g) F^g;
+- formation (eqs 26-28): F^f = -sum g(|psi_f|^2) psi_f, or an interaction of
+  :func:`zswarm.paper.neighbour_law.neighbour_force` (its goal gate weighs the goal term);
+- swirl (:func:`zswarm.paper.neighbour_law.swirl_force`): kappa (-F^g_y, F^g_x) within rho of the goal.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import math
+from typing import Any, Iterable
+
 import numpy as np
 
+from zswarm.errors import ParamError
 from zswarm.laws.contract import Context, Observation, Observations, SwarmLaw
-from zswarm.model.agent_law import agent_velocity
-from zswarm.model.law import Law, field, sense_one
-from zswarm.model.neighbour_law import DensePairs
-from zswarm.model.potentials import obstacle_offsets, saturate
+from zswarm.paper.field import Law, compile_law, field, sense_one
+from zswarm.paper.interaction import Interaction
+from zswarm.paper.neighbour_law import AHEAD_COS, AHEAD_FULL, CUTOFF_INNER, DensePairs, NeighbourLaw
+from zswarm.paper.params import PotentialParams
+from zswarm.paper.potentials import Combination, obstacle_offsets, saturate
+
+Point = tuple[float, float]
+Circle = tuple[float, float, float]  # centre x, y and radius (0: the paper's point obstacle)
+_POTENTIAL = [f.name for f in dataclasses.fields(PotentialParams)]
 
 
 class Apf(SwarmLaw):
     name = "apf"
     reference = "Kim, Wang & Shin (2006), eqs 5-15, 25-28, 35-36; zswarm design checks it (Propositions 1-5)"
     needs = ("obstacles",)
+    guidelines = True
 
-    def __init__(self, params: Law, context: Context) -> None:
-        """``params``: the scenario's compiled law (:func:`zswarm.model.law.compile_law`)."""
+    def __init__(self, params: Law, context: Context, columns: _Columns | None = None) -> None:
+        """``params``: the scenario's compiled law (:func:`zswarm.paper.field.compile_law`); ``columns``:
+        the parameters of several runs stepped in one call (:meth:`merge`)."""
         super().__init__(params, context)
-        self.law = params
+        self.law, self.columns = params, columns
 
-    def floats(self, position: tuple[float, ...], target: tuple[float, ...], obstacles, neighbours) -> tuple:
-        """The 2-D single form in plain floats: ``obstacles`` (cx, cy, radius), ``neighbours`` (x, y, ...)."""
-        law = self.law
-        return agent_velocity(position[0], position[1], target, obstacles, neighbours, self.context.sensing_radius,
-                              law.p, law.combination, law.formation, law.v_max, law.neighbours)
+    @classmethod
+    def params_from(cls, scenario, settings: dict[str, float | int], combination: Combination | None) -> Law:
+        if settings:
+            raise ParamError(f"apf takes its parameters from the scenario (--set c_o=..., [params]), not law.* "
+                             f"(got law.{next(iter(settings))})")
+        return compile_law(scenario.params, combination or scenario.combination, scenario.formation)
 
-    def command(self, obs: Observation) -> np.ndarray:
+    @classmethod
+    def merge(cls, laws: list[SwarmLaw]) -> list[tuple[list[int], SwarmLaw]]:
+        """Runs whose interaction is the same (its modifiers, and k for ``nearest``) step as one call,
+        every other number a column (a run without formation in the paper's group: no neighbour terms)."""
+        groups: dict[tuple, list[int]] = {}
+        for r, law in enumerate(laws):
+            nb = _neighbours(law.law)
+            groups.setdefault(("paper", 0) if nb is None else (nb.interaction.name, nb.k_nearest), []).append(r)
+        out: list[tuple[list[int], SwarmLaw]] = []
+        for rows in groups.values():
+            first = laws[rows[0]]
+            if len(rows) == 1:
+                out.append((rows, first))
+                continue
+            out.append((rows, cls(first.law, first.context, _Columns([laws[r].law for r in rows],
+                                                                     [laws[r].context for r in rows]))))
+        return out
+
+    def command(self, obs: Observation) -> Any:
         law, radius = self.law, self.context.sensing_radius
         if obs.dims == 2:
-            return np.array(agent_velocity(
+            return _velocity_2d(
                 float(obs.position[0]), float(obs.position[1]), (float(obs.target[0]), float(obs.target[1])),
                 [(float(o.centre[0]), float(o.centre[1]), o.radius) for o in obs.obstacles],
                 [(float(n.position[0]), float(n.position[1])) for n in obs.neighbours],
-                radius, law.p, law.combination, law.formation, obs.v_max, law.neighbours))
+                radius, law.p, law.combination, law.formation, obs.v_max, law.neighbours)
         centres = np.array([o.centre for o in obs.obstacles], dtype=float).reshape(-1, obs.dims)
         radii = np.array([o.radius for o in obs.obstacles], dtype=float)
         others = np.array([n.position for n in obs.neighbours], dtype=float).reshape(-1, obs.dims)
@@ -51,12 +97,172 @@ class Apf(SwarmLaw):
                             obs.v_max)
 
     def batch(self, obs: Observations) -> np.ndarray:
-        law, r2 = self.law, self.context.sensing_radius ** 2
+        c = self.columns or _Columns.one(self.law, self.context)
         x = obs.position
         psi_o = obstacle_offsets(x[..., None, :], obs.obstacle_centre, obs.obstacle_radius)
-        sensed_o = obs.obstacle_mask & (np.einsum("...k,...k->...", psi_o, psi_o) <= r2)
+        sensed_o = obs.obstacle_mask & (np.einsum("...k,...k->...", psi_o, psi_o) <= c.r2)
         psi_f = x[..., None, :] - obs.neighbour_position
-        sensed_f = obs.neighbour_mask & (np.einsum("...k,...k->...", psi_f, psi_f) <= r2) & law.formation
-        _, f = field(x - obs.target, DensePairs(sensed_o), psi_o, DensePairs(sensed_f), psi_f, law.p,
-                     law.combination, law.c_f, law.neighbours, energy=False)
+        sensed_f = obs.neighbour_mask & (np.einsum("...k,...k->...", psi_f, psi_f) <= c.r2) & c.formation
+        _, f = field(x - obs.target, DensePairs(sensed_o), psi_o, DensePairs(sensed_f), psi_f, c.p_agent,
+                     c.multiplicative, law=c.neighbours, p_pairs=c.p_pair, energy=False)
         return saturate(f, np.asarray(obs.v_max, dtype=float))
+
+    def describe_params(self) -> dict[str, Any]:
+        law = self.law
+        return {**dataclasses.asdict(law.p), "combination": law.combination,
+                "interaction": "paper" if law.neighbours is None else law.neighbours.interaction.name}
+
+
+def _neighbours(law: Law) -> NeighbourLaw | None:
+    """The interaction a run steps with (None: the paper's). Without formation there are no neighbour
+    terms: only a swirl about the goal is left of it."""
+    nb = law.neighbours
+    if nb is None or law.formation:
+        return nb
+    return dataclasses.replace(nb, interaction=Interaction(swirl=True)) if nb.interaction.swirl else None
+
+
+class _Columns:
+    """What :meth:`Apf.batch` reads, for one run (numbers) or several (columns that broadcast against
+    (b, n) per agent and (b, n, K) per pair)."""
+
+    def __init__(self, laws: list[Law], contexts: list[Context]) -> None:
+        col = lambda values, axes: np.asarray(values, dtype=float).reshape((-1,) + (1,) * axes)  # noqa: E731
+        self.p_agent = _Potentials({n: col([getattr(l.p, n) for l in laws], 1) for n in _POTENTIAL})
+        self.p_pair = _Potentials({n: col([getattr(l.p, n) for l in laws], 2) for n in _POTENTIAL})
+        self.multiplicative = np.array([l.combination == "multiplicative" for l in laws])[:, None]
+        self.formation = np.array([l.formation for l in laws])[:, None, None]
+        self.r2 = col([c.sensing_radius ** 2 for c in contexts], 2)
+        first = _neighbours(laws[0])
+        self.neighbours = None if first is None else NeighbourLaw(
+            first.interaction, col([c.sensing_radius for c in contexts], 2),
+            col([_neighbours(l).gate_out for l in laws], 2), first.k_nearest,
+            col([_neighbours(l).swirl for l in laws], 2), col([_neighbours(l).swirl_radius for l in laws], 1))
+
+    @classmethod
+    def one(cls, law: Law, context: Context) -> _Columns:
+        out = cls.__new__(cls)
+        out.p_agent = out.p_pair = law.p
+        out.multiplicative, out.formation = law.combination, law.formation
+        out.r2, out.neighbours = context.sensing_radius ** 2, _neighbours(law)
+        return out
+
+
+class _Potentials:
+    """One potential's numbers as attributes (columns), what :mod:`zswarm.paper.potentials` reads."""
+
+    def __init__(self, values: dict[str, np.ndarray]) -> None:
+        self.__dict__.update(values)
+
+
+# -- the single form in 2-D, in plain floats --------------------------------------------------------------
+
+
+def _velocity_2d(x: float, y: float, goal: Point, obstacles: Iterable[Circle], neighbours: Iterable[Point],
+                   sensing_radius: float, p: PotentialParams, combination: Combination, formation: bool,
+                   v_max: float, law: NeighbourLaw | None = None) -> Point:
+    """Commanded velocity of the agent at (x, y) from what it sensed: obstacles whose nearest boundary
+    point, and neighbours, within ``sensing_radius`` count (the others are ignored here). ``law``: an
+    interaction other than the paper's."""
+    r2_max = sensing_radius * sensing_radius
+    goal_weight, variant = 1.0, None
+    if formation and law is not None and not law.interaction.is_paper:
+        variant, goal_weight = _neighbour_force_2d(x, y, goal, neighbours, r2_max, p, law)
+    gx, gy = x - goal[0], y - goal[1]
+    lg2 = p.l_g**2
+    e = math.exp(-(gx * gx + gy * gy) / lg2)
+    u_g = p.c_g * (1.0 - e)
+    k = -2.0 * p.c_g / lg2 * e
+    fgx, fgy = k * gx, k * gy
+
+    lo2 = p.l_o**2
+    u_o = fox = foy = 0.0
+    for cx, cy, rho in obstacles:
+        dx, dy = x - cx, y - cy
+        dist = math.sqrt(dx * dx + dy * dy)
+        scale = 1.0 - rho / dist if dist > 0.0 else 0.0
+        px, py = dx * scale, dy * scale
+        d2 = px * px + py * py
+        if d2 > r2_max:
+            continue
+        e = p.c_o * math.exp(-d2 / lo2)
+        u_o += e
+        k = 2.0 / lo2 * e
+        fox += k * px
+        foy += k * py
+
+    if combination == "additive":
+        fx, fy = fox + goal_weight * fgx, foy + goal_weight * fgy
+    else:
+        a, b = u_g / p.c_g, 1.0 + u_o / p.c_g
+        fx, fy = a * fox + goal_weight * (b * fgx), a * foy + goal_weight * (b * fgy)
+
+    if variant is not None:
+        fx, fy = fx + variant[0], fy + variant[1]
+    elif formation:
+        lr2, la2 = p.l_r**2, p.l_a**2
+        ffx = ffy = 0.0
+        for nx, ny in neighbours:
+            px, py = x - nx, y - ny
+            r2 = px * px + py * py
+            if r2 > r2_max:
+                continue
+            g = (-2.0 * p.c_r / lr2 * math.exp(-r2 / lr2) + 2.0 * p.c_a / la2 * math.exp(-r2 / la2)
+                 + 2.0 * p.c_a_prime)
+            ffx += -g * px
+            ffy += -g * py
+        fx, fy = fx + ffx, fy + ffy
+    if law is not None and law.interaction.swirl and gx * gx + gy * gy < law.swirl_radius * law.swirl_radius:
+        fx, fy = fx + law.swirl * -fgy, fy + law.swirl * fgx
+
+    speed = math.sqrt(fx * fx + fy * fy)
+    if speed > v_max:
+        s = v_max / speed
+        return fx * s, fy * s
+    return fx, fy
+
+
+def _neighbour_force_2d(x: float, y: float, goal: Point, neighbours: Iterable[Point], r2_max: float,
+                     p: PotentialParams, law: NeighbourLaw) -> tuple[Point, float]:
+    """:func:`zswarm.paper.neighbour_law.neighbour_force` for one agent in floats: its force from the neighbours
+    within reach and the weight of its goal term."""
+    spec = law.interaction
+    sensed = []
+    for nx, ny in neighbours:
+        px, py = x - nx, y - ny
+        r2 = px * px + py * py
+        if r2 <= r2_max:
+            sensed.append((r2, px, py))
+    if spec.nearest:
+        sensed.sort(key=lambda s: s[0])  # stable: ties keep the order heard, as the vectorized rank does
+        del sensed[law.k_nearest:]
+    gx, gy = goal[0] - x, goal[1] - y
+    gd = math.sqrt(gx * gx + gy * gy)
+    tx, ty = (gx / gd, gy / gd) if gd > 0.0 else (0.0, 0.0)
+    lr2, la2 = p.l_r**2, p.l_a**2
+    radius = math.sqrt(r2_max)
+    rx = ry = ax = ay = wsum = block = 0.0
+    for r2, px, py in sensed:
+        r = math.sqrt(r2)
+        w = 1.0
+        if spec.cutoff:
+            z = (r / radius - CUTOFF_INNER) / (1.0 - CUTOFF_INNER)
+            w = 1.0 if z <= 0.0 else 0.0 if z >= 1.0 else 0.5 * (1.0 + math.cos(math.pi * z))
+            if w <= 0.0:
+                continue
+        g_r = -2.0 * p.c_r / lr2 * math.exp(-r2 / lr2)
+        g_a = 2.0 * p.c_a / la2 * math.exp(-r2 / la2) + 2.0 * p.c_a_prime
+        rx += -w * g_r * px
+        ry += -w * g_r * py
+        ax += -w * g_a * px
+        ay += -w * g_a * py
+        wsum += w
+        if spec.gate:
+            cos = -(px * tx + py * ty) / (r if r > 0.0 else 1.0)
+            near = min(max((law.gate_out - r) / (law.gate_out - law.gate_in), 0.0), 1.0)
+            ahead = min(max((cos - AHEAD_COS) / (AHEAD_FULL - AHEAD_COS), 0.0), 1.0)
+            block = max(block, near * ahead)
+    if spec.mean:
+        k = max(wsum, 1.0)
+        ax, ay = ax / k, ay / k
+    return (rx + ax, ry + ay), 1.0 - block

@@ -5,14 +5,13 @@ the cluster) calls a law through :class:`BoundLaw`."""
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass
 from typing import Any, Callable
 
 import numpy as np
 
-from zswarm.errors import Failure, ParamError
-from zswarm.laws.contract import Context, NoParams, Observation, Observations, SwarmLaw
+from zswarm.errors import Failure
+from zswarm.laws.contract import Context, Observation, Observations, SwarmLaw
 
 
 #: The exit status of an agent process whose law raised or answered with something other than a velocity.
@@ -56,27 +55,6 @@ def function_law(fn: Callable[[Observation], Any], name: str) -> type[SwarmLaw]:
                                                 "reference": (fn.__doc__ or "").strip().split("\n")[0]})
 
 
-def law_params(cls: type[SwarmLaw], settings: dict[str, float | int]) -> Any:
-    """The law's parameter set: its published defaults with ``settings`` applied, each checked in one
-    line against the range its field declares (:func:`zswarm.laws.contract.param`)."""
-    params_cls = cls.Params
-    if params_cls is NoParams or not dataclasses.is_dataclass(params_cls):
-        if settings:
-            raise ParamError(f"law {cls.name} has no parameters of its own (got law.{next(iter(settings))})")
-        return NoParams()
-    fields = {f.name: f for f in dataclasses.fields(params_cls)}
-    for name, value in settings.items():
-        f = fields.get(name)
-        if f is None:
-            raise ParamError(f"law {cls.name} has no parameter {name!r}; its parameters: {', '.join(fields)}")
-        meta = f.metadata
-        lo, hi, lo_open = meta.get("lo", -math.inf), meta.get("hi", math.inf), meta.get("lo_open", False)
-        if not math.isfinite(value) or value < lo or (lo_open and value == lo) or value > hi:
-            bound = f"{'>' if lo_open else '>='} {lo:g}" + ("" if math.isinf(hi) else f" and <= {hi:g}")
-            raise ParamError(f"law.{name} must be a finite number {bound} (got {value!r})")
-    return params_cls(**{k: float(v) for k, v in settings.items()})
-
-
 def checked(out: Any, dims: int, name: str) -> np.ndarray:
     """``out`` as a velocity of ``dims`` finite floats, or :class:`LawError` saying what it is."""
     try:
@@ -99,10 +77,6 @@ class BoundLaw:
     source: str
     settings: dict[str, float | int]
     context: Context
-
-    @property
-    def is_apf(self) -> bool:
-        return self.name == "apf"
 
     @property
     def state_size(self) -> int:
@@ -151,13 +125,9 @@ class BoundLaw:
         law = self.law
         out: dict[str, Any] = {"name": self.name, "source": self.source, "reference": type(law).reference,
                                "settings": dict(self.settings)}
-        if self.is_apf:  # the scenario's own parameters
-            out["params"] = {**dataclasses.asdict(law.params.p), "combination": law.params.combination,
-                             "interaction": "paper" if law.params.neighbours is None
-                             else law.params.neighbours.interaction.name}
-            return out
-        if dataclasses.is_dataclass(law.params) and not isinstance(law.params, type):
-            out["params"] = dataclasses.asdict(law.params)
+        params = law.describe_params()
+        if params is not None:
+            out["params"] = params
         units = getattr(law, "units", None)
         if units is not None:
             out["units"] = units.describe()

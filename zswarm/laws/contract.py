@@ -20,10 +20,13 @@ per-agent loop, and a batched form is held to its single form by ``tests/test_la
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, Sequence
 
 import numpy as np
+
+from zswarm.errors import ParamError
 
 
 @dataclass(frozen=True)
@@ -211,9 +214,32 @@ class SwarmLaw:
     ranges: ClassVar[dict[str, tuple[float, float]]] = {}
     needs: ClassVar[tuple[str, ...]] = ()
     state_size: ClassVar[int] = 0
+    #: The paper's design guidelines (Propositions 1-5, ``zswarm design``) hold for it (apf alone).
+    guidelines: ClassVar[bool] = False
 
     def __init__(self, params: Any, context: Context) -> None:
         self.params, self.context = params, context
+
+    @classmethod
+    def params_from(cls, scenario: Any, settings: dict[str, float | int], combination: str | None) -> Any:
+        """Its parameter set for a run of ``scenario``: the published defaults with ``settings`` (the
+        run's ``law.NAME`` values) applied, each checked (:func:`law_params`)."""
+        return law_params(cls, settings)
+
+    @classmethod
+    def merge(cls, laws: list[SwarmLaw]) -> list[tuple[list[int], SwarmLaw]]:
+        """The laws of several runs (the same class), as few instances as can step them in one call of
+        the batched form: here, the runs whose parameters and context are equal share the first's."""
+        groups: dict[tuple, list[int]] = {}
+        for r, law in enumerate(laws):
+            groups.setdefault((repr(law.params), law.context), []).append(r)
+        return [(rows, laws[rows[0]]) for rows in groups.values()]
+
+    def describe_params(self) -> dict[str, Any] | None:
+        """What a run records of its parameters (None: nothing beyond the settings)."""
+        if dataclasses.is_dataclass(self.params) and not isinstance(self.params, type):
+            return dataclasses.asdict(self.params)
+        return None
 
     def command(self, obs: Observation) -> Any:
         if type(self).batch is SwarmLaw.batch:
@@ -255,6 +281,27 @@ def masked_sum(values: np.ndarray, mask: np.ndarray) -> np.ndarray:
 def param(default: float, dimension: str = "none", doc: str = "", lo: float = 0.0, lo_open: bool = True,
           hi: float = float("inf")) -> Any:
     """A law parameter: its published default, its dimension (:meth:`zswarm.laws.scale.Units.scaled`),
-    what it is, and its valid range (checked in one place, :func:`zswarm.laws.bound.law_params`)."""
+    what it is, and its valid range (checked in one place, :func:`law_params`)."""
     return field(default=default, metadata={"dimension": dimension, "doc": doc, "lo": lo, "lo_open": lo_open,
                                             "hi": hi})
+
+
+def law_params(cls: type[SwarmLaw], settings: dict[str, float | int]) -> Any:
+    """The law's parameter set: its published defaults with ``settings`` applied, each checked in one
+    line against the range its field declares (:func:`zswarm.laws.contract.param`)."""
+    params_cls = cls.Params
+    if params_cls is NoParams or not dataclasses.is_dataclass(params_cls):
+        if settings:
+            raise ParamError(f"law {cls.name} has no parameters of its own (got law.{next(iter(settings))})")
+        return NoParams()
+    fields = {f.name: f for f in dataclasses.fields(params_cls)}
+    for name, value in settings.items():
+        f = fields.get(name)
+        if f is None:
+            raise ParamError(f"law {cls.name} has no parameter {name!r}; its parameters: {', '.join(fields)}")
+        meta = f.metadata
+        lo, hi, lo_open = meta.get("lo", -math.inf), meta.get("hi", math.inf), meta.get("lo_open", False)
+        if not math.isfinite(value) or value < lo or (lo_open and value == lo) or value > hi:
+            bound = f"{'>' if lo_open else '>='} {lo:g}" + ("" if math.isinf(hi) else f" and <= {hi:g}")
+            raise ParamError(f"law.{name} must be a finite number {bound} (got {value!r})")
+    return params_cls(**{k: float(v) for k, v in settings.items()})

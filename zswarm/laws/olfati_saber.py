@@ -39,7 +39,7 @@ import numpy as np
 
 from zswarm.laws.contract import Observations, SwarmLaw, masked_sum, norm, param
 from zswarm.laws.scale import Units
-from zswarm.model.potentials import saturate
+from zswarm.paper.potentials import saturate
 
 
 @dataclass(frozen=True)

@@ -22,9 +22,9 @@ from typing import Any
 import numpy as np
 
 from zswarm.errors import ParamError, UsageError
-from zswarm.laws.bound import BoundLaw, LawError, function_law, law_params, raised_at
-from zswarm.laws.contract import Context, Neighbour, Obstacle, Observation, Observations, SwarmLaw
-from zswarm.model.metrics import obstacle_clearance
+from zswarm.laws.bound import BoundLaw, LawError, function_law, raised_at
+from zswarm.laws.contract import Context, Neighbour, Obstacle, Observation, Observations, SwarmLaw, law_params
+from zswarm.paper.neighbours import obstacle_clearance
 
 GROUP = "zswarm.laws"
 BUILTIN: dict[str, str] = {
@@ -117,7 +117,7 @@ def _signature(obj: Any) -> str:
 
 def context_of(scenario) -> Context:
     """What a law is told of the run (:class:`Context`)."""
-    from zswarm.model.formation import equilibria
+    from zswarm.paper.formation import equilibria
 
     p = scenario.params
     spacing = equilibria(p.potential).spacing if scenario.formation else None
@@ -126,24 +126,15 @@ def context_of(scenario) -> Context:
                    spacing=spacing if spacing is not None else p.swarm.sensing_radius / 1.2)
 
 
-def bind(scenario, combination: str | None = None, probe: bool = True) -> BoundLaw:
-    """The scenario's law (``scenario.params.law``), checked, fitted and probed; one-line
-    :class:`UsageError` for every mistake."""
-    choice = scenario.params.law
+def bind(scenario, combination: str | None = None, probe: bool = True, choice=None) -> BoundLaw:
+    """The scenario's law (``choice``: another :class:`~zswarm.paper.params.LawChoice`, a group's of a
+    mixed swarm), checked, fitted and probed; one-line :class:`UsageError` for every mistake."""
+    choice = choice or scenario.params.law
     cls, source = resolve(choice.law)
     settings = dict(choice.settings)
     context = context_of(scenario)
     try:
-        if choice.law == "apf":
-            from zswarm.model.law import compile_law
-
-            if settings:
-                raise ParamError(f"apf takes its parameters from the scenario (--set c_o=..., [params]), not law.* "
-                                 f"(got law.{next(iter(settings))})")
-            params: Any = compile_law(scenario.params, combination or scenario.combination, scenario.formation)
-        else:
-            params = law_params(cls, settings)
-        law = cls(params, context)
+        law = cls(cls.params_from(scenario, settings, combination), context)
     except ParamError as exc:
         raise UsageError(str(exc)) from None
     except Exception as exc:  # noqa: BLE001 - a user's constructor may raise anything
@@ -200,6 +191,6 @@ def describe(name: str) -> dict[str, Any]:
                            "doc": f.metadata.get("doc", ""), "range": list(cls.ranges.get(f.name, ())) or None})
     state = cls.state_size if isinstance(cls.state_size, int) else None
     return {"name": name, "source": source, "reference": cls.reference, "needs": list(cls.needs),
-            "batched": cls.has_batch(), "state": state, "tunable": bool(cls.ranges) or name == "apf",
-            "guidelines": name == "apf",
-            "params": params if name != "apf" else "the scenario's potential and interaction (zswarm design)"}
+            "batched": cls.has_batch(), "state": state, "tunable": bool(cls.ranges) or cls.guidelines,
+            "guidelines": cls.guidelines,
+            "params": params if not cls.guidelines else "the scenario's potential and interaction (zswarm design)"}

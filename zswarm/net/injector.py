@@ -1,4 +1,4 @@
-"""Seeded fault injection on an agent's inbound links, on the event loop (see :mod:`zswarm.model.faults`
+"""Seeded fault injection on an agent's inbound links, on the event loop (see :mod:`zswarm.swarm.faults`
 for the per-link decisions and :class:`zswarm.net.bridge.Bridge` for where it sits)."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import heapq
 import time
 from typing import Callable
 
-from zswarm.model.faults import FaultModel, LinkFaults
+from zswarm.swarm.faults import FaultModel, LinkFaults
 from zswarm.net.bridge import Inbound
 
 

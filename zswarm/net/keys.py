@@ -28,7 +28,7 @@ from typing import Sequence
 import numpy as np
 
 from zswarm.errors import UsageError
-from zswarm.model.neighbours import cell_meets
+from zswarm.paper.neighbours import cell_meets
 
 RUN_ID = re.compile(r"^[A-Za-z0-9_.-]{1,64}$")
 

@@ -52,7 +52,7 @@ class DecodeError(ValueError):
 
 class Pose(NamedTuple):
     """An agent's state: id, sequence number, sender wall time, lockstep step (-1 if free), x, y, vx, vy,
-    its heading in radians where its body has one (:mod:`zswarm.model.body`; None otherwise), and in a
+    its heading in radians where its body has one (:mod:`zswarm.control.body`; None otherwise), and in a
     3-D run z and vz (None in 2-D).
 
     Immutable like the other messages, but a named tuple rather than a frozen dataclass: an agent
@@ -142,7 +142,7 @@ class Health:
     queue_max: int = 0
     tick_lag_max_ms: float = 0.0
     poses: int = 0  # other agents' poses taken in (however they arrived)
-    # the safety filter (zswarm.model.safety_tally): ticks it changed the command, left it under a
+    # the safety filter (zswarm.control.safety_tally): ticks it changed the command, left it under a
     # tenth of the law's speed, and braked on data too old
     interventions: int = 0
     stalled_ticks: int = 0
@@ -207,7 +207,7 @@ _POSE_3D = struct.Struct(POSE_LAYOUT + "6d")
 _POSE_LAYOUTS = {layout.size: layout for layout in (_POSE_2D, _POSE_2DH, _POSE_3D)}
 POSE_SIZES = tuple(_POSE_LAYOUTS)
 
-#: A pose's ``f``: the safety filter (zswarm.model.safety) passed the command, changed it, stalled it, braked.
+#: A pose's ``f``: the safety filter (zswarm.control.safety) passed the command, changed it, stalled it, braked.
 SAFETY_FLAGS = ("passed", "acted", "stalled", "braked")
 N_FLAGS = len(SAFETY_FLAGS)
 

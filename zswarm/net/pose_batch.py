@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from zswarm.model.timed_contacts import SEQ_RESTART
+from zswarm.swarm.timed_contacts import SEQ_RESTART
 from zswarm.net import messages as msg
 from zswarm.net.poses import Announced, Contest, Vouch
 

@@ -26,7 +26,7 @@ import sys
 from dataclasses import dataclass, field
 from typing import Callable
 
-from zswarm.model.timed_contacts import SEQ_RESTART
+from zswarm.swarm.timed_contacts import SEQ_RESTART
 from zswarm.net import messages as msg
 
 

@@ -19,12 +19,12 @@ from typing import Any, Literal
 
 from zswarm.args import add_law_arg, add_param_args, positive_seconds, seed_arg
 from zswarm.errors import UsageError
-from zswarm.model.faults import FaultModel, parse_duration
-from zswarm.model.neighbours import subscription_radius
-from zswarm.model.params import parse_assignments
-from zswarm.model.potentials import COMBINATIONS, Combination
-from zswarm.model.safety import MODES
-from zswarm.model.scenarios import Scenario, get_scenario
+from zswarm.swarm.faults import FaultModel, parse_duration
+from zswarm.paper.neighbours import subscription_radius
+from zswarm.paper.params import parse_assignments
+from zswarm.paper.potentials import COMBINATIONS, Combination
+from zswarm.control.safety import MODES
+from zswarm.swarm.scenarios import Scenario, get_scenario
 from zswarm.net.keys import Keys, check_run_id
 
 Clock = Literal["free", "lockstep"]
@@ -177,7 +177,7 @@ def safety_mode(scenario: Scenario, asked: str | None, simulated_faults: bool = 
     """The filter a run uses: as asked, checked against the body (one line, exit 2, where it cannot keep
     that body safe), or by default barrier wherever it can and off elsewhere."""
     from zswarm.errors import ParamError
-    from zswarm.model.safety_tally import safety_of
+    from zswarm.control.safety_tally import safety_of
 
     try:
         safety_of(scenario, asked or "barrier", simulated_faults)

@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from zswarm.model.design import DesignReport, alpha, prop1_curve, prop2_curve
-from zswarm.model.formation import pair_gain
+from zswarm.design.guidelines import DesignReport, alpha, prop1_curve, prop2_curve
+from zswarm.paper.formation import pair_gain
 
 FORMATS = (".png", ".svg", ".pdf")
 

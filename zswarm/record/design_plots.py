@@ -15,7 +15,7 @@ from typing import Final
 import rerun as rr
 import rerun.blueprint as rrb
 
-from zswarm.model.design import DesignReport
+from zswarm.design.guidelines import DesignReport
 from zswarm.record.design_figure import render_png, verdict_rows
 from zswarm.record.recording import close_recording, open_recording
 

@@ -19,8 +19,8 @@ from typing import Any
 import numpy as np
 
 from zswarm.errors import UsageError
-from zswarm.model.observer import SwarmObserver
-from zswarm.model.scenarios import Scenario
+from zswarm.swarm.observer import SwarmObserver
+from zswarm.swarm.scenarios import Scenario
 from zswarm.record.swarm_log import CONFIG, PREY_STATE, STATE, SUMMARY
 
 

@@ -22,9 +22,9 @@ import rerun.blueprint as rrb
 MAP: Final = "map"
 AGENTS: Final = "map/agents"
 VELOCITIES: Final = "map/velocities"
-HEADINGS: Final = "map/headings"  # a body with a heading (zswarm.model.body): where each one faces
+HEADINGS: Final = "map/headings"  # a body with a heading (zswarm.control.body): where each one faces
 SENSING: Final = "map/sensing"
-SAFETY: Final = "map/safety"  # where the safety filter acted this step (zswarm.model.safety)
+SAFETY: Final = "map/safety"  # where the safety filter acted this step (zswarm.control.safety)
 #: acted (orange), stalled (red), braked on old data (purple); messages.SAFETY_FLAGS 1..3
 SAFETY_COLOURS: Final = {1: (255, 160, 40), 2: (230, 40, 40), 3: (160, 60, 220)}
 SAFETY_LABELS: Final = {1: "filtered", 2: "stalled", 3: "braked"}
@@ -69,7 +69,7 @@ def blueprint(extra_plots: Iterable[tuple[str, tuple[str, ...]]] = (), network: 
               arena: tuple[float, float, float, float] | None = None, dimensions: int = 2) -> rrb.Blueprint:
     """The map beside the metric plots (each with its threshold lines); ``network``: a third column with
     the transport figures and the run's events (the world's recordings). ``arena`` (x_min, y_min, x_max,
-    y_max): what the map frames when it opens (the scenario's :meth:`~zswarm.model.scenario.Scenario.arena`).
+    y_max): what the map frames when it opens (the scenario's :meth:`~zswarm.swarm.scenario.Scenario.arena`).
     ``dimensions`` 3: the map is a 3-D view."""
     def path(name: str) -> str:
         return f"{THRESHOLDS}/{name}" if name in THRESHOLD_NAMES else f"{METRICS}/{name}"
@@ -329,7 +329,7 @@ def log_threshold_styles(rec: rr.RecordingStream, thresholds: dict[str, float]) 
 def log_sensing_graph(series: Series, positions: np.ndarray, radius: float) -> None:
     """Who senses whom: a segment between every two agents within ``radius`` (a split swarm shows as
     separate graphs)."""
-    from zswarm.model.neighbours import pairs_within
+    from zswarm.paper.neighbours import pairs_within
 
     i, j = pairs_within(positions, radius)
     keep = i < j

@@ -23,8 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from zswarm.model.observer import SwarmObserver
-from zswarm.model.scenario import Scenario
+from zswarm.swarm.observer import SwarmObserver
+from zswarm.swarm.scenario import Scenario
 from zswarm.ros.motion import quaternion
 from zswarm.ros.wire import typestore
 

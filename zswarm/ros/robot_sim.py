@@ -17,7 +17,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 
-from zswarm.model.body import wrap
+from zswarm.control.body import wrap
 from zswarm.ros.motion import Odom, odometry, read_twist
 from zswarm.ros.robots import ODOMETRY, TWIST, Robot
 from zswarm.ros.wire import Attachment, Route, WireError

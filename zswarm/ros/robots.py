@@ -26,7 +26,7 @@ from typing import Any
 
 from zswarm.errors import UsageError
 from zswarm.files import read_toml
-from zswarm.model.body import wrap
+from zswarm.control.body import wrap
 from zswarm.ros.wire import Route
 
 ODOMETRY = "nav_msgs/msg/Odometry"

@@ -14,8 +14,8 @@ import math
 
 import numpy as np
 
-from zswarm.model.faults import FaultModel
-from zswarm.model.neighbours import cell_meets, subscription_radius
+from zswarm.swarm.faults import FaultModel
+from zswarm.paper.neighbours import cell_meets, subscription_radius
 
 BLOCK = 32  # steps of uniforms drawn per generator call, at most
 BLOCK_BYTES = 64 * 2**20  # and at most this much memory for them (N = 2000 draws 96 MB a step: one at a time)
@@ -27,7 +27,7 @@ class BatchChannel:
         """``sensing_radius``, ``v_max``: of each run (B,). An agent's cells cover the disc
         R + 2 v_max dt about it (:attr:`zswarm.net.runspec.RunSpec.subscription_radius`).
         ``velocities``: carry each pose's velocity with it (a law that uses its neighbours' velocities;
-        apf does not, and its runs do not pay for them)."""
+        otherwise they read as 0, and the runs do not pay for them)."""
         self.velocities = velocities
         b = len(models)
         self.n, self.dt = n, dt
@@ -117,7 +117,8 @@ class BatchChannel:
     def heard_motion(self, k: int) -> tuple[np.ndarray, np.ndarray]:
         """After :meth:`step` k: the velocity each agent believes of each other (B, N, N, D), and the
         age of that belief in seconds (B, N, N)."""
-        return self.belief_velocity, (k - self.belief_stamp[:, :, : self.n]) * self.dt
+        stamp = self.belief_stamp[:, :, : self.n]
+        return np.broadcast_to(self.belief_velocity, stamp.shape + self.belief_velocity.shape[-1:]), (k - stamp) * self.dt
 
     def known(self, k: int, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """After :meth:`step` k, what the safety filter guards against, by an agent process's own rule

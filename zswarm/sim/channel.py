@@ -1,7 +1,7 @@
 """The transport's faults inside the reference simulator: delayed, lossy neighbour and prey data.
 
 Every step each agent j "publishes" its position, and the prey its own; on every link (i, j) the
-message is lost or delayed by the same rules as :mod:`zswarm.model.faults` (fixed delay plus uniform
+message is lost or delayed by the same rules as :mod:`zswarm.swarm.faults` (fixed delay plus uniform
 jitter, rounded to whole steps; Bernoulli or Gilbert-Elliott loss; distance-dependent loss of poses).
 Agent i then believes, of each j, the newest position that has reached it, and ignores beliefs older
 than the staleness limit, as a distributed agent does. All of it is dense (N x N) numpy; meant for the
@@ -14,7 +14,7 @@ import dataclasses
 
 import numpy as np
 
-from zswarm.model.faults import FaultModel
+from zswarm.swarm.faults import FaultModel
 from zswarm.sim.batch_channel import BatchChannel
 
 MAX_AGENTS = 2000
@@ -47,13 +47,13 @@ class FaultyChannel:
         velocity, age = self.batch.heard_motion(k)
         return velocity[0][i, j], age[0][i, j]
 
-    def known(self, k: int, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def known(self, k: int, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """After :meth:`step` k: every neighbour each agent has heard at all (fresh or stale) whose
-        newest position may be within the sensing radius of it by now, as (i, P_i - P_j believed, age in
+        newest position may be within the sensing radius of it by now, as (i, j, P_j believed, age in
         seconds): :meth:`~zswarm.sim.batch_channel.BatchChannel.known`."""
         heard, believed, age = self.batch.known(k, positions[None])
         i, j = np.nonzero(heard[0])
-        return i, positions[i] - believed[0][i, j], age[0][i, j]
+        return i, j, believed[0][i, j], age[0][i, j]
 
     @property
     def lost(self) -> int:

@@ -4,11 +4,11 @@ Each step (explicit Euler, step ``dt``):
 
     v_k     = sat(-grad U_i(P_k), v_max)      (eq 5 / eq 36 with the speed limit)
     P_{k+1} = P_k + dt v_k                    (the point body; another body moves as
-                                               :mod:`zswarm.model.body` says)
+                                               :mod:`zswarm.control.body` says)
     prey_{k+1} = prey.step(prey_k, P_k)
 
 where agent i's potential uses only the obstacles and neighbours within its sensing radius, found with
-a cell grid (:mod:`zswarm.model.neighbours`). Every quantity agent i uses is what a distributed agent would
+a cell grid (:mod:`zswarm.paper.neighbours`). Every quantity agent i uses is what a distributed agent would
 have sensed at step k, so a lockstep distributed run reproduces these trajectories.
 Deterministic: the same scenario and seed give the same trajectories, bit for bit.
 """
@@ -18,45 +18,45 @@ from __future__ import annotations
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
-from zswarm.laws.bound import LawFailed
+from zswarm.control.safety_tally import SafetyTally
+from zswarm.control.step import Barrier, BodyState, Filter, Guard, Stepped, control_step
 from zswarm.laws.contract import Observations
-from zswarm.laws.registry import bind
-from zswarm.model import body as bodies
-from zswarm.model import prey as prey_motion
-from zswarm.model.faults import FaultModel
-from zswarm.model.metrics import Summary, obstacle_clearance
-from zswarm.model.law import compile_law, swarm_field
-from zswarm.model.neighbours import ObstacleIndex, pairs_within
-from zswarm.model.safety import judged
-from zswarm.model.observer import SwarmObserver
-from zswarm.model.potentials import Combination, saturate
-from zswarm.model import safety as sf
-from zswarm.model.safety_tally import SafetyTally, safety_of
-from zswarm.model.scenarios import Scenario
+from zswarm.paper.field import compile_law
+from zswarm.paper.neighbours import ObstacleIndex, pairs_within
+from zswarm.paper.potentials import Combination
 from zswarm.provenance import versions
 from zswarm.sim.channel import FaultyChannel
 from zswarm.sim.tally import Sensed, drive
+from zswarm.swarm import prey as prey_motion
+from zswarm.swarm.faults import FaultModel
+from zswarm.swarm.metrics import Summary
+from zswarm.swarm.observer import SwarmObserver
+from zswarm.swarm.scenarios import Scenario
 
 
 class Simulator:
-    """State of a simulated swarm and its step function."""
+    """State of a simulated swarm and its step: what every agent senses, built from the cell grid (or
+    the faulty channel), through the one control step (:mod:`zswarm.control.step`). ``shield``: another
+    filter in the safety filter's place (``zswarm bench safety`` puts ORCA there)."""
 
     def __init__(self, scenario: Scenario, seed: int, combination: Combination | None = None,
-                 faults: FaultModel | None = None, safety: str = "off") -> None:
+                 faults: FaultModel | None = None, safety: str = "off", shield: Filter | None = None) -> None:
         self.scenario = scenario
         self.seed = seed
         self.combination: Combination = combination or scenario.combination
         p = scenario.params
-        self.law = compile_law(p, self.combination, scenario.formation)  # once, shared with the observer
-        self.bound = bind(scenario, self.combination)  # the law the agents run (apf: self.law, on flat pairs)
-        self.law_state = self.bound.start_state((scenario.n_agents,))
+        self.law = compile_law(p, self.combination, scenario.formation)  # the observer's (energy, spacing)
+        faulted = faults is not None and faults.active
+        self.control = control_step([scenario], [self.combination], safety, faulted, probe=True)
+        if shield is not None:
+            self.control.filter = shield
         self.rng = np.random.default_rng(seed)
-        self.body = bodies.body_spec(p)
-        self.state = bodies.start(self.body, scenario.initial_positions(self.rng), np.asarray(scenario.prey_start))
+        start = self.control.start(scenario.initial_positions(self.rng)[None], np.asarray(scenario.prey_start))
+        self.state = BodyState(start.position[0], start.velocity[0], start.heading[0])
         self.ids = np.arange(len(self.state.position))
         self.prey = np.array(scenario.prey_start, dtype=float)
         centers, radii = scenario.obstacle_arrays()
@@ -64,11 +64,15 @@ class Simulator:
         self.step_index = 0
         self.channel = (FaultyChannel(len(self.positions), faults, scenario.dt, p.swarm.sensing_radius,
                                       p.swarm.v_max, seed=faults.seed, dims=scenario.dimensions,
-                                      velocities=not self.bound.is_apf)
-                        if faults is not None and faults.active else None)
-        self.safety = safety_of(scenario, safety, faulted=self.channel is not None)
-        self.filtered: sf.Filtered | None = None  # what the filter did at the last step
+                                      velocities=self.control.hears_velocities)
+                        if faulted else None)
+        self.filtered = None  # what the filter did at the last step
         self.tally = SafetyTally(scenario.dt)
+
+    @property
+    def bound(self):
+        """The law of its first group (the scenario's law)."""
+        return self.control.groups[0].law
 
     @property
     def positions(self) -> np.ndarray:
@@ -76,106 +80,70 @@ class Simulator:
 
     @property
     def headings(self) -> np.ndarray | None:
-        """Each body's heading, for a body that has one."""
-        return self.state.heading if self.body.headed else None
+        """Each body's heading, for a swarm where some body has one."""
+        return self.state.heading if any(g.body.headed for g in self.control.groups) else None
 
     @property
     def t(self) -> float:
         return self.step_index * self.scenario.dt
 
-    def potential_and_velocity(self, positions: np.ndarray, goal: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
-        """Every agent's U_i (apf; None for another law) and commanded velocity from what it senses at
-        ``positions``."""
-        if not self.bound.is_apf:
-            return None, self.law_velocity(positions, goal)
-        pairs, blind, exact = None, None, None
-        if self.channel is not None:  # what each agent believes, through the faulty channel
-            i, _, believed, goal = self.channel.step(self.step_index, positions, goal)
-            blind = np.isnan(goal[:, 0])  # no prey heard yet: it does not move
-            goal = np.where(blind[:, None], positions, goal)
-            pairs = (i, positions[i] - believed)
-        elif self.safety is not None and not self.body.headed:  # one search for the law and the filter
-            i, j = pairs_within(positions, self.scenario.params.swarm.sensing_radius)
-            pairs = (i, positions[i] - positions[j])
-            exact = (*pairs, np.zeros(len(i)))
-        u, f = swarm_field(self.law, self.obstacles, positions, goal, pairs)
-        v = saturate(f, self.scenario.params.swarm.v_max)
-        if blind is not None:
-            v[blind] = 0.0
-        if self.safety is not None:
-            v = self.filter(positions, v, exact)
-        return u, v
-
-    def law_velocity(self, positions: np.ndarray, goal: np.ndarray) -> np.ndarray:
-        """A law other than apf through the contract: each agent's observation (its neighbours within
-        the sensing radius, exactly or through the faulty channel with their velocities and ages; the
-        obstacles within it; the target), the law's batched form on the swarm, then the filter."""
-        velocities, radius = self.state.velocity, self.scenario.params.swarm.sensing_radius
-        blind = None
+    def sensed(self) -> tuple[Observations, Guard | None]:
+        """What every agent senses now: its observation (its neighbours within the sensing radius, exactly
+        or through the faulty channel with their velocities and ages; the obstacles within it; the
+        target) and, behind a filter, its guard (exact neighbours, or the newest each heard, with its age)."""
+        x, v, n = self.state.position, self.state.velocity, len(self.state.position)
+        p, k = self.scenario.params.swarm, self.step_index
         if self.channel is not None:
-            i, j, believed, goal = self.channel.step(self.step_index, positions, goal, velocities)
-            heard_velocity, age = self.channel.heard_motion(self.step_index, i, j)
-            blind = np.isnan(goal[:, 0])
-            goal = np.where(blind[:, None], positions, goal)
+            i, j, believed, goal = self.channel.step(k, x, self.prey, v)
+            heard_velocity, age = self.channel.heard_motion(k, i, j)
             pairs = (i, believed, heard_velocity, age)
         else:
-            i, j = pairs_within(positions, radius)
-            pairs = (i, positions[j], velocities[j], np.zeros(len(i)))
-        a, m = self.obstacles.sensed(positions)
-        obs = Observations.of_swarm(positions, velocities, np.broadcast_to(goal, positions.shape),
-                                    self.scenario.params.swarm.v_max, self.scenario.dt, self.law_state, pairs,
+            goal = np.broadcast_to(self.prey, x.shape)
+            i, j = pairs_within(x, p.sensing_radius)
+            pairs = (i, x[j], v[j], np.zeros(len(i)))
+        a, m = self.obstacles.sensed(x)
+        obs = Observations.of_swarm(x, v, goal, p.v_max, self.scenario.dt, np.zeros((n, 0)), pairs,
                                     (a, self.obstacles.centers[m], self.obstacles.radii[m]))
-        try:
-            v, state = self.bound.decide_batch(obs)
-        except Exception as exc:  # noqa: BLE001 - a user's law may raise anything: said in one line
-            raise LawFailed.of(self.bound.name, exc, f"at t = {self.t:.2f} s of the simulation") from None
-        v, self.law_state = v[0], state[0]
-        if blind is not None:
-            v[blind] = 0.0
-        if self.safety is not None:
-            exact = None if self.channel is not None else (i, positions[i] - positions[j], np.zeros(len(i)))
-            v = self.filter(positions, v, exact)
-        return v
-
-    def filter(self, positions: np.ndarray, v: np.ndarray,
-               pairs: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> np.ndarray:
-        """The safety filter (:mod:`zswarm.model.safety`) on every agent's command, from what it senses:
-        exact neighbour positions (``pairs`` as (i, psi, age), when already found), or, through the
-        faulty channel, the newest it heard and its age."""
+        barrier = self.control.filter
+        if barrier is None:
+            return obs, None
         if self.channel is not None:
-            pairs = self.channel.known(self.step_index, positions)
-        points = bodies.tracked_point(positions, self.headings, self.body.lookahead if self.body.headed else 0.0)
-        self.filtered = sf.apply(v, sf.swarm_rows(self.safety, self.obstacles, points, pairs))
-        return self.filtered.command
+            gi, gj, points, age = self.channel.known(k, x)
+            return obs, Guard.of_pairs(n, gi, points, age)
+        if not isinstance(barrier, Barrier):  # another filter (a shield): the exact neighbours
+            return obs, Guard.of_pairs(n, i, x[j], np.zeros(len(i)))
+        points = barrier.points(BodyState(x[None], v[None], self.state.heading[None]))[0]
+        if points is not x:
+            i, j = pairs_within(points, p.sensing_radius)
+        return obs, Guard.of_pairs(n, i, points[j], np.zeros(len(i)))
 
-    def moving(self, commands: np.ndarray) -> np.ndarray:
-        """The velocity each body moves with this step under ``commands`` (the point body: the commands)."""
-        return bodies.velocity(self.body, self.state, commands, self.scenario.dt)
+    def command(self) -> Stepped:
+        """Every agent's step from what it senses now (the bodies' next states: :meth:`advance`)."""
+        obs, guard = self.sensed()
+        one = self.state
+        stepped = self.control(obs, guard, BodyState(one.position[None], one.velocity[None], one.heading[None]),
+                               when=f"at t = {self.t:.2f} s of the simulation")
+        self.filtered = stepped.filtered
+        return stepped
 
-    def advance(self, commands: np.ndarray) -> None:
-        """Move the prey (from the agents' current positions), then the agents' bodies under ``commands``."""
-        dt = self.scenario.dt
+    def advance(self, stepped: Stepped) -> None:
+        """Move the prey (from the agents' current positions), then the agents' bodies as ``stepped`` says."""
         if self.filtered is not None:  # counted when applied, as an agent counts its ticks
             self.tally.add(self.filtered)
             self.filtered = None
-        self.prey = prey_motion.step(self.scenario.prey, self.prey, dt, self.positions)
-        self.state = bodies.step(self.body, self.state, commands, dt)
+        self.prey = prey_motion.step(self.scenario.prey, self.prey, self.scenario.dt, self.positions)
+        nxt = stepped.state
+        self.state = BodyState(nxt.position[0], nxt.velocity[0], nxt.heading[0])
         self.step_index += 1
-
-
-Shield = Callable[["Simulator", np.ndarray], np.ndarray]
 
 
 class OneRun:
     """The reference simulator seen as a batch of one (:class:`zswarm.sim.tally.Engine`): (1, N, D)
-    arrays, its sensing graph from the cell grid. ``shield``: another filter of the commands, whose
-    changes are counted as the filter's are."""
+    arrays, its sensing graph from the cell grid."""
 
-    def __init__(self, sim: Simulator, shield: Shield | None = None) -> None:
-        self.sim, self.shield = sim, shield
+    def __init__(self, sim: Simulator) -> None:
+        self.sim = sim
         self.dt = sim.scenario.dt
-        self.shielded = SafetyTally(self.dt) if shield is not None else None
-        self.energy: np.ndarray | None = None  # each agent's U_i at the last command (apf)
 
     @property
     def step_index(self) -> int:
@@ -189,30 +157,17 @@ class OneRun:
     def prey(self) -> np.ndarray:
         return self.sim.prey[None]
 
-    def velocities(self) -> np.ndarray:
-        self.energy, v = self.sim.potential_and_velocity(self.sim.positions, self.sim.prey)
-        if self.shield is not None:
-            wanted, v = v, self.shield(self.sim, v)
-            self.shielded.add(judged(wanted, v, np.zeros(len(v), dtype=bool)))
-        return v[None]
+    def command(self) -> Stepped:
+        return self.sim.command()
 
-    def advance(self, v: np.ndarray) -> None:
-        self.sim.advance(v[0])
+    def advance(self, stepped: Stepped) -> None:
+        self.sim.advance(stepped)
 
     def sensed(self) -> Sensed:
-        x, radius = self.sim.positions, self.sim.scenario.params.swarm.sensing_radius
-        i, j = pairs_within(x, radius)
-        keep = i < j
-        i, j = i[keep], j[keep]
-        d = x[i] - x[j]
-        a, m = self.sim.obstacles.sensed(x)
-        clearance = obstacle_clearance(x[a], self.sim.obstacles.centers[m], self.sim.obstacles.radii[m])
-        zero = np.zeros(len(i), dtype=np.intp)
-        return Sensed(zero, i, j, np.sqrt(np.einsum("ij,ij->i", d, d)), np.zeros(len(a), dtype=np.intp), a, m,
-                      clearance)
+        return Sensed.of_swarm(self.sim.positions, self.sim.scenario.params.swarm.sensing_radius, self.sim.obstacles)
 
     def safety_counts(self) -> np.ndarray:
-        t = self.shielded if self.shielded is not None else self.sim.tally
+        t = self.sim.tally
         return np.array([[t.interventions, t.stalled_steps, t.braked_steps]], dtype=np.int64)
 
 
@@ -235,7 +190,7 @@ def simulate(scenario: Scenario, seed: int, *, combination: Combination | None =
 
     ``sensing_graph``: draw who senses whom in the recording (None: for N <= 100).
     ``faults``: pass neighbour and prey data through a seeded faulty channel (:mod:`zswarm.sim.channel`).
-    ``safety``: "barrier" filters every command (:mod:`zswarm.model.safety`).
+    ``safety``: "barrier" filters every command (:mod:`zswarm.control.safety`).
     """
     sim = Simulator(scenario, seed, combination, faults, safety)
     p = scenario.params
@@ -264,14 +219,12 @@ def simulate(scenario: Scenario, seed: int, *, combination: Combination | None =
     trail: list[np.ndarray] = []
     run = OneRun(sim)
 
-    def watch(k: int, command: np.ndarray) -> None:
-        v = sim.moving(command[0])
+    def watch(k: int, stepped: Stepped) -> None:
+        v = stepped.state.velocity[0]  # the velocity each body moves with this step
         if traj is not None:
             traj[k], prey_traj[k] = sim.positions, sim.prey
         if k % metrics_every == 0 or k == steps:
-            # the energy of the true configuration: the agents' own sum when they sense it exactly
-            energy = float(run.energy.sum()) if sim.channel is None and run.energy is not None else None
-            metrics = observer.observe(sim.t, sim.ids, sim.positions, v, sim.prey, energy)
+            metrics = observer.observe(sim.t, sim.ids, sim.positions, v, sim.prey)
             if rec is not None and (k % record_every == 0 or k == steps):
                 _log_step(rec, series, labels, sim, v, metrics, trail,
                           p.swarm.sensing_radius if sensing_discs else None, observer.thresholds(),
@@ -301,7 +254,7 @@ def _log_step(rec, series, labels, sim: Simulator, v: np.ndarray, metrics: dict[
     swarm_log.set_time(rec, sim.step_index, sim.t, series)
     trail.append(sim.prey.copy())
     swarm_log.log_swarm(series, sim.t, sim.ids, sim.positions, v, sensing_radius, sim.headings, labels=labels)
-    if sim.safety is not None and sim.filtered is not None:
+    if sim.filtered is not None:
         swarm_log.log_safety(series, sim.positions, sim.filtered.flags(), sim.scenario.params.swarm.robot_radius)
     swarm_log.log_prey(series, sim.prey, np.array(trail[-400:]))
     swarm_log.log_metrics(series, metrics, thresholds)

@@ -2,10 +2,10 @@
 
 :func:`drive` steps an engine (the batched simulator, or the reference simulator seen as a batch of one
 by :class:`zswarm.sim.outcome.OneRun`) and folds, at every step, the outcome a study of many runs needs
-into :class:`OutcomeTally`, with each key as :class:`zswarm.model.metrics.Summary` defines it:
+into :class:`OutcomeTally`, with each key as :class:`zswarm.swarm.metrics.Summary` defines it:
 
 - collisions: onsets of pairs of the sensing graph closer than 2 d^r; obstacle contacts: onsets of a
-  sensed obstacle's clearance below d^r (:class:`zswarm.model.metrics.Onsets`, the rule Summary uses);
+  sensed obstacle's clearance below d^r (:class:`zswarm.swarm.metrics.Onsets`, the rule Summary uses);
 - the closest pair of the sensing graph, the closest clearance to a sensed obstacle;
 - capture: the first step the centroid is within the capture radius;
 - at the end, the groups of the sensing graph and the median nearest-neighbour distance.
@@ -24,7 +24,9 @@ from typing import Callable, Protocol
 
 import numpy as np
 
-from zswarm.model import metrics
+from zswarm.control.step import Stepped
+from zswarm.paper.neighbours import obstacle_clearance, pairs_within
+from zswarm.swarm import metrics
 
 
 @dataclass(frozen=True)
@@ -41,6 +43,19 @@ class Sensed:
     obstacle: np.ndarray
     clearance: np.ndarray
 
+    @classmethod
+    def of_swarm(cls, x: np.ndarray, radius: float, obstacles) -> Sensed:
+        """What one swarm at ``x`` (N, D) senses, from the cell grid (``obstacles``: an
+        :class:`~zswarm.paper.neighbours.ObstacleIndex`)."""
+        i, j = pairs_within(x, radius)
+        keep = i < j
+        i, j = i[keep], j[keep]
+        d = x[i] - x[j]
+        a, m = obstacles.sensed(x)
+        clearance = obstacle_clearance(x[a], obstacles.centers[m], obstacles.radii[m])
+        zero = np.zeros(len(i), dtype=np.intp)
+        return cls(zero, i, j, np.sqrt(np.einsum("ij,ij->i", d, d)), np.zeros(len(a), dtype=np.intp), a, m, clearance)
+
 
 class Engine(Protocol):
     """What :func:`drive` steps: the batched simulator, or one run seen as a batch of one."""
@@ -54,9 +69,9 @@ class Engine(Protocol):
     @property
     def prey(self) -> np.ndarray: ...  # (B, D)
 
-    def velocities(self) -> np.ndarray: ...  # (B, N, D): every agent's command from what it senses now
+    def command(self) -> Stepped: ...  # every agent's step from what it senses now (zswarm.control.step)
 
-    def advance(self, v: np.ndarray) -> None: ...
+    def advance(self, stepped: Stepped) -> None: ...  # the prey moves, then the bodies as stepped says
 
     def sensed(self) -> Sensed: ...
 
@@ -75,7 +90,7 @@ class Outcome:
     final_centroid_goal_distance: float
     final_components: int  # groups of the sensing graph at the end
     final_median_nearest: float | None  # median distance to the nearest neighbour within R, at the end
-    safety_interventions: int = 0  # agent-steps the safety filter changed (zswarm.model.safety_tally)
+    safety_interventions: int = 0  # agent-steps the safety filter changed (zswarm.control.safety_tally)
     safety_stalled_ticks: int = 0
     safety_braked_ticks: int = 0
 
@@ -148,12 +163,12 @@ class OutcomeTally:
 
 
 def drive(engine: Engine, steps: int, tally: OutcomeTally | None = None, stop_at_collision: bool = False,
-          watch: Callable[[int, np.ndarray], None] | None = None) -> None:
-    """The one step loop of both simulators: at each step k = 0..steps, the tally of the positions,
-    every agent's command from what it senses, ``watch(k, commands)`` (a recording, the trajectories),
-    then (k < steps) the move. ``stop_at_collision``: end at the first step any run collides (a study
-    that only asks whether a set collides need not simulate a crushed swarm to its end). Without a
-    watcher, the last step's commands, which move nothing, are not computed."""
+          watch: Callable[[int, Stepped], None] | None = None) -> None:
+    """The one step loop of every simulation: at each step k = 0..steps, the tally of the positions,
+    every agent's step from what it senses, ``watch(k, stepped)`` (a recording, the trajectories), then
+    (k < steps) the move. ``stop_at_collision``: end at the first step any run collides (a study that
+    only asks whether a set collides need not simulate a crushed swarm to its end). Without a watcher,
+    the last step's commands, which move nothing, are not computed."""
     for k in range(steps + 1):
         if tally is not None:
             tally.observe(engine.step_index, engine.positions, engine.prey, engine.sensed())
@@ -161,8 +176,8 @@ def drive(engine: Engine, steps: int, tally: OutcomeTally | None = None, stop_at
                 return
         if k == steps and watch is None:
             return
-        v = engine.velocities()
+        stepped = engine.command()
         if watch is not None:
-            watch(k, v)
+            watch(k, stepped)
         if k < steps:
-            engine.advance(v)
+            engine.advance(stepped)

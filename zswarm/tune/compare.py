@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from zswarm.model.params import Params
+from zswarm.paper.params import Params
 
 
 def held_out(task, sets: dict[str, Params], seeds: tuple[int, ...]) -> dict[str, dict[str, Any]]:

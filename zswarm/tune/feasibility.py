@@ -1,6 +1,6 @@
 """How far a parameter set is from passing ``zswarm design``: 0 when it passes, more the further off.
 
-:func:`violation` turns each failed check of a :class:`~zswarm.model.design.DesignReport` into a
+:func:`violation` turns each failed check of a :class:`~zswarm.design.guidelines.DesignReport` into a
 positive amount (mostly the log of the ratio by which the inequality fails), so a search that starts
 outside the allowed region is led into it. The cheap checks (Props 1-5, formation, contact) run first;
 the swarm squeeze (a simulation, about a second) only for a set that passes them all.
@@ -11,8 +11,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from zswarm.model.design import DesignReport, check
-from zswarm.model.params import Params
+from zswarm.design.guidelines import DesignReport, check
+from zswarm.paper.params import Params
 
 CHECKS = ("prop1", "prop2", "prop3", "prop4", "prop5", "formation", "contact", "swarm")
 #: What a failed check that has no graded measure counts (no stable spacing, say).

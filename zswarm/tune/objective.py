@@ -15,10 +15,10 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
-from zswarm.model.faults import FaultModel
-from zswarm.model.params import Params
-from zswarm.model.potentials import Combination
-from zswarm.model.scenarios import Scenario
+from zswarm.swarm.faults import FaultModel
+from zswarm.paper.params import Params
+from zswarm.paper.potentials import Combination
+from zswarm.swarm.scenarios import Scenario
 from zswarm.sim.batch import Member, simulate_batch
 from zswarm.sim.tally import Outcome
 

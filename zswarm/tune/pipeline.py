@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from zswarm.files import write_json
-from zswarm.model.params import FIELDS, Params
+from zswarm.paper.params import FIELDS, Params
 from zswarm.tune.feasibility import CHECKS
 from zswarm.tune.space import TUNABLE
 
@@ -140,7 +140,7 @@ def choose(s: Searched, plan: Plan, space, task, faults, command: str,
     """Validate the finalists, compare the best with the start on held-out seeds and write best.toml (the
     start when the best does not beat it), design.json / design.txt (``render``), tune.png and
     comparison.json. Returns the two sets compared."""
-    from zswarm.model.design import check
+    from zswarm.design.guidelines import check
     from zswarm.record.tune_figure import save_figure
     from zswarm.tune.compare import held_out
     from zswarm.tune.finalists import validate
@@ -161,7 +161,7 @@ def choose(s: Searched, plan: Plan, space, task, faults, command: str,
         write_json(plan.out / "design.json", report.to_json())
         (plan.out / "design.txt").write_text(render(report) + "\n")
     else:
-        from zswarm.model.design import verdict
+        from zswarm.design.guidelines import verdict
 
         write_json(plan.out / "design.json", verdict(recommended))
         (plan.out / "design.txt").write_text(verdict(recommended)["note"] + "\n")
@@ -179,7 +179,7 @@ def choose(s: Searched, plan: Plan, space, task, faults, command: str,
 
 def design_failures(params: Params) -> list[str]:
     """The checks ``params`` fails (none for a law the guidelines do not cover)."""
-    from zswarm.model.design import check
+    from zswarm.design.guidelines import check
 
     return list(check(params).failures()) if params.law.law == "apf" else []
 

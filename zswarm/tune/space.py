@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from zswarm.errors import UsageError
-from zswarm.model.params import FIELDS, Params
+from zswarm.paper.params import FIELDS, Params
 
 TUNABLE = tuple(name for name, spec in FIELDS.items() if spec.group == "potential")
 #: How far from its start each parameter may go: a factor of 20 either way.
@@ -64,7 +64,7 @@ class Space:
     @property
     def start(self) -> np.ndarray:
         if self.ranges is not None:
-            from zswarm.laws.bound import law_params
+            from zswarm.laws.contract import law_params
             from zswarm.laws.registry import resolve
 
             now = law_params(resolve(self.base.law.law)[0], dict(self.base.law.settings))

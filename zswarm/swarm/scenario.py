@@ -7,7 +7,7 @@ set (``dimensions``), since the design checks that count neighbours depend on it
 
 A scenario is a frozen description; everything random about a run (the spawn positions) is drawn from
 the run's seed by :meth:`Scenario.initial_positions`. The registered ones and TOML files are in
-:mod:`zswarm.model.scenarios`.
+:mod:`zswarm.swarm.scenarios`.
 """
 
 from __future__ import annotations
@@ -20,12 +20,12 @@ from typing import Any
 import numpy as np
 
 from zswarm.errors import UsageError
-from zswarm.model.neighbour_law import neighbour_law
-from zswarm.model.neighbours import ObstacleIndex
-from zswarm.model.numeric import all_finite
-from zswarm.model.params import DEFAULT_PARAMS, Params
-from zswarm.model.potentials import COMBINATIONS, Combination
-from zswarm.model.prey import PreyMotion
+from zswarm.paper.neighbour_law import neighbour_law
+from zswarm.paper.neighbours import ObstacleIndex
+from zswarm.paper.numeric import all_finite
+from zswarm.paper.params import DEFAULT_PARAMS, LawChoice, Params
+from zswarm.paper.potentials import COMBINATIONS, Combination
+from zswarm.swarm.prey import PreyMotion
 
 
 @dataclass(frozen=True)
@@ -107,6 +107,14 @@ class Scenario:
     @property
     def steps(self) -> int:
         return int(round(self.duration / self.dt))
+
+    def groups(self) -> list[tuple[LawChoice, str]]:
+        """Its groups of agents: each group's law and body (the last: the scenario's own)."""
+        return [(self.params.law, self.params.body.body)]
+
+    def group_of(self, ids: np.ndarray) -> np.ndarray:
+        """The group (an index into :meth:`groups`) of each agent id."""
+        return np.zeros(len(ids), dtype=np.intp)
 
     def obstacle_arrays(self) -> tuple[np.ndarray, np.ndarray]:
         """Centres (M, D) and radii (M,)."""

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from zswarm.model.design import DesignReport
+from zswarm.design.guidelines import DesignReport
 
 
 def _fmt(v: Any) -> str:

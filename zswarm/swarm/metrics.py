@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from zswarm.model.neighbours import ObstacleIndex, pairs_within
+from zswarm.paper.neighbours import ObstacleIndex, obstacle_clearance, pairs_within
 
 FIEDLER_MAX_N = 400
 
@@ -82,12 +82,6 @@ def caught(centroid_distance: np.ndarray | float, capture_radius: np.ndarray | f
 def too_close(distance: np.ndarray, robot_radius: np.ndarray | float) -> np.ndarray:
     """A collision: two bodies of radius d^r closer than 2 d^r (counted on pairs of the sensing graph)."""
     return distance < 2.0 * np.asarray(robot_radius)
-
-
-def obstacle_clearance(points: np.ndarray, centers: np.ndarray, radii: np.ndarray) -> np.ndarray:
-    """|P - C| - rho (the |psi^o| that Props 1-2 bound), broadcast over points and obstacles."""
-    d = points - centers
-    return np.sqrt(np.einsum("...k,...k->...", d, d)) - radii
 
 
 def touching(clearance: np.ndarray, robot_radius: np.ndarray | float) -> np.ndarray:

@@ -2,7 +2,7 @@
 
 Every other check of the design report (Props 1-5, the pair spacing, contact, the swarm squeeze, the
 time step) is about the paper's agent, "the omni-directional robot without nonholonomic constraints",
-which moves exactly as commanded: the point body of :mod:`zswarm.model.body`. Another body moves
+which moves exactly as commanded: the point body of :mod:`zswarm.control.body`. Another body moves
 differently, and what it adds is a lag between where the law wants an agent and where it is:
 
 - a ``unicycle`` steers the point ``lookahead`` (l) ahead of its axle, so its axle may be l from where
@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from zswarm.model.params import Params
+from zswarm.paper.params import Params
 
 #: The checks of the design report that assume the point body.
 POINT_CHECKS = ("Props 1-5", "formation", "contact", "swarm", "time step")

@@ -21,8 +21,8 @@ from typing import Callable
 
 import numpy as np
 
-from zswarm.model.design import DesignReport, check
-from zswarm.model.params import FIELDS, Params
+from zswarm.design.guidelines import DesignReport, check
+from zswarm.paper.params import FIELDS, Params
 
 POTENTIAL_FIELDS = [name for name, spec in FIELDS.items() if spec.group == "potential"]
 Progress = Callable[[str], None]

@@ -29,8 +29,8 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from zswarm.model.params import Params
-from zswarm.model.scenario import Scenario
+from zswarm.paper.params import Params
+from zswarm.swarm.scenario import Scenario
 
 #: Up to this N the registered scenarios use the paper's interaction; the default set passes every
 #: design check with it up to here (``zswarm design --set n_agents=N``), and fails from N = 15.
@@ -77,7 +77,7 @@ def scale_to(scenario: Scenario, n_agents: int) -> Scenario:
 
 def stable_dt(params: Params, dt: float) -> float:
     """``dt``, halved until the design's time step check holds for ``params`` (at most five times)."""
-    from zswarm.model.design_swarm import time_step
+    from zswarm.paper.stiffness import time_step
 
     for _ in range(5):
         if time_step(params, dt)["holds"]:

@@ -13,7 +13,7 @@ from typing import Literal
 
 import numpy as np
 
-from zswarm.model.numeric import all_finite
+from zswarm.paper.numeric import all_finite
 
 PreyKind = Literal["static", "straight", "circle", "evasive"]
 PREY_KINDS: tuple[PreyKind, ...] = ("static", "straight", "circle", "evasive")

@@ -18,13 +18,13 @@ from functools import lru_cache
 
 import numpy as np
 
-from zswarm.model.metrics import components
-from zswarm.model.neighbour_law import neighbour_law
-from zswarm.model.neighbours import pairs_within
-from zswarm.model.params import Params
-from zswarm.model.formation import formation_offset
-from zswarm.model.law import field
-from zswarm.model.potentials import saturate
+from zswarm.swarm.metrics import components
+from zswarm.paper.neighbour_law import neighbour_law
+from zswarm.paper.neighbours import pairs_within
+from zswarm.paper.params import Params
+from zswarm.paper.formation import formation_offset
+from zswarm.paper.field import field
+from zswarm.paper.potentials import saturate
 
 
 @dataclass(frozen=True)

@@ -24,7 +24,7 @@ other (2 epsilon <= R) under the paper's interaction. Outside that it guarantees
 bind: its verdict is shown, and the swarm check (which simulates the law in use) stands in.
 
 Prop 4 (eqs 37-39), Prop 5 (eqs 40-41), the contact check, the swarm squeeze and the time step are in
-:mod:`zswarm.model.design_swarm`, each for our agents (sensing radius, interaction) beside the paper's
+:mod:`zswarm.design.swarm_checks`, each for our agents (sensing radius, interaction) beside the paper's
 verdict.
 """
 
@@ -37,18 +37,20 @@ from typing import Any
 
 import numpy as np
 
-from zswarm.model.design_body import body_check
-from zswarm.model.design_swarm import contact, prop4, prop5, swarm_rest, time_step
-from zswarm.model.safety import guarantee
-from zswarm.model.formation import (
+from zswarm.design.bodies import body_check
+from zswarm.design.swarm_checks import contact, prop4, prop5, swarm_rest
+from zswarm.paper.stiffness import time_step
+from zswarm.control.safety import guarantee
+from zswarm.paper.formation import (
+    epsilon,
     closed_form_spacing,
     equilibria,
     formation_offset,
     h_stable,
 )
-from zswarm.model.neighbour_law import GATE_INNER
-from zswarm.model.numeric import maximize, sign_changes
-from zswarm.model.params import DesignMargins, Params, PotentialParams
+from zswarm.paper.neighbour_law import GATE_INNER
+from zswarm.paper.numeric import maximize, sign_changes
+from zswarm.paper.params import DesignMargins, Params, PotentialParams
 
 GRID = 40_001
 
@@ -154,16 +156,6 @@ def _prop2(p: PotentialParams, m: DesignMargins) -> dict[str, Any]:
             "margin": bound - ratio, "detail": detail}
 
 
-def epsilon(p: PotentialParams, n_agents: int) -> float:
-    """Cohesion radius of Prop 3 (eq 34); infinite when c'_a = 0."""
-    if n_agents <= 1:
-        return 0.0
-    if p.c_a_prime == 0:
-        return math.inf
-    return ((n_agents - 1) * math.exp(-0.5) * (p.c_r / p.l_r + p.c_a / p.l_a)
-            / (math.sqrt(2.0) * p.c_a_prime * n_agents))
-
-
 def prop3(params: Params) -> dict[str, Any]:
     p, s = params.potential, params.swarm
     eps = epsilon(p, s.n_agents)
@@ -222,8 +214,8 @@ class DesignReport:
     contact: dict[str, Any]
     swarm: dict[str, Any] | None  # None: not evaluated (the pair potential has no stable spacing)
     step: dict[str, Any] | None = None  # the time step check, when a dt was given
-    body: dict[str, Any] | None = None  # the body check (zswarm.model.design_body)
-    safety: dict[str, Any] | None = None  # what the safety filter guarantees (zswarm.model.safety.guarantee)
+    body: dict[str, Any] | None = None  # the body check (zswarm.design.bodies)
+    safety: dict[str, Any] | None = None  # what the safety filter guarantees (zswarm.control.safety.guarantee)
 
     def failures(self) -> list[str]:
         """The checks that fail and bind (Prop 3 binds only where it applies: see its docstring)."""

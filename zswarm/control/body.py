@@ -31,18 +31,7 @@ from typing import NamedTuple
 import numpy as np
 
 from zswarm.errors import ParamError
-
-KINDS: tuple[str, ...] = ("point", "unicycle", "double-integrator")
-#: Bodies whose pose carries a heading (on the wire, in the recording).
-HEADED: frozenset[str] = frozenset({"unicycle"})
-
-
-def parse_body(text: object) -> str:
-    """A body's name, checked; raises :class:`ParamError`."""
-    if not isinstance(text, str) or text.strip() not in KINDS:
-        raise ParamError(f"body must be one of {', '.join(KINDS)} (got {text!r})")
-    return text.strip()
-
+from zswarm.paper.params import HEADED, KINDS, parse_body  # noqa: F401 - a body's names are parameters
 
 @dataclass(frozen=True)
 class BodySpec:
@@ -60,7 +49,7 @@ class BodySpec:
 
 
 def body_spec(params) -> BodySpec:
-    """The body of a parameter set (:class:`zswarm.model.params.Params`)."""
+    """The body of a parameter set (:class:`zswarm.paper.params.Params`)."""
     b = params.body
     return BodySpec(b.body, params.swarm.v_max, b.turn_rate, b.lookahead, b.accel)
 
@@ -109,7 +98,7 @@ def tracked_point(position, heading, lookahead: float):
     ``lookahead`` ahead of its axle (P itself without a heading or a look-ahead). The one home of that
     point: the reference simulator's filter takes it for the whole swarm (arrays with any leading
     axes), an agent for itself and each neighbour it guards (a tuple in, a tuple out)."""
-    if heading is None or not lookahead:
+    if heading is None or (np.ndim(lookahead) == 0 and not lookahead):
         return position
     if isinstance(position, tuple):
         return (position[0] + lookahead * math.cos(heading), position[1] + lookahead * math.sin(heading),

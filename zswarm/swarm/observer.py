@@ -2,7 +2,7 @@
 
 Built from a scenario (and the obstacle-goal combination in use), it owns what measuring a swarm
 needs: the obstacle index, the metric context (robot radius, sensing radius, the design's spacing
-d^f), the energy of eq 35 and the run's :class:`~zswarm.model.metrics.Summary`. Each observed step is
+d^f), the energy of eq 35 and the run's :class:`~zswarm.swarm.metrics.Summary`. Each observed step is
 ``(t, ids, positions, velocities, prey)``; nothing else about where the states came from matters,
 so a live run, its reference simulation and a replay of its recording fold into identical summaries.
 """
@@ -11,12 +11,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from zswarm.model.design import epsilon
-from zswarm.model.law import Law, compile_law, swarm_field
-from zswarm.model.metrics import MetricContext, Summary, step_metrics
-from zswarm.model.neighbours import ObstacleIndex, pairs_within
-from zswarm.model.potentials import Combination
-from zswarm.model.scenarios import Scenario
+from zswarm.paper.formation import epsilon
+from zswarm.paper.field import Law, compile_law, swarm_field
+from zswarm.swarm.metrics import MetricContext, Summary, step_metrics
+from zswarm.paper.neighbours import ObstacleIndex, pairs_within
+from zswarm.paper.potentials import Combination
+from zswarm.swarm.scenarios import Scenario
 
 
 class SwarmObserver:

@@ -1,6 +1,6 @@
 """The safety filter: the command closest to the law's that keeps every agent apart, on data of any age.
 
-Between the law (:mod:`zswarm.model.law`) and the body, agent i replaces its command u^ by
+Between the law (:mod:`zswarm.paper.field`) and the body, agent i replaces its command u^ by
 
     u_i = argmin |u - u^|^2   subject to   a_r . u <= b_r  for every row r of agent i          (S1)
 
@@ -49,7 +49,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from zswarm.model.neighbours import pairs_within
+from zswarm.paper.neighbours import pairs_within
 
 MODES: tuple[str, ...] = ("off", "barrier")
 TOL = 1e-12  # a candidate satisfies a row when a.u - b <= TOL (rounding of the exact solutions)
@@ -281,7 +281,7 @@ def _active_set_projections(u_hat: np.ndarray, A: np.ndarray, B: np.ndarray, val
 def swarm_rows(safety: Safety, obstacles, points: np.ndarray,
                pairs: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> Rows:
     """The rows of every agent of a swarm at ``points``: its sensed obstacles (an
-    :class:`~zswarm.model.neighbours.ObstacleIndex`) and ``pairs`` = (i, psi_ij, tau_j), what each
+    :class:`~zswarm.paper.neighbours.ObstacleIndex`) and ``pairs`` = (i, psi_ij, tau_j), what each
     agent believes of its neighbours and how old it is (default: every pair within the sensing radius,
     exact and fresh)."""
     if pairs is None:
@@ -290,143 +290,6 @@ def swarm_rows(safety: Safety, obstacles, points: np.ndarray,
     a, m = obstacles.sensed(points)
     return rows(safety, len(points), *pairs, a, points[a] - obstacles.centers[m], obstacles.radii[m])
 
-
-class Acted(NamedTuple):
-    """What the filter did to one agent's command."""
-
-    acted: bool
-    stalled: bool
-    braked: bool
-
-    @property
-    def flag(self) -> int:
-        """Its flag of ``messages.SAFETY_FLAGS``, as :meth:`Filtered.flags`."""
-        return 3 if self.braked else 2 if self.stalled else int(self.acted)
-
-
-def filter_one(safety: Safety, point: tuple[float, ...], u_hat: tuple[float, ...],
-               neighbours: list[tuple[tuple[float, ...], float]],
-               obstacles: list[tuple[float, ...]], detour: bool = True) -> tuple[tuple[float, ...], Acted | None]:
-    """One agent's filter in plain floats (an agent process, every tick): :func:`apply` of
-    :func:`rows` for one agent at ``point`` with ``neighbours`` as (believed point, age) and
-    ``obstacles`` as (centre..., radius), the same rows and the same exact enumeration written for the
-    few rows one agent has (numpy's per-call cost would be most of it). Most ticks no row binds and the
-    command passes at the cost of a few float operations. Returns the command and what the filter did
-    (None: nothing)."""
-    rate, v, dims = safety.kappa / safety.period, safety.v_max, len(point)
-    far = 2.0 * v * math.sqrt(2.0) / rate  # a gap this wide gives b >= |a| v_max for every row: none binds
-    distance, max_age = safety.distance, safety.max_age
-    binding: list[tuple[tuple[float, ...], float]] = []
-    violated = stale = False
-    for q, age in neighbours:
-        d = math.dist(point, q)  # |psi|, the same arithmetic as hypot of the differences
-        gap = d - distance - v * age
-        if gap >= far and age <= max_age:
-            continue  # most neighbours, most ticks: nothing more is computed
-        psi = [point[k] - q[k] for k in range(dims)]
-        b = 0.5 * rate * max(gap, 0.0)
-        spread = min(v * age / d, 1.0) if d > 0 else 1.0
-        cos = math.sqrt(1.0 - spread * spread)
-        if cos * b < v * math.sqrt(1.0 + (dims - 2) * spread * spread):
-            stale |= age > max_age or v * age >= d
-            unit = [c / d for c in psi] if d > 0 else [0.0] * dims
-            rows_j = [(tuple(-c for c in unit), cos * b)]
-            if spread > 0:
-                rows_j += [(tuple(-(cos * unit[k] - spread * e[k]) for k in range(dims)), b)
-                           for e in _tangent_signs_floats(unit)]
-            for a, bound in rows_j:
-                binding.append((a, bound))
-                violated |= sum(a[k] * u_hat[k] for k in range(dims)) - bound > TOL
-    for obstacle in obstacles:
-        d = math.dist(point, obstacle[:dims])
-        b = rate * max(d - obstacle[dims] - safety.clearance, 0.0)
-        if b < v:
-            psi = [point[k] - obstacle[k] for k in range(dims)]
-            a = tuple(-c / d for c in psi) if d > 0 else (0.0,) * dims
-            binding.append((a, b))
-            violated |= sum(a[k] * u_hat[k] for k in range(dims)) - b > TOL
-    speed = math.hypot(*u_hat)
-    if stale:
-        return (0.0,) * dims, Acted(speed > 0.0, speed > 0.0, True)
-    if not violated:
-        return u_hat, None
-    binding = [r for r in binding if r[1] < speed * math.sqrt(sum(c * c for c in r[0])) + TOL]
-    u = _project_floats(u_hat, binding)
-    if detour and math.sqrt(sum(c * c for c in u)) < STALL_SHARE * speed:  # take_detour, in floats
-        cos, sin = math.cos(DETOUR), math.sin(DETOUR)
-        turned = (cos * u_hat[0] + sin * u_hat[1], -sin * u_hat[0] + cos * u_hat[1], *u_hat[2:])
-        fits = all(sum(a[k] * turned[k] for k in range(dims)) - b <= TOL for a, b in binding)
-        alt = turned if fits else _project_floats(turned, binding)
-        if math.sqrt(sum(x * x for x in alt)) > math.sqrt(sum(x * x for x in u)) + 1e-9 * speed:
-            u = alt
-    change = math.sqrt(sum((u[k] - u_hat[k]) ** 2 for k in range(dims)))
-    acted = change > 1e-9 * max(speed, 1.0)
-    return u, Acted(acted, acted and math.sqrt(sum(c * c for c in u)) < STALL_SHARE * speed, False)
-
-
-def _tangent_signs_floats(unit: list[float]) -> list[tuple[float, ...]]:
-    """:func:`_tangent_signs` for one direction, in floats (the same vectors)."""
-    if len(unit) == 2:
-        return [(-unit[1], unit[0]), (unit[1], -unit[0])]
-    k = min(range(3), key=lambda i: abs(unit[i]))
-    axis = [1.0 if i == k else 0.0 for i in range(3)]
-    t1 = _cross(unit, axis)
-    n1 = math.sqrt(sum(c * c for c in t1))
-    t1 = [c / n1 for c in t1] if n1 > 0 else [0.0, 0.0, 0.0]
-    t2 = _cross(unit, t1)
-    return [tuple(s1 * t1[i] + s2 * t2[i] for i in range(3)) for s1, s2 in ((1, 1), (1, -1), (-1, 1), (-1, -1))]
-
-
-def _cross(x: list[float], y: list[float]) -> list[float]:
-    return [x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0]]
-
-
-def _project_floats(u_hat: tuple[float, ...], rows_: list[tuple[tuple[float, ...], float]]) -> tuple[float, ...]:
-    """:func:`_solve` for one agent in floats: the projections onto every active set of at most D
-    linearly independent rows, tried from the closest to u^; the first that satisfies every row is
-    the optimum (0 always does)."""
-    dims = len(u_hat)
-    cands = []
-    for size in range(1, min(dims, len(rows_)) + 1):
-        for chosen in combinations(rows_, size):
-            u = _affine_projection(u_hat, chosen)
-            if u is not None:
-                cands.append((sum((u[k] - u_hat[k]) ** 2 for k in range(dims)), u))
-    cands.sort(key=lambda c: c[0])
-    for _, u in cands:
-        if all(sum(a[k] * u[k] for k in range(dims)) - b <= TOL for a, b in rows_):
-            return u
-    return (0.0,) * dims
-
-
-def _affine_projection(u_hat: tuple[float, ...], chosen) -> tuple[float, ...] | None:
-    """u^ - A^T (A A^T)^-1 (A u^ - b) for 1, 2 or 3 rows (Cramer's rule); None if they are dependent."""
-    dims = len(u_hat)
-    dot = lambda x, y: sum(x[k] * y[k] for k in range(dims))  # noqa: E731
-    a = [r[0] for r in chosen]
-    rhs = [dot(r[0], u_hat) - r[1] for r in chosen]
-    g = [[dot(x, y) for y in a] for x in a]
-    n = len(chosen)
-    if n == 1:
-        if g[0][0] <= 1e-12:
-            return None
-        lam = [rhs[0] / g[0][0]]
-    elif n == 2:
-        det = g[0][0] * g[1][1] - g[0][1] * g[1][0]
-        if abs(det) <= 1e-12:
-            return None
-        lam = [(rhs[0] * g[1][1] - g[0][1] * rhs[1]) / det, (g[0][0] * rhs[1] - rhs[0] * g[1][0]) / det]
-    else:
-        det = _det3(g)
-        if abs(det) <= 1e-12:
-            return None
-        lam = [_det3([[rhs[i] if j == c else g[i][j] for j in range(3)] for i in range(3)]) / det for c in range(3)]
-    return tuple(u_hat[k] - sum(lam[i] * a[i][k] for i in range(n)) for k in range(dims))
-
-
-def _det3(m: list[list[float]]) -> float:
-    return (m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
-            + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]))
 
 def guarantee(params, dt: float | None = None) -> dict:
     """What ``--safety barrier`` guarantees for a parameter set (the design report's Safety row): the

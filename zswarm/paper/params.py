@@ -8,10 +8,10 @@ Symbols follow Kim, Wang & Shin (2006):
   c'_a of eq 26.
 - ``d_m_go``: radius of the permissible goal region around an obstacle (Prop 1);
   ``d_m_ro``: the closest an agent may come to an obstacle (Prop 2).
-- ``interaction``: how an agent uses its neighbours (:mod:`zswarm.model.interaction`): ``paper``
+- ``interaction``: how an agent uses its neighbours (:mod:`zswarm.paper.interaction`): ``paper``
   (eqs 26-28) or a variant that scales; ``gate``, ``k_nearest``, ``swirl`` and ``swirl_radius`` set
   the variants.
-- ``body``: what a commanded velocity does (:mod:`zswarm.model.body`): ``point`` (the paper's),
+- ``body``: what a commanded velocity does (:mod:`zswarm.control.body`): ``point`` (the paper's),
   ``unicycle`` (``turn_rate``, ``lookahead``) or ``double-integrator`` (``accel``).
 - ``law``: which control law the agents run (:mod:`zswarm.laws`): ``apf`` (the paper's, the default),
   another built-in, or a user's; ``law.NAME`` sets one of that law's own parameters (checked by the
@@ -29,8 +29,19 @@ from dataclasses import dataclass, field
 from typing import Any, Mapping
 
 from zswarm.errors import ParamError
-from zswarm.model.body import parse_body
-from zswarm.model.interaction import Interaction, parse_interaction
+from zswarm.paper.interaction import Interaction, parse_interaction
+
+
+KINDS: tuple[str, ...] = ("point", "unicycle", "double-integrator")
+#: Bodies whose pose carries a heading (on the wire, in the recording).
+HEADED: frozenset[str] = frozenset({"unicycle"})
+
+
+def parse_body(text: object) -> str:
+    """A body's name, checked; raises :class:`ParamError`."""
+    if not isinstance(text, str) or text.strip() not in KINDS:
+        raise ParamError(f"body must be one of {', '.join(KINDS)} (got {text!r})")
+    return text.strip()
 
 
 @dataclass(frozen=True)
@@ -214,7 +225,7 @@ class InteractionParams:
 
 @dataclass(frozen=True)
 class BodyParams:
-    """What a commanded velocity does (:mod:`zswarm.model.body`): the body and its limits."""
+    """What a commanded velocity does (:mod:`zswarm.control.body`): the body and its limits."""
 
     body: str = "point"
     turn_rate: float = 4.0

@@ -4,7 +4,7 @@ Eq 28 splits the pair force F = -g(r) psi into its repulsion and attraction part
 
     g(r) = g_r(r) + g_a(r),  g_r = -2 c_r/l_r^2 e^{-r^2/l_r^2},  g_a = 2 c_a/l_a^2 e^{-r^2/l_a^2} + 2 c'_a,
 
-and the variants of :mod:`zswarm.model.interaction` act on those parts, with w_k the weight of pair k:
+and the variants of :mod:`zswarm.paper.interaction` act on those parts, with w_k the weight of pair k:
 
     F_i = sum_k w_k (-g_r psi_k) + A_i,   A_i = sum_k w_k (-g_a psi_k)               (paper's sum)
                                           A_i = sum_k w_k (-g_a psi_k) / max(sum_k w_k, 1)  (mean)
@@ -34,9 +34,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from zswarm.errors import ParamError
-from zswarm.model.formation import equilibria, pair_gain
-from zswarm.model.interaction import Interaction
-from zswarm.model.params import Params, PotentialParams
+from zswarm.paper.formation import equilibria, pair_gain
+from zswarm.paper.interaction import Interaction
+from zswarm.paper.params import Params, PotentialParams
 
 CUTOFF_INNER = 0.8  # the bump is 1 up to this fraction of R
 GATE_INNER = 0.9  # g_in = GATE_INNER g_out

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from zswarm.errors import ParamError
-from zswarm.model import safety as sf
+from zswarm.control import safety as sf
 
 
 def safety_of(scenario, mode: str, faulted: bool = False) -> sf.Safety | None:

@@ -2,7 +2,7 @@
 
 The terms of one agent's potential, vectorized over any leading axes: the goal (eqs 7-8), each sensed
 obstacle (eqs 9-11, circles through their nearest boundary point), each sensed neighbour (eqs 26 and
-28), and the speed limit. :mod:`zswarm.model.law` combines them into every agent's force, once, for
+28), and the speed limit. :mod:`zswarm.paper.field` combines them into every agent's force, once, for
 every runner. Every force is the exact negative gradient of its potential with respect to P_i;
 ``tests/test_potentials.py`` checks each against a central finite difference.
 """
@@ -13,8 +13,8 @@ from typing import Literal
 
 import numpy as np
 
-from zswarm.model.formation import pair_gain
-from zswarm.model.params import PotentialParams
+from zswarm.paper.formation import pair_gain
+from zswarm.paper.params import PotentialParams
 
 Combination = Literal["additive", "multiplicative"]
 COMBINATIONS: tuple[Combination, ...] = ("additive", "multiplicative")

@@ -1,6 +1,6 @@
 """The registered scenarios (``zswarm scenarios``), scenarios from TOML files
 (:func:`load_scenario_file`, format in docs/simulation.md), and :func:`get_scenario`, which builds
-either with parameter overrides. What a scenario is: :mod:`zswarm.model.scenario`."""
+either with parameter overrides. What a scenario is: :mod:`zswarm.swarm.scenario`."""
 
 from __future__ import annotations
 
@@ -13,10 +13,10 @@ import numpy as np
 
 from zswarm.errors import UsageError
 from zswarm.files import read_toml
-from zswarm.model.params import DEFAULT_PARAMS, ParamError, validate
-from zswarm.model.prey import PreyMotion
-from zswarm.model.scaling import interaction_for, run_time, scale_to, stable_dt
-from zswarm.model.scenario import Box, Obstacle, Scenario, spawn_positions
+from zswarm.paper.params import DEFAULT_PARAMS, ParamError, validate
+from zswarm.swarm.prey import PreyMotion
+from zswarm.swarm.scaling import interaction_for, run_time, scale_to, stable_dt
+from zswarm.swarm.scenario import Box, Obstacle, Scenario, spawn_positions
 
 __all__ = ["SCENARIOS", "Box", "Obstacle", "Scenario", "get_scenario", "load_scenario_file", "spawn_positions"]
 
@@ -233,7 +233,7 @@ def get_scenario(name: str, overrides: dict[str, Any] | None = None) -> Scenario
     """A registered scenario (or a TOML file path), with parameter overrides applied.
 
     An ``n_agents`` override grows a registered scenario to that size by the rule of
-    :mod:`zswarm.model.scaling` (``large-swarm`` and ``bench-field`` are rebuilt at that size); every
+    :mod:`zswarm.swarm.scaling` (``large-swarm`` and ``bench-field`` are rebuilt at that size); every
     other override is then applied as given.
     """
     try:  # checked before anything is built from them (large-swarm grows with n_agents)

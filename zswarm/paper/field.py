@@ -5,21 +5,21 @@
     additive (eqs 12-13):        U = U^o + U^g,                 F = F^o + w_i F^g
     multiplicative (eqs 14-15):  U = U^o U^g / c_g + U^g,       F = (U^g/c_g) F^o + w_i (1 + U^o/c_g) F^g
 
-plus the formation term U^f, F^f of eqs 26-28 (or an interaction of :mod:`zswarm.model.neighbour_law`,
+plus the formation term U^f, F^f of eqs 26-28 (or an interaction of :mod:`zswarm.paper.neighbour_law`,
 whose gate sets the goal weight w_i; w_i = 1 otherwise) and, with ``swirl``, the circulation about the
-goal (:func:`zswarm.model.neighbour_law.swirl_force`, which U does not hold: it is no gradient). The
+goal (:func:`zswarm.paper.neighbour_law.swirl_force`, which U does not hold: it is no gradient). The
 multiplicative F is eq 15 regrouped: -grad(U^g/c_g) = F^g/c_g. U stays eq 35's (with the paper's eq 26
 sum), the energy the metrics report.
 
 :func:`field` is the one implementation, over any leading batch axes (agents, or runs x agents, each
 with D = 2 or 3 coordinates). What each agent sensed comes as pairs, in one of two layouts
-(:mod:`zswarm.model.neighbour_law`): a flat list (pair k belongs to agent ``agent[k]``; the reference
+(:mod:`zswarm.paper.neighbour_law`): a flat list (pair k belongs to agent ``agent[k]``; the reference
 simulator's cell grid, or one agent) or a dense masked block (the batched simulator). Its consumers:
 
 - the reference simulator, a batch of one (:func:`swarm_field`, flat pairs from the cell grid);
 - the batched simulator, a batch of many (dense blocks, each run's parameters as columns);
 - a 3-D agent process: the same code on one row (:meth:`Law.velocity`);
-- a 2-D agent process: :mod:`zswarm.model.agent_law`, the same arithmetic in plain floats, kept
+- a 2-D agent process: :mod:`zswarm.paper.agent_law`, the same arithmetic in plain floats, kept
   because it is ten times cheaper at one agent's size (``docs/benchmarks.md``); a property test
   (``tests/test_one_law.py``) holds it, and every other consumer, equal to :func:`field` to 1e-12.
 
@@ -33,8 +33,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from zswarm.model.formation import equilibria, formation_offset
-from zswarm.model.neighbour_law import (
+from zswarm.paper.formation import equilibria, formation_offset
+from zswarm.paper.neighbour_law import (
     NeighbourLaw,
     PairList,
     Pairs,
@@ -43,9 +43,9 @@ from zswarm.model.neighbour_law import (
     swirl_force,
     unit_toward,
 )
-from zswarm.model.neighbours import ObstacleIndex, pairs_within
-from zswarm.model.params import Params, PotentialParams
-from zswarm.model.potentials import (
+from zswarm.paper.neighbours import ObstacleIndex, pairs_within
+from zswarm.paper.params import Params, PotentialParams
+from zswarm.paper.potentials import (
     COMBINATIONS,
     Combination,
     formation_terms,
@@ -66,8 +66,8 @@ def field(psi_g: np.ndarray, obstacles: np.ndarray | Pairs, psi_o: np.ndarray, n
 
     ``psi_g``: (..., D) goal offsets P_i - P_goal (eq 6); ``obstacles``, ``psi_o``: the sensed obstacle
     pairs and their offsets P_i - B_j (eq 9); ``neighbours``, ``psi_f``: the sensed neighbour pairs and
-    P_i - P_k (eq 25). Pairs are a :class:`~zswarm.model.neighbour_law.PairList` or
-    :class:`~zswarm.model.neighbour_law.DensePairs`, or a plain array of agent indices (a flat list).
+    P_i - P_k (eq 25). Pairs are a :class:`~zswarm.paper.neighbour_law.PairList` or
+    :class:`~zswarm.paper.neighbour_law.DensePairs`, or a plain array of agent indices (a flat list).
     ``combination``: a name, or a boolean array (True: multiplicative) that broadcasts against (...),
     one per run of a batch. ``p``: one parameter set, or columns that broadcast against (...);
     ``p_pairs``: the same columns shaped for the pairs (default ``p``). ``law``: an interaction other

@@ -159,3 +159,9 @@ class ObstacleIndex:
         dist = np.sqrt(np.einsum("ij,ij->i", d, d))
         keep = dist - self.radii[m] <= self.sensing_radius
         return i[keep], m[keep]
+
+
+def obstacle_clearance(points: np.ndarray, centers: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """|P - C| - rho (the |psi^o| that Props 1-2 bound), broadcast over points and obstacles."""
+    d = points - centers
+    return np.sqrt(np.einsum("...k,...k->...", d, d)) - radii

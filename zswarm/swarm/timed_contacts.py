@@ -15,7 +15,7 @@ closer than 2 d^r *at the same instant*, on the senders' clock:
 - between two judgements, the stamps of the poses are the instants where a distance can change; each
   pair that can come within reach in the interval (bounded by how far each agent moved in it) is walked
   through those instants, and an onset (a pair entering contact) counts once, as
-  :class:`zswarm.model.metrics.Summary` counts the world's snapshots.
+  :class:`zswarm.swarm.metrics.Summary` counts the world's snapshots.
 
 Sequence numbers the judge never saw (poses lost on the way) are counted as ``gaps``. Over a gap the
 hold is an approximation: a contact at an instant where either agent's position is not known exactly
@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from zswarm.model.neighbours import pairs_within
+from zswarm.paper.neighbours import pairs_within
 
 #: A sequence number this far behind the newest from its sender is a restarted sender (it counts from 1
 #: again), not an old pose: the rule of every reader of poses, here and in :mod:`zswarm.net.poses`.

@@ -39,8 +39,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from zswarm.model.numeric import sign_changes
-from zswarm.model.params import PotentialParams
+from zswarm.paper.numeric import sign_changes
+from zswarm.paper.params import PotentialParams
 
 
 def pair_potential(r: np.ndarray, p: PotentialParams, c_f: float = 0.0) -> np.ndarray:
@@ -136,3 +136,12 @@ def formation_offset(p: PotentialParams) -> float:
         return 0.0
     return -float(pair_potential(np.array(d), p))
 
+
+def epsilon(p: PotentialParams, n_agents: int) -> float:
+    """Cohesion radius of Prop 3 (eq 34); infinite when c'_a = 0."""
+    if n_agents <= 1:
+        return 0.0
+    if p.c_a_prime == 0:
+        return math.inf
+    return ((n_agents - 1) * math.exp(-0.5) * (p.c_r / p.l_r + p.c_a / p.l_a)
+            / (math.sqrt(2.0) * p.c_a_prime * n_agents))

@@ -1,0 +1,446 @@
+"""The control step, written once: sense -> law -> filter -> body. Every engine calls it; none names a law.
+
+One step of every agent, over leading axes L = (runs, agents):
+
+    u^_i   = law_g(obs_i)                      the law of agent i's group g (its batched form)
+    u_i    = filter(u^, guard)                 the safety filter: a wrapper of whatever the laws command
+    x_i'   = body_g(x_i, u_i, dt)              the body of agent i's group (:mod:`zswarm.control.body`)
+
+A group is the agents that run one law in one body: every agent of a plain scenario, or one group of a
+mixed swarm (:meth:`zswarm.swarm.scenario.Scenario.groups`). An agent that has not heard its target yet
+(a NaN target) holds still. The filter guards every agent against every other, whatever their laws and
+bodies. The engines only build what each agent sensed, its :class:`~zswarm.laws.contract.Observations`
+(from the cell grid, from dense blocks, from Zenoh samples) and its :class:`Guard` (what the filter
+keeps it clear of, with the age of what it knows of each), and apply the result, :class:`Stepped`.
+
+An agent process steps one agent twenty times a second, where numpy's per-call cost would be most of
+the work: :meth:`ControlStep.one` is the same step on a batch of one, with a plain-float shortcut inside
+(the law's single form, the filter's rows and exact projection in floats, the point body's Euler step).
+``tests/test_control_step.py`` holds it to the batched form for every registered law and every body.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from itertools import combinations
+from typing import Any, Callable, NamedTuple, Sequence
+
+import numpy as np
+
+from zswarm.control import body as bodies
+from zswarm.control import safety as sf
+from zswarm.laws.bound import BoundLaw, LawFailed
+from zswarm.laws.contract import Observation, Observations, _slots
+
+
+BodyState = bodies.BodyState
+
+
+@dataclass(frozen=True)
+class Guard:
+    """What the filter keeps each agent clear of: its neighbours' tracked points as it believes them (G
+    slots per agent, padded and masked), the age of each (s); ``brake``: agents that brake whatever they
+    sense (an agent whose world is late: nothing it heard can bound anything)."""
+
+    point: np.ndarray  # (L..., G, D)
+    age: np.ndarray  # (L..., G)
+    mask: np.ndarray  # (L..., G) bool
+    brake: np.ndarray | None = None  # (L...) bool
+
+    @classmethod
+    def of_pairs(cls, n: int, agent: np.ndarray, point: np.ndarray, age: np.ndarray) -> Guard:
+        """One swarm's guard (leading axes (1, N)) from flat lists: agent i guards against ``point``, ``age``."""
+        slot, g = _slots(agent, n)
+        pts, ages = np.zeros((1, n, g, point.shape[-1])), np.zeros((1, n, g))
+        mask = np.zeros((1, n, g), dtype=bool)
+        pts[0, agent, slot], ages[0, agent, slot], mask[0, agent, slot] = point, age, True
+        return cls(pts, ages, mask)
+
+    @classmethod
+    def of_one(cls, guarded: Sequence[tuple[Sequence[float], float]], dims: int, brake: bool = False) -> Guard:
+        """One agent's guard (leading axes (1, 1)) from (point, age) pairs."""
+        g = len(guarded)
+        return cls(np.array([p for p, _ in guarded], dtype=float).reshape(1, 1, g, dims),
+                   np.array([a for _, a in guarded], dtype=float).reshape(1, 1, g),
+                   np.ones((1, 1, g), dtype=bool), np.array([[brake]]))
+
+
+class Stepped(NamedTuple):
+    """One step: the bodies' next states, the commands they moved under, what the filter did."""
+
+    state: bodies.BodyState
+    command: np.ndarray  # (L..., D)
+    filtered: sf.Filtered | None  # over the flattened leading axes (None: no filter)
+
+
+#: A filter of the laws' commands: (commands (L..., D), observations, guard, bodies) -> what it let through.
+Filter = Callable[[np.ndarray, Observations, Guard, bodies.BodyState], sf.Filtered]
+
+
+@dataclass(frozen=True)
+class Barrier:
+    """The safety filter (:mod:`zswarm.control.safety`) as a wrapper of any law: its numbers for the runs
+    along the first leading axis (``groups``: a slice or index array of runs, and their
+    :class:`~zswarm.control.safety.Safety`), and how far ahead of each body its tracked point is (a
+    unicycle's point ahead of its axle; 0 for the others)."""
+
+    groups: tuple[tuple[Any, sf.Safety], ...]
+    lookahead: np.ndarray | float = 0.0  # broadcasts against (L...)
+
+    def points(self, state: bodies.BodyState) -> np.ndarray:
+        """Where each body is steered and guarded (:func:`zswarm.control.body.tracked_point`)."""
+        look = np.broadcast_to(np.asarray(self.lookahead, dtype=float), state.position.shape[:-1])
+        if not look.any():
+            return state.position
+        return bodies.tracked_point(state.position, np.where(look > 0, state.heading, 0.0), look)
+
+    def __call__(self, wanted: np.ndarray, obs: Observations, guard: Guard, state: bodies.BodyState) -> sf.Filtered:
+        lead, dims = wanted.shape[:-1], wanted.shape[-1]
+        points = self.points(state)
+        flat = wanted.reshape(-1, dims)
+        out, flags = flat.copy(), np.zeros((3, len(flat)), dtype=bool)  # acted, stalled, braked
+        index = np.arange(len(flat)).reshape(lead)
+        centre = np.broadcast_to(obs.obstacle_centre, obs.lead + obs.obstacle_centre.shape[-2:])
+        radius = np.broadcast_to(obs.obstacle_radius, obs.lead + obs.obstacle_radius.shape[-1:])
+        for runs, safety in self.groups:
+            at = index[runs].reshape(-1)
+            n = len(at)
+            me = points[runs].reshape(n, dims)
+            ii, kk = np.nonzero(guard.mask[runs].reshape(n, -1))
+            io, mo = np.nonzero(obs.obstacle_mask[runs].reshape(n, -1))
+            r = sf.rows(safety, n, ii, me[ii] - guard.point[runs].reshape(n, -1, dims)[ii, kk],
+                        guard.age[runs].reshape(n, -1)[ii, kk], io, me[io] - centre[runs].reshape(n, -1, dims)[io, mo],
+                        radius[runs].reshape(n, -1)[io, mo])
+            if guard.brake is not None:
+                r = r._replace(stale=r.stale | guard.brake[runs].reshape(n))
+            done = sf.apply(flat[at], r)
+            out[at] = done.command
+            flags[:, at] = done.acted, done.stalled, done.braked
+        return sf.Filtered(out, *flags)
+
+
+@dataclass
+class Group:
+    """The agents that run one law in one body: ``index`` picks them from the leading axes (runs,
+    agents); ``state`` is the law's per-agent state (b, n, S)."""
+
+    law: BoundLaw
+    body: bodies.BodySpec
+    index: tuple[Any, Any]
+    state: np.ndarray
+
+
+class Acted(NamedTuple):
+    """What the filter did to one agent's command."""
+
+    acted: bool
+    stalled: bool
+    braked: bool
+
+    @property
+    def flag(self) -> int:
+        """Its flag of ``messages.SAFETY_FLAGS``, as :meth:`Filtered.flags`."""
+        return 3 if self.braked else 2 if self.stalled else int(self.acted)
+
+
+class One(NamedTuple):
+    """One agent's step: its command, what the filter did (None: nothing), its body's next state."""
+
+    command: tuple[float, ...]
+    acted: Acted | None
+    position: tuple[float, ...]
+    velocity: tuple[float, ...]
+    heading: float | None
+
+
+class ControlStep:
+    """The step of a set of groups behind one filter (see the module doc). ``dt``: the control period."""
+
+    def __init__(self, groups: list[Group], dt: float, filter: Filter | None = None) -> None:
+        self.groups, self.dt, self.filter = groups, dt, filter
+
+    @property
+    def laws(self) -> list[BoundLaw]:
+        return [g.law for g in self.groups]
+
+    @property
+    def hears_velocities(self) -> bool:
+        """Some law may read its neighbours' velocities (a law that declares what it needs is taken at its
+        word; one that declares nothing may read anything)."""
+        return any("neighbour velocities" in g.law.law.needs or not type(g.law.law).needs for g in self.groups)
+
+    def start(self, positions: np.ndarray, facing: np.ndarray) -> bodies.BodyState:
+        """Every body at rest at ``positions`` (L..., D); a headed one faces ``facing`` (its first goal)."""
+        state = bodies.BodyState(np.array(positions, dtype=float), np.zeros_like(positions, dtype=float),
+                                 np.full(positions.shape[:-1], np.nan))
+        for g in self.groups:
+            if g.body.headed:
+                ahead = np.broadcast_to(facing, positions.shape)[g.index]
+                state.heading[g.index] = bodies.start(g.body, positions[g.index], ahead).heading
+        return state
+
+    def __call__(self, obs: Observations, guard: Guard | None, state: bodies.BodyState, when: str = "") -> Stepped:
+        """Every agent's step from what it sensed; a law that raises or answers with something other than
+        a velocity is :class:`~zswarm.laws.bound.LawFailed` (``when`` says when, in its one line)."""
+        blind = np.isnan(obs.target[..., 0])
+        if blind.any():  # no target heard yet: it holds still (the law sees it standing on its target)
+            obs = obs.replace(target=np.where(blind[..., None], obs.position, obs.target))
+        wanted = np.zeros_like(obs.position)
+        for g in self.groups:
+            try:
+                wanted[g.index], g.state = g.law.decide_batch(_take(obs, g.index).replace(state=g.state))
+            except Exception as exc:  # noqa: BLE001 - a user's law may raise anything: said in one line
+                raise LawFailed.of(g.law.name, exc, when) from None
+        wanted[blind] = 0.0
+        filtered, command = None, wanted
+        if self.filter is not None:
+            filtered = self.filter(wanted, obs, guard, state)
+            command = filtered.command.reshape(wanted.shape)
+        position, velocity, heading = state.position.copy(), state.velocity.copy(), state.heading.copy()
+        for g in self.groups:
+            ix = g.index
+            moved = bodies.step(g.body, bodies.BodyState(state.position[ix], state.velocity[ix], state.heading[ix]),
+                                command[ix], self.dt)
+            position[ix], velocity[ix], heading[ix] = moved
+        return Stepped(bodies.BodyState(position, velocity, heading), command, filtered)
+
+    def one(self, obs: Observation, guarded: Sequence[tuple[tuple[float, ...], float]], brake: bool,
+            velocity: tuple[float, ...], heading: float | None, when: str = "") -> One:
+        """The step of the one agent this step was made for (:func:`control_step` with ``agents``), a
+        batch of one: ``obs`` what its law sees, ``guarded`` the (tracked point, age) of each neighbour
+        the filter guards it against, ``brake`` its world is late, ``velocity`` and ``heading`` its
+        body's. The same numbers as the batched form, in plain floats where that is cheaper."""
+        g = self.groups[0]
+        if g.law.state_size:
+            obs = dataclasses.replace(obs, state=g.state[0, 0])
+        try:
+            v, g.state[0, 0] = g.law.decide(obs)
+        except Exception as exc:  # noqa: BLE001 - a user's law may raise anything: said in one line
+            raise LawFailed.of(g.law.name, exc, when) from None
+        u_hat, acted = tuple(v.tolist()), None
+        command = u_hat
+        if self.filter is not None:
+            (_, safety), = self.filter.groups
+            speed = math.sqrt(sum(c * c for c in u_hat))
+            if brake:
+                command, acted = (0.0,) * len(u_hat), Acted(speed > 0.0, speed > 0.0, True)
+            else:
+                position = tuple(obs.position.tolist())
+                point = bodies.tracked_point(position, heading, float(self.filter.lookahead))
+                dims = len(u_hat)
+                obstacles = [(*o.centre.tolist()[:dims], o.radius) for o in obs.obstacles]
+                command, acted = _filter_floats(safety, point, u_hat, guarded, obstacles)
+        if g.body.kind == "point":
+            return One(command, acted, tuple(p + self.dt * c for p, c in zip(obs.position.tolist(), command)),
+                       command, None)
+        state = bodies.BodyState(obs.position, np.array(velocity), np.array(np.nan if heading is None else heading))
+        moved = bodies.step(g.body, state, np.array(command), self.dt)
+        return One(command, acted, tuple(moved.position.tolist()), tuple(moved.velocity.tolist()),
+                   float(moved.heading) if g.body.headed else None)
+
+
+def _take(obs: Observations, index: tuple[Any, Any]) -> Observations:
+    """The observations of the agents at ``index`` of the leading axes."""
+    if index is _ALL:
+        return obs
+    v_max = obs.v_max if np.ndim(obs.v_max) == 0 else np.broadcast_to(obs.v_max, obs.lead)[index]
+    return obs.replace(**{f.name: getattr(obs, f.name)[index] for f in dataclasses.fields(obs)
+                          if f.name not in ("v_max", "dt", "state")}, v_max=v_max)
+
+
+_ALL = (slice(None), slice(None))
+
+
+# -- making the step of a run, a batch of runs or one agent ------------------------------------------------
+
+
+def control_step(scenarios: Sequence, combinations_: Sequence | None = None, safety: Sequence[str] | str = "off",
+                 faulted: Sequence[bool] | bool = False, agents: Sequence[int] | None = None,
+                 probe: bool = False) -> ControlStep:
+    """The step of runs of ``scenarios`` (the same N, dt and dimension) over leading axes (runs, agents):
+    each group of each run bound to its law (:func:`zswarm.laws.registry.bind`), runs whose groups can
+    step together merged (their parameters as columns: :meth:`zswarm.laws.contract.SwarmLaw.merge`),
+    and each run's filter under ``safety`` (``faulted``: its data comes through the simulated faulty
+    channel). ``agents``: only these agents of the one scenario (an agent process: its own id)."""
+    from zswarm.control.safety_tally import safety_of
+    from zswarm.laws.registry import bind
+
+    b = len(scenarios)
+    combos = list(combinations_) if combinations_ is not None else [None] * b
+    modes = [safety] * b if isinstance(safety, str) else list(safety)
+    faults = [faulted] * b if isinstance(faulted, bool) else list(faulted)
+    first = scenarios[0]
+    ids = np.arange(first.n_agents) if agents is None else np.asarray(agents, dtype=np.intp)
+    keyed: dict[tuple, list[tuple[int, BoundLaw, np.ndarray]]] = {}
+    for r, s in enumerate(scenarios):
+        combination = combos[r] or s.combination
+        of = s.group_of(ids)
+        for g, (choice, body) in enumerate(s.groups()):
+            cols = np.flatnonzero(of == g)
+            if len(cols):
+                law = bind(s, combination, probe=probe, choice=choice)
+                keyed.setdefault((choice.law, body, tuple(cols)), []).append((r, law, cols))
+    groups = []
+    for (_, kind, cols), found in keyed.items():
+        for rows, law in _merged(found):
+            runs = np.array([found[k][0] for k in rows])
+            params = [scenarios[r].params for r in runs]
+            spec = bodies.BodySpec(kind, *(_column([getattr(p.body, name) if name != "v_max" else p.swarm.v_max
+                                                    for p in params]) for name in ("v_max", "turn_rate", "lookahead",
+                                                                                   "accel")))
+            index = _ALL if len(runs) == b and len(cols) == len(ids) else np.ix_(runs, np.array(cols))
+            groups.append(Group(law, spec, index, law.start_state((len(runs), len(cols)))))
+    filters: dict[sf.Safety, list[int]] = {}
+    lookahead = np.zeros((b, len(ids)))
+    for r, s in enumerate(scenarios):
+        chosen = safety_of(s, modes[r], faults[r])
+        if chosen is not None:
+            filters.setdefault(chosen, []).append(r)
+        of = s.group_of(ids)
+        for g, (_, body) in enumerate(s.groups()):
+            if body == "unicycle":
+                lookahead[r, of == g] = s.params.body.lookahead
+    barrier = None
+    if filters:
+        groups_ = tuple((slice(None) if len(rows) == b else np.array(rows), safety_)
+                        for safety_, rows in filters.items())
+        barrier = Barrier(groups_, float(lookahead.max()) if agents is not None else lookahead)
+    return ControlStep(groups, first.dt, barrier)
+
+
+def _merged(found: list[tuple[int, BoundLaw, np.ndarray]]) -> list[tuple[list[int], BoundLaw]]:
+    """The runs of one key that can step as one call of a law, and that law (their parameters as columns)."""
+    laws = [law for _, law, _ in found]
+    out = []
+    for rows, merged in type(laws[0].law).merge([law.law for law in laws]):
+        first = laws[rows[0]]
+        out.append((rows, dataclasses.replace(first, law=merged)))
+    return out
+
+
+def _column(values: list[float]) -> np.ndarray | float:
+    """One value per run as a (b, 1) column against (b, n) (a plain number where every run has it)."""
+    if all(v == values[0] for v in values):
+        return float(values[0])
+    return np.asarray(values, dtype=float)[:, None]
+
+
+# -- the plain-float shortcut of the filter, for one agent (ControlStep.one) -------------------------------
+
+
+def _filter_floats(safety: sf.Safety, point: tuple[float, ...], u_hat: tuple[float, ...],
+                   neighbours: Sequence[tuple[tuple[float, ...], float]],
+                   obstacles: Sequence[tuple[float, ...]]) -> tuple[tuple[float, ...], Acted | None]:
+    """:func:`zswarm.control.safety.apply` of :func:`~zswarm.control.safety.rows` for one agent at
+    ``point`` with ``neighbours`` as (believed point, age) and ``obstacles`` as (centre..., radius): the
+    same rows and the same exact enumeration in floats. Most ticks no row binds and the command passes at
+    the cost of a few float operations. Returns the command and what the filter did (None: nothing)."""
+    rate, v, dims = safety.kappa / safety.period, safety.v_max, len(point)
+    far = 2.0 * v * math.sqrt(2.0) / rate  # a gap this wide gives b >= |a| v_max for every row: none binds
+    distance, max_age = safety.distance, safety.max_age
+    binding: list[tuple[tuple[float, ...], float]] = []
+    violated = stale = False
+    for q, age in neighbours:
+        d = math.dist(point, q)
+        gap = d - distance - v * age
+        if gap >= far and age <= max_age:
+            continue  # most neighbours, most ticks: nothing more is computed
+        psi = [point[k] - q[k] for k in range(dims)]
+        b = 0.5 * rate * max(gap, 0.0)
+        spread = min(v * age / d, 1.0) if d > 0 else 1.0
+        cos = math.sqrt(1.0 - spread * spread)
+        if cos * b < v * math.sqrt(1.0 + (dims - 2) * spread * spread):
+            stale |= age > max_age or v * age >= d
+            unit = [c / d for c in psi] if d > 0 else [0.0] * dims
+            rows_j = [(tuple(-c for c in unit), cos * b)]
+            if spread > 0:
+                rows_j += [(tuple(-(cos * unit[k] - spread * e[k]) for k in range(dims)), b)
+                           for e in _tangents(unit)]
+            for a, bound in rows_j:
+                binding.append((a, bound))
+                violated |= sum(a[k] * u_hat[k] for k in range(dims)) - bound > sf.TOL
+    for obstacle in obstacles:
+        d = math.dist(point, obstacle[:dims])
+        b = rate * max(d - obstacle[dims] - safety.clearance, 0.0)
+        if b < v:
+            a = tuple(-(point[k] - obstacle[k]) / d for k in range(dims)) if d > 0 else (0.0,) * dims
+            binding.append((a, b))
+            violated |= sum(a[k] * u_hat[k] for k in range(dims)) - b > sf.TOL
+    speed = math.hypot(*u_hat)
+    if stale:
+        return (0.0,) * dims, Acted(speed > 0.0, speed > 0.0, True)
+    if not violated:
+        return u_hat, None
+    binding = [r for r in binding if r[1] < speed * math.sqrt(sum(c * c for c in r[0])) + sf.TOL]
+    u = _project(u_hat, binding)
+    if math.sqrt(sum(c * c for c in u)) < sf.STALL_SHARE * speed:  # take_detour, in floats
+        cos, sin = math.cos(sf.DETOUR), math.sin(sf.DETOUR)
+        turned = (cos * u_hat[0] + sin * u_hat[1], -sin * u_hat[0] + cos * u_hat[1], *u_hat[2:])
+        fits = all(sum(a[k] * turned[k] for k in range(dims)) - b <= sf.TOL for a, b in binding)
+        alt = turned if fits else _project(turned, binding)
+        if math.sqrt(sum(x * x for x in alt)) > math.sqrt(sum(x * x for x in u)) + 1e-9 * speed:
+            u = alt
+    change = math.sqrt(sum((u[k] - u_hat[k]) ** 2 for k in range(dims)))
+    acted = change > 1e-9 * max(speed, 1.0)
+    return u, Acted(acted, acted and math.sqrt(sum(c * c for c in u)) < sf.STALL_SHARE * speed, False)
+
+
+def _tangents(unit: list[float]) -> list[tuple[float, ...]]:
+    """The E_ij of :func:`zswarm.control.safety.rows` for one direction, in floats (the same vectors)."""
+    if len(unit) == 2:
+        return [(-unit[1], unit[0]), (unit[1], -unit[0])]
+    k = min(range(3), key=lambda i: abs(unit[i]))
+    axis = [1.0 if i == k else 0.0 for i in range(3)]
+    t1 = _cross(unit, axis)
+    n1 = math.sqrt(sum(c * c for c in t1))
+    t1 = [c / n1 for c in t1] if n1 > 0 else [0.0, 0.0, 0.0]
+    t2 = _cross(unit, t1)
+    return [tuple(s1 * t1[i] + s2 * t2[i] for i in range(3)) for s1, s2 in ((1, 1), (1, -1), (-1, 1), (-1, -1))]
+
+
+def _cross(x: list[float], y: list[float]) -> list[float]:
+    return [x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0]]
+
+
+def _project(u_hat: tuple[float, ...], rows_: list[tuple[tuple[float, ...], float]]) -> tuple[float, ...]:
+    """The exact projection of :func:`zswarm.control.safety.project` for one agent in floats: onto every
+    active set of at most D linearly independent rows, closest first; the first that satisfies every
+    row is the optimum (0 always does)."""
+    dims = len(u_hat)
+    cands = []
+    for size in range(1, min(dims, len(rows_)) + 1):
+        for chosen in combinations(rows_, size):
+            u = _affine_projection(u_hat, chosen)
+            if u is not None:
+                cands.append((sum((u[k] - u_hat[k]) ** 2 for k in range(dims)), u))
+    cands.sort(key=lambda c: c[0])
+    for _, u in cands:
+        if all(sum(a[k] * u[k] for k in range(dims)) - b <= sf.TOL for a, b in rows_):
+            return u
+    return (0.0,) * dims
+
+
+def _affine_projection(u_hat: tuple[float, ...], chosen) -> tuple[float, ...] | None:
+    """u^ - A^T (A A^T)^-1 (A u^ - b) for 1, 2 or 3 rows (Cramer's rule); None if they are dependent."""
+    dims = len(u_hat)
+    a = [r[0] for r in chosen]
+    rhs = [sum(r[0][k] * u_hat[k] for k in range(dims)) - r[1] for r in chosen]
+    g = [[sum(x[k] * y[k] for k in range(dims)) for y in a] for x in a]
+    n = len(chosen)
+    det = g[0][0] if n == 1 else g[0][0] * g[1][1] - g[0][1] * g[1][0] if n == 2 else _det3(g)
+    if abs(det) <= 1e-12:
+        return None
+    if n == 1:
+        lam = [rhs[0] / det]
+    elif n == 2:
+        lam = [(rhs[0] * g[1][1] - g[0][1] * rhs[1]) / det, (g[0][0] * rhs[1] - rhs[0] * g[1][0]) / det]
+    else:
+        lam = [_det3([[rhs[i] if j == c else g[i][j] for j in range(3)] for i in range(3)]) / det for c in range(3)]
+    return tuple(u_hat[k] - sum(lam[i] * a[i][k] for i in range(n)) for k in range(dims))
+
+
+def _det3(m: list[list[float]]) -> float:
+    return (m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+            + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]))
