@@ -399,5 +399,6 @@ class Sensing:
                 if pose.id not in self.members:
                     continue
                 self.doubted.add(pose.id)  # guarded on its member token alone: that token is asked about
-            out.append((tracked_point(pose.position, pose.heading, lookahead), age))
+            look = lookahead if pose.heading is not None else 0.0  # only a unicycle's pose carries a heading
+            out.append((tracked_point(pose.position, pose.heading, lookahead), age, look))
         return out

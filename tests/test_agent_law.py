@@ -1,13 +1,14 @@
-"""One agent's control law in plain floats equals the vectorized law, on random configurations."""
+"""apf's single form in plain floats equals the vectorized law, on random configurations."""
 
 from __future__ import annotations
 
 import numpy as np
-import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from zswarm.laws.apf import _velocity_2d as agent_velocity
+
+from test_one_law import sensed_2d
 from zswarm.paper.params import DEFAULT_PARAMS, PAPER_PARAMS
 from zswarm.paper.field import make_law, sense_one
 
@@ -29,13 +30,6 @@ def test_the_scalar_law_is_the_vectorized_law(pos, goal, obstacles, neighbours, 
     controller = make_law(p, combination, formation)
     sensed = sense_one(position, centers, radii, np.array(neighbours, dtype=float).reshape(-1, 2), radius)
     expected = controller.velocity(position, np.array(goal), sensed, v_max)
-    got = agent_velocity(pos[0], pos[1], goal, obstacles, neighbours, radius, p, combination, formation, v_max)
+    circles, near = sensed_2d(position, centers, radii, neighbours, radius)  # what an engine gives the law
+    got = agent_velocity(pos[0], pos[1], goal, circles, near, radius, p, combination, formation, v_max)
     assert np.allclose(got, expected, rtol=1e-12, atol=1e-12), (got, expected)
-
-
-@pytest.mark.parametrize("combination", ["additive", "multiplicative"])
-def test_far_away_obstacles_and_neighbours_are_not_sensed(combination):
-    p = DEFAULT_PARAMS.potential
-    alone = agent_velocity(0, 0, (3, 0), [], [], 1.0, p, combination, True, 1.0)
-    far = agent_velocity(0, 0, (3, 0), [(0, 5, 0.3)], [(0, -2.0)], 1.0, p, combination, True, 1.0)
-    assert far == alone

@@ -26,11 +26,14 @@ CASES = [(law, dims, body, safety) for law in BUILTIN for dims in (2, 3) for bod
 def _guard(rng: np.random.Generator, obs, dims: int) -> list[tuple[tuple[float, ...], float]]:
     """What the filter guards against: the law's neighbours (some aged), one more it does not use, and now
     and then one just ahead, straight in the way (the filter acts, stalls, detours)."""
-    out = [(tuple(n.position.tolist()), float(rng.choice([0.0, 0.0, 0.1, 0.4]))) for n in obs.neighbours]
-    out.append((tuple((obs.position + rng.uniform(-0.4, 0.4, dims)).tolist()), float(rng.choice([0.0, 0.05]))))
+    look = lambda: float(rng.choice([0.0, 0.25]))  # noqa: E731 - a point body's, or a unicycle's
+    out = [(tuple(n.position.tolist()), float(rng.choice([0.0, 0.0, 0.1, 0.4])), look()) for n in obs.neighbours]
+    out.append((tuple((obs.position + rng.uniform(-0.4, 0.4, dims)).tolist()), float(rng.choice([0.0, 0.05])),
+                look()))
     if rng.random() < 0.5:
         ahead = obs.target - obs.position
-        out.append((tuple((obs.position + rng.uniform(0.1, 0.14) * ahead / np.linalg.norm(ahead)).tolist()), 0.0))
+        out.append((tuple((obs.position + rng.uniform(0.1, 0.14) * ahead / np.linalg.norm(ahead)).tolist()), 0.0,
+                    look()))
     return out
 
 
@@ -107,9 +110,12 @@ def test_the_float_filter_is_the_vectorized_filter(dims):
             age[:] = 0.0
         centres = point + rng.uniform(-0.6, 0.6, size=(m, dims))
         radii = rng.uniform(0, 0.2, size=m)
-        got, done = control._filter_floats(s, tuple(point), tuple(u_hat), [(tuple(x), float(a)) for x, a in zip(q, age)],
-                                           [(*c, r) for c, r in zip(centres.tolist(), radii.tolist())])
-        rows = sf.rows(s, 1, np.zeros(k, np.intp), point - q, age, np.zeros(m, np.intp), point - centres, radii)
+        own, theirs = float(rng.choice([0.0, 0.05])), rng.choice([0.0, 0.05], size=k)  # look-aheads
+        got, done = control._filter_floats(s, tuple(point), tuple(u_hat),
+                                           [(tuple(x), float(a), float(t)) for x, a, t in zip(q, age, theirs)],
+                                           [(*c, r) for c, r in zip(centres.tolist(), radii.tolist())], own)
+        rows = sf.rows(s, 1, np.zeros(k, np.intp), point - q, age, np.zeros(m, np.intp), point - centres, radii,
+                       sf.widening(own + theirs), sf.widening(np.full(m, own)))
         want = sf.apply(u_hat[None], rows)
         np.testing.assert_allclose(got, want.command[0], atol=1e-12)
         assert (done.flag if done is not None else 0) == int(want.flags()[0])

@@ -10,6 +10,8 @@ import pytest
 
 from zswarm.errors import ParamError
 from zswarm.laws.apf import _velocity_2d as agent_velocity
+
+from test_one_law import sensed_2d
 from zswarm.paper.interaction import parse_interaction
 from zswarm.paper.neighbour_law import CUTOFF_INNER, PairList, cutoff_weight, neighbour_force, neighbour_law
 from zswarm.paper.params import DEFAULT_PARAMS, PAPER_PARAMS
@@ -162,8 +164,8 @@ def test_the_agents_floats_are_the_vectorized_law(name):
             obst = [(float(a), float(b), 0.3) for a, b in rng.uniform(-3, 3, (2, 2))]
             sensed = sense_one(pos, np.array([o[:2] for o in obst]), np.array([o[2] for o in obst]), nbrs, R)
             want = controller.velocity(pos, goal, sensed, 100.0)
-            got = agent_velocity(pos[0], pos[1], tuple(goal), obst, [tuple(q) for q in nbrs], R, p, combination,
-                                 True, 100.0, law)
+            circles, near = sensed_2d(pos, np.array([o[:2] for o in obst]), np.array([o[2] for o in obst]), nbrs, R)
+            got = agent_velocity(pos[0], pos[1], tuple(goal), circles, near, R, p, combination, True, 100.0, law)
             np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
 
 

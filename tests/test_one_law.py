@@ -18,7 +18,7 @@ from zswarm.swarm import prey as prey_motion
 from zswarm.laws.apf import _velocity_2d as agent_velocity
 from zswarm.paper.field import compile_law, sense_one, swarm_field
 from zswarm.paper.neighbours import ObstacleIndex
-from zswarm.paper.potentials import saturate
+from zswarm.paper.potentials import obstacle_offsets, saturate
 from zswarm.swarm.prey import PreyMotion
 from zswarm.swarm.scenarios import get_scenario
 from zswarm.sim.batch import BatchSimulator, Member
@@ -67,12 +67,23 @@ def test_every_consumer_commands_what_the_one_law_commands(name, interaction, co
                 if batch.dims == 3:  # the 3-D agent: the law on one row
                     sensed = sense_one(x[r, i], centers, radii, others, radius)
                     agent = law.velocity(x[r, i], prey[r], sensed)
-                else:  # the 2-D agent: plain floats
-                    circles = [(float(c[0]), float(c[1]), float(rho)) for c, rho in zip(centers, radii)]
-                    agent = agent_velocity(float(x[r, i, 0]), float(x[r, i, 1]), tuple(prey[r]), circles,
-                                           [tuple(q) for q in others], radius, law.p, law.combination,
-                                           law.formation, law.v_max, law.neighbours)
+                else:  # the 2-D agent: plain floats, on what it senses (within the sensing radius)
+                    circles, near = sensed_2d(x[r, i], centers, radii, others, radius)
+                    agent = agent_velocity(float(x[r, i, 0]), float(x[r, i, 1]), tuple(prey[r]), circles, near,
+                                           radius, law.p, law.combination, law.formation, law.v_max, law.neighbours)
                 np.testing.assert_allclose(agent, want[i], rtol=0, atol=1e-12, err_msg=f"agent {i} of run {r}")
+
+
+def sensed_2d(position, centers, radii, others, radius):
+    """What a 2-D agent at ``position`` senses, as its float law takes it: the obstacles (cx, cy, rho) whose
+    nearest boundary point, and the neighbours, within ``radius`` (the rule of
+    :func:`zswarm.paper.field.sense_one`; an engine gives a law no more)."""
+    position = np.asarray(position, dtype=float)
+    circles = [(float(c[0]), float(c[1]), float(rho)) for c, rho in zip(centers, radii)
+               if float(np.sum(obstacle_offsets(position, np.asarray(c), rho) ** 2)) <= radius * radius]
+    near = [tuple(q) for q in np.asarray(others, dtype=float).reshape(-1, 2)
+            if float(np.sum((position - q) ** 2)) <= radius * radius]
+    return circles, near
 
 
 MOTIONS = [PreyMotion("static"), PreyMotion("straight", 0.4, 30.0, climb_deg=10.0),

@@ -257,13 +257,13 @@ def test_an_agent_guards_against_late_neighbours_and_quiet_ones_that_cannot_have
         pose = msg.Pose(who, 1, now - age, -1, *p, 0.0, 0.0)
         assert sensing.neighbours.accept(who, pose, received) is None
         sensing.alive.add(who)
-    got = dict((p, a) for p, a in sensing.sense(None, 0.5, 1.0, 0.05)[1])
+    got = dict((p, a) for p, a, _ in sensing.sense(None, 0.5, 1.0, 0.05)[1])
     took = time.time() - now
     assert set(got) == {(0.3, 0.0), (0.0, 0.4), (0.0, -1.3), (0.0, -0.3)}
     assert aged(got[(0.0, -0.3)], 0.65, took)  # guarded with its whole age
     assert aged(got[(0.3, 0.0)], 0.25, took)  # its age, plus one control period
     assert aged(got[(0.0, 0.4)], 0.07, took)
-    half = dict((p, a) for p, a in sensing.sense(None, 0.5, 0.5, 0.05)[1])
+    half = dict((p, a) for p, a, _ in sensing.sense(None, 0.5, 0.5, 0.05)[1])
     assert aged(half[(0.3, 0.0)], 0.15, 0.5 * (time.time() - now))  # simulated seconds: at half pace, half the age
     # the law uses every fresh one, in reach or not (the law itself looks at the distance), not the quiet
     assert {p.position for p in sensing.sense(None, 0.5, 1.0, 0.05)[0]} == {(0.3, 0.0), (0.0, 0.4), (3.0, 0.0),
@@ -271,11 +271,11 @@ def test_an_agent_guards_against_late_neighbours_and_quiet_ones_that_cannot_have
     sensing.alive.discard(1)  # its token has not come yet: its poses say it is there, so it is guarded
     poses, guarded = sensing.sense(None, 0.5, 1.0, 0.05)  # one pass, as an agent's tick
     positions = [p.position for p in poses]
-    assert (0.3, 0.0) in dict(guarded)
+    assert (0.3, 0.0) in {p for p, _, _ in guarded}
     assert (0.3, 0.0) not in positions  # the law waits for its token
     assert (0.3, 0.0) not in [p.position for p in sensing.sense(None, 0.5, guard=False)[0]]
     sensing.handle(("alive", spec.keys.alive(1), b"", True, time.time()))  # it departed: not a neighbour
-    assert (0.3, 0.0) not in dict(sensing.sense(None, 0.5, 1.0, 0.05)[1])
+    assert (0.3, 0.0) not in {p for p, _, _ in sensing.sense(None, 0.5, 1.0, 0.05)[1]}
     # lockstep: the step's poses, exact for that step
     assert sensing.sense(7, 0.5, 1.0, 0.05)[1] == []
 
@@ -306,7 +306,7 @@ def test_under_a_common_delay_a_quiet_neighbour_deep_inside_stays_guarded_in_age
     for who, (p, age, received) in late.items():
         assert sensing.neighbours.accept(who, msg.Pose(who, 1, now - age, -1, *p, 0.0, 0.0), received) is None
         sensing.alive.add(who)
-    got = dict(sensing.sense(None, 0.5, 1.0, 0.05)[1])
+    got = {p: a for p, a, _ in sensing.sense(None, 0.5, 1.0, 0.05)[1]}
     took = time.time() - now
     assert set(got) == {(0.5, 0.0), (0.0, -0.3)}
     assert aged(got[(0.0, -0.3)], 2.65, took)  # guarded with its whole age
@@ -347,7 +347,7 @@ def test_a_sender_that_never_announced_itself_and_fell_silent_is_not_guarded_for
         if last != first:
             assert sensing.neighbours.accept(who, msg.Pose(who, 2, last, -1, *p, 0.0, 0.0), last) is None
 
-    guarded = lambda: set(dict(sensing.sense(None, 0.5, 1.0, 0.05)[1]))  # noqa: E731
+    guarded = lambda: {p for p, _, _ in sensing.sense(None, 0.5, 1.0, 0.05)[1]}  # noqa: E731
     hear(999, (0.4, 0.0), long_ago, long_ago + 0.2)  # made up long ago, silent since, no one else heard
     assert guarded() == set()
     sensing.alive.add(999)  # had its token come: alone, its silence cannot be told from loss: guarded
@@ -382,7 +382,7 @@ def test_a_quiet_neighbour_whose_member_token_is_in_the_cells_is_guarded_whateve
     for who, (p, age, received) in heard.items():
         assert sensing.neighbours.accept(who, msg.Pose(who, 1, now - age, -1, *p, 0.0, 0.0), received) is None
         sensing.alive.add(who)
-    guarded = lambda: dict(sensing.sense(None, 0.5, 1.0, 0.05)[1])  # noqa: E731
+    guarded = lambda: {p: a for p, a, _ in sensing.sense(None, 0.5, 1.0, 0.05)[1]}  # noqa: E731
     assert set(guarded()) == {(0.5, 0.0)}
     cell = keys.cell(-0.9, 0.0)
     sensing.handle(("in", keys.member(cell, 3), b"", False, now))  # a cell it does not listen to
@@ -444,7 +444,7 @@ def test_a_quiet_neighbour_whose_poses_came_through_a_slower_path_is_given_that_
     for who, (p, sent, received) in heard.items():
         assert sensing.neighbours.accept(who, msg.Pose(who, 1, now - sent, -1, *p, 0.0, 0.0), now - received) is None
         sensing.alive.add(who)
-    got = dict(sensing.sense(None, 0.5, 1.0, 0.05)[1])
+    got = {p: a for p, a, _ in sensing.sense(None, 0.5, 1.0, 0.05)[1]}
     took = time.time() - now
     assert set(got) == {(0.5, 0.0), (-0.9, 0.0)}
     assert aged(got[(-0.9, 0.0)], 5.05, took)  # guarded with its whole age
@@ -518,7 +518,7 @@ def test_a_member_token_nobody_holds_any_longer_is_asked_about_and_let_go():
         token = holder.liveliness().declare_token(keys.member(cells[4], 4))  # 4 is still there
         for who in (3, 4):  # both came in as answers on entering the cells; 3's removal never came
             sensing.handle(("in-now", keys.member(cells[who], who), b"", False, now))
-        guarded = lambda: set(dict(sensing.sense(None, 0.5, 1.0, 0.05)[1]))  # noqa: E731
+        guarded = lambda: {p for p, _, _ in sensing.sense(None, 0.5, 1.0, 0.05)[1]}  # noqa: E731
         assert guarded() == {at[1], at[3], at[4]} and sensing.doubted == {3, 4}
         time.sleep(0.5)  # the holder's token has reached the other session
         reach.check_members(time.time())

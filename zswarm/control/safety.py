@@ -88,10 +88,17 @@ class Safety:
         return self.distance + self.v_max * np.asarray(age)
 
 
+def widening(lookahead: np.ndarray | float) -> np.ndarray | float:
+    """What a body steered at its point ``lookahead`` ahead of its axle adds to the distances the filter
+    keeps (the Robotarium's unicycle mapping; ``docs/safety.md``): l_i + l_j to a pair's, l_i to an
+    obstacle's, kept the same share above touching as the distances themselves."""
+    return np.asarray(lookahead, dtype=float) * (1.0 + HAIR)
+
+
 def safety_for(params, dt: float, lookahead: float = 0.0) -> Safety:
-    """The filter of a parameter set at control period ``dt``. ``lookahead`` (a unicycle's tracked point
-    ahead of its axle): the filter acts on that point, so the distances grow by 2 l and l
-    (the Robotarium's unicycle mapping; ``docs/safety.md``)."""
+    """The filter of a parameter set at control period ``dt``. ``lookahead`` (every body a unicycle with
+    its tracked point that far ahead of its axle): the distances grow by 2 l and l; a swarm of mixed
+    bodies keeps them bare and widens each row by its own bodies' (:func:`widening`)."""
     s = params.swarm
     hair = 1.0 + HAIR  # the filter holds D_s exactly in exact arithmetic; rounding must not count a collision
     return Safety((2.0 * s.robot_radius + 2.0 * lookahead) * hair, (s.robot_radius + lookahead) * hair, s.v_max, dt,
@@ -109,13 +116,16 @@ class Rows(NamedTuple):
 
 
 def rows(safety: Safety, n: int, agent: np.ndarray, psi: np.ndarray, age: np.ndarray,
-         obstacle_agent: np.ndarray, psi_o: np.ndarray, radius_o: np.ndarray) -> Rows:
+         obstacle_agent: np.ndarray, psi_o: np.ndarray, radius_o: np.ndarray,
+         widen: np.ndarray | float = 0.0, widen_o: np.ndarray | float = 0.0) -> Rows:
     """(S2) for every pair (``agent``, ``psi`` = P_i - P_j as believed, ``age`` tau_j) and (S3) for every
-    sensed obstacle (``obstacle_agent``, ``psi_o`` = P_i - C_o, ``radius_o``), of n agents."""
+    sensed obstacle (``obstacle_agent``, ``psi_o`` = P_i - C_o, ``radius_o``), of n agents. ``widen``,
+    ``widen_o``: what each row adds to D_s and D_o (a unicycle steered at its point ahead of its axle:
+    l_i + l_j for a pair, l_i for an obstacle; :func:`widening`)."""
     rate, v = safety.kappa / safety.period, safety.v_max
     age = np.asarray(age, dtype=float)
     d = np.linalg.norm(psi, axis=-1)
-    b = 0.5 * rate * np.maximum(d - safety.margin(age), 0.0)
+    b = 0.5 * rate * np.maximum(d - safety.margin(age) - widen, 0.0)
     spread = np.minimum(np.divide(v * age, d, out=np.ones_like(d), where=d > 0), 1.0)  # s_j
     cos = np.sqrt(1.0 - spread**2)
     unit = _unit(psi, d)
@@ -127,11 +137,11 @@ def rows(safety: Safety, n: int, agent: np.ndarray, psi: np.ndarray, age: np.nda
         bb.append(b[tilted])
     norm_a = np.sqrt(1.0 + (psi.shape[-1] - 2) * spread**2)  # |c n - s e|: 1 in 2-D, with |e|^2 = 2 in 3-D
     could_bind = cos * b < v * norm_a  # a row with b >= |a| v_max never binds a command no longer than v_max
-    old = ((age > safety.max_age) | (v * age >= d)) & could_bind
+    old = ((age > safety.max_age - np.asarray(widen) / v) | (v * age >= d)) & could_bind
     stale = np.zeros(n, dtype=bool)
     stale[agent[old]] = True
     dist_o = np.linalg.norm(psi_o, axis=-1)
-    b_o = rate * np.maximum(dist_o - radius_o - safety.clearance, 0.0)
+    b_o = rate * np.maximum(dist_o - radius_o - safety.clearance - widen_o, 0.0)
     return Rows(np.concatenate([*owner, obstacle_agent]).astype(np.intp),
                 np.concatenate([*a, -_unit(psi_o, dist_o)]), np.concatenate([*bb, b_o]), stale)
 

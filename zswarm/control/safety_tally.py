@@ -21,19 +21,21 @@ from zswarm.control import safety as sf
 
 
 def safety_of(scenario, mode: str, faulted: bool = False) -> sf.Safety | None:
-    """The filter a run of ``scenario`` uses under ``mode`` (None: off); raises :class:`ParamError`
-    for a combination the filter cannot keep safe."""
+    """The filter a run of ``scenario`` uses under ``mode`` (None: off), one for all its agents whatever
+    their bodies (a unicycle's look-ahead widens the rows of its own pairs:
+    :func:`zswarm.control.safety.widening`); raises :class:`ParamError` for a combination the filter cannot
+    keep safe."""
     sf.parse_mode(mode)
     if mode == "off":
         return None
-    body = scenario.params.body
-    if body.body == "double-integrator":
+    bodies = {body for _, body in scenario.groups()}
+    if "double-integrator" in bodies:
         raise ParamError("--safety barrier needs a body that can stop within a step; a double-integrator "
                          "needs v^2/(2 accel) to stop, which this filter does not model: use --safety off")
-    if body.body == "unicycle" and faulted:
+    if "unicycle" in bodies and faulted:
         raise ParamError("--safety barrier with a unicycle in the simulator needs its neighbours' headings, "
                          "which the simulated faulty channel does not carry: run it as processes, or --safety off")
-    return sf.safety_for(scenario.params, scenario.dt, body.lookahead if body.body == "unicycle" else 0.0)
+    return sf.safety_for(scenario.params, scenario.dt)  # each body's look-ahead widens its own rows (the step)
 
 
 class SafetyTally:

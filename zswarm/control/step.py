@@ -41,30 +41,34 @@ BodyState = bodies.BodyState
 @dataclass(frozen=True)
 class Guard:
     """What the filter keeps each agent clear of: its neighbours' tracked points as it believes them (G
-    slots per agent, padded and masked), the age of each (s); ``brake``: agents that brake whatever they
-    sense (an agent whose world is late: nothing it heard can bound anything)."""
+    slots per agent, padded and masked), the age of each (s) and how far ahead of its axle each one's
+    point is (``look``: a unicycle's look-ahead, 0 for the other bodies); ``brake``: agents that brake
+    whatever they sense (an agent whose world is late: nothing it heard can bound anything)."""
 
     point: np.ndarray  # (L..., G, D)
     age: np.ndarray  # (L..., G)
     mask: np.ndarray  # (L..., G) bool
+    look: np.ndarray | float = 0.0  # broadcasts against (L..., G)
     brake: np.ndarray | None = None  # (L...) bool
 
     @classmethod
-    def of_pairs(cls, n: int, agent: np.ndarray, point: np.ndarray, age: np.ndarray) -> Guard:
+    def of_pairs(cls, n: int, agent: np.ndarray, point: np.ndarray, age: np.ndarray,
+                 look: np.ndarray | float = 0.0) -> Guard:
         """One swarm's guard (leading axes (1, N)) from flat lists: agent i guards against ``point``, ``age``."""
         slot, g = _slots(agent, n)
-        pts, ages = np.zeros((1, n, g, point.shape[-1])), np.zeros((1, n, g))
+        pts, ages, looks = np.zeros((1, n, g, point.shape[-1])), np.zeros((1, n, g)), np.zeros((1, n, g))
         mask = np.zeros((1, n, g), dtype=bool)
-        pts[0, agent, slot], ages[0, agent, slot], mask[0, agent, slot] = point, age, True
-        return cls(pts, ages, mask)
+        pts[0, agent, slot], ages[0, agent, slot], looks[0, agent, slot], mask[0, agent, slot] = point, age, look, True
+        return cls(pts, ages, mask, looks)
 
     @classmethod
-    def of_one(cls, guarded: Sequence[tuple[Sequence[float], float]], dims: int, brake: bool = False) -> Guard:
-        """One agent's guard (leading axes (1, 1)) from (point, age) pairs."""
+    def of_one(cls, guarded: Sequence[tuple[Sequence[float], float, float]], dims: int, brake: bool = False) -> Guard:
+        """One agent's guard (leading axes (1, 1)) from (point, age, look) triples."""
         g = len(guarded)
-        return cls(np.array([p for p, _ in guarded], dtype=float).reshape(1, 1, g, dims),
-                   np.array([a for _, a in guarded], dtype=float).reshape(1, 1, g),
-                   np.ones((1, 1, g), dtype=bool), np.array([[brake]]))
+        return cls(np.array([p for p, _, _ in guarded], dtype=float).reshape(1, 1, g, dims),
+                   np.array([a for _, a, _ in guarded], dtype=float).reshape(1, 1, g),
+                   np.ones((1, 1, g), dtype=bool), np.array([k for _, _, k in guarded], dtype=float).reshape(1, 1, g),
+                   np.array([[brake]]))
 
 
 class Stepped(NamedTuple):
@@ -104,15 +108,18 @@ class Barrier:
         index = np.arange(len(flat)).reshape(lead)
         centre = np.broadcast_to(obs.obstacle_centre, obs.lead + obs.obstacle_centre.shape[-2:])
         radius = np.broadcast_to(obs.obstacle_radius, obs.lead + obs.obstacle_radius.shape[-1:])
+        own = np.broadcast_to(np.asarray(self.lookahead, dtype=float), lead)
+        theirs = np.broadcast_to(np.asarray(guard.look, dtype=float), guard.age.shape)
         for runs, safety in self.groups:
             at = index[runs].reshape(-1)
             n = len(at)
-            me = points[runs].reshape(n, dims)
+            me, look = points[runs].reshape(n, dims), own[runs].reshape(n)
             ii, kk = np.nonzero(guard.mask[runs].reshape(n, -1))
             io, mo = np.nonzero(obs.obstacle_mask[runs].reshape(n, -1))
             r = sf.rows(safety, n, ii, me[ii] - guard.point[runs].reshape(n, -1, dims)[ii, kk],
                         guard.age[runs].reshape(n, -1)[ii, kk], io, me[io] - centre[runs].reshape(n, -1, dims)[io, mo],
-                        radius[runs].reshape(n, -1)[io, mo])
+                        radius[runs].reshape(n, -1)[io, mo], sf.widening(look[ii] + theirs[runs].reshape(n, -1)[ii, kk]),
+                        sf.widening(look[io]))
             if guard.brake is not None:
                 r = r._replace(stale=r.stale | guard.brake[runs].reshape(n))
             done = sf.apply(flat[at], r)
@@ -189,15 +196,21 @@ class ControlStep:
             obs = obs.replace(target=np.where(blind[..., None], obs.position, obs.target))
         wanted = np.zeros_like(obs.position)
         for g in self.groups:
+            sub = _take(obs, g.index)
+            if g.law.state_size:
+                sub = sub.replace(state=g.state)
             try:
-                wanted[g.index], g.state = g.law.decide_batch(_take(obs, g.index).replace(state=g.state))
+                wanted[g.index], g.state = g.law.decide_batch(sub)
             except Exception as exc:  # noqa: BLE001 - a user's law may raise anything: said in one line
                 raise LawFailed.of(g.law.name, exc, when) from None
-        wanted[blind] = 0.0
+        if blind.any():
+            wanted[blind] = 0.0
         filtered, command = None, wanted
         if self.filter is not None:
             filtered = self.filter(wanted, obs, guard, state)
             command = filtered.command.reshape(wanted.shape)
+        if len(self.groups) == 1 and self.groups[0].index is _ALL:  # one body for all: no gathering
+            return Stepped(bodies.step(self.groups[0].body, state, command, self.dt), command, filtered)
         position, velocity, heading = state.position.copy(), state.velocity.copy(), state.heading.copy()
         for g in self.groups:
             ix = g.index
@@ -206,11 +219,11 @@ class ControlStep:
             position[ix], velocity[ix], heading[ix] = moved
         return Stepped(bodies.BodyState(position, velocity, heading), command, filtered)
 
-    def one(self, obs: Observation, guarded: Sequence[tuple[tuple[float, ...], float]], brake: bool,
+    def one(self, obs: Observation, guarded: Sequence[tuple[tuple[float, ...], float, float]], brake: bool,
             velocity: tuple[float, ...], heading: float | None, when: str = "") -> One:
         """The step of the one agent this step was made for (:func:`control_step` with ``agents``), a
-        batch of one: ``obs`` what its law sees, ``guarded`` the (tracked point, age) of each neighbour
-        the filter guards it against, ``brake`` its world is late, ``velocity`` and ``heading`` its
+        batch of one: ``obs`` what its law sees, ``guarded`` the (tracked point, age, look-ahead) of each
+        neighbour the filter guards it against (:class:`Guard`), ``brake`` its world is late, ``velocity`` and ``heading`` its
         body's. The same numbers as the batched form, in plain floats where that is cheaper."""
         g = self.groups[0]
         if g.law.state_size:
@@ -227,11 +240,10 @@ class ControlStep:
             if brake:
                 command, acted = (0.0,) * len(u_hat), Acted(speed > 0.0, speed > 0.0, True)
             else:
-                position = tuple(obs.position.tolist())
-                point = bodies.tracked_point(position, heading, float(self.filter.lookahead))
-                dims = len(u_hat)
-                obstacles = [(*o.centre.tolist()[:dims], o.radius) for o in obs.obstacles]
-                command, acted = _filter_floats(safety, point, u_hat, guarded, obstacles)
+                position, look = tuple(obs.position.tolist()), float(self.filter.lookahead)
+                point = bodies.tracked_point(position, heading, look)
+                obstacles = [(*o.centre.tolist(), o.radius) for o in obs.obstacles]
+                command, acted = _filter_floats(safety, point, u_hat, guarded, obstacles, look)
         if g.body.kind == "point":
             return One(command, acted, tuple(p + self.dt * c for p, c in zip(obs.position.tolist(), command)),
                        command, None)
@@ -331,20 +343,23 @@ def _column(values: list[float]) -> np.ndarray | float:
 
 
 def _filter_floats(safety: sf.Safety, point: tuple[float, ...], u_hat: tuple[float, ...],
-                   neighbours: Sequence[tuple[tuple[float, ...], float]],
-                   obstacles: Sequence[tuple[float, ...]]) -> tuple[tuple[float, ...], Acted | None]:
+                   neighbours: Sequence[tuple[tuple[float, ...], float, float]], obstacles: Sequence[tuple[float, ...]],
+                   look: float = 0.0) -> tuple[tuple[float, ...], Acted | None]:
     """:func:`zswarm.control.safety.apply` of :func:`~zswarm.control.safety.rows` for one agent at
-    ``point`` with ``neighbours`` as (believed point, age) and ``obstacles`` as (centre..., radius): the
-    same rows and the same exact enumeration in floats. Most ticks no row binds and the command passes at
-    the cost of a few float operations. Returns the command and what the filter did (None: nothing)."""
+    ``point`` (``look`` ahead of its axle) with ``neighbours`` as (believed point, age, look-ahead) and
+    ``obstacles`` as (centre..., radius): the same rows and the same exact enumeration in floats. Most ticks
+    no row binds and the command passes at the cost of a few float operations. Returns the command and
+    what the filter did (None: nothing)."""
     rate, v, dims = safety.kappa / safety.period, safety.v_max, len(point)
     far = 2.0 * v * math.sqrt(2.0) / rate  # a gap this wide gives b >= |a| v_max for every row: none binds
-    distance, max_age = safety.distance, safety.max_age
+    distance, hair = safety.distance, 1.0 + sf.HAIR
     binding: list[tuple[tuple[float, ...], float]] = []
     violated = stale = False
-    for q, age in neighbours:
+    for q, age, theirs in neighbours:
         d = math.dist(point, q)
-        gap = d - distance - v * age
+        widen = (look + theirs) * hair
+        max_age = safety.max_age - widen / v
+        gap = d - distance - widen - v * age
         if gap >= far and age <= max_age:
             continue  # most neighbours, most ticks: nothing more is computed
         psi = [point[k] - q[k] for k in range(dims)]
@@ -363,7 +378,7 @@ def _filter_floats(safety: sf.Safety, point: tuple[float, ...], u_hat: tuple[flo
                 violated |= sum(a[k] * u_hat[k] for k in range(dims)) - bound > sf.TOL
     for obstacle in obstacles:
         d = math.dist(point, obstacle[:dims])
-        b = rate * max(d - obstacle[dims] - safety.clearance, 0.0)
+        b = rate * max(d - obstacle[dims] - safety.clearance - look * hair, 0.0)
         if b < v:
             a = tuple(-(point[k] - obstacle[k]) / d for k in range(dims)) if d > 0 else (0.0,) * dims
             binding.append((a, b))

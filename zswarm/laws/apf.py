@@ -9,10 +9,10 @@ The batched form is the one law, :func:`zswarm.paper.field.field`, on dense bloc
 potentials step in the same call, each run's parameters as columns (:meth:`Apf.merge`). The single form
 in 2-D is the same arithmetic in plain floats, term by term and in the same order, written for the
 handful of obstacles and neighbours one agent senses (at that size numpy's per-call cost would be most of
-the work: 0.1 ms against 0.01 ms); in 3-D it is the field on one row. Both keep what lies within the
-sensing radius (neighbours by their sensed position, obstacles by their nearest boundary point), as the
-paper's agent senses it; ``tests/test_law_conformance.py`` holds the two forms equal for every
-interaction and combination.
+the work: 0.1 ms against 0.01 ms); in 3-D it is the field on one row. Both use what they are given:
+the engines give a law only what lies within the sensing radius (neighbours by their sensed position,
+obstacles by their nearest boundary point), as the paper's agent senses it.
+``tests/test_law_conformance.py`` holds the two forms equal for every interaction and combination.
 
 - goal (eqs 7-8): U^g = c_g (1 - e^{-|psi_g|^2/l_g^2}), F^g = -2 c_g/l_g^2 e^{...} psi_g;
 - obstacles (eqs 9-11, circles through their nearest boundary point): U^o = sum c_o e^{-|psi_o|^2/l_o^2},
@@ -93,17 +93,16 @@ class Apf(SwarmLaw):
         centres = np.array([o.centre for o in obs.obstacles], dtype=float).reshape(-1, obs.dims)
         radii = np.array([o.radius for o in obs.obstacles], dtype=float)
         others = np.array([n.position for n in obs.neighbours], dtype=float).reshape(-1, obs.dims)
-        return law.velocity(obs.position, obs.target, sense_one(obs.position, centres, radii, others, radius),
+        return law.velocity(obs.position, obs.target, sense_one(obs.position, centres, radii, others, math.inf),
                             obs.v_max)
 
     def batch(self, obs: Observations) -> np.ndarray:
         c = self.columns or _Columns.one(self.law, self.context)
         x = obs.position
         psi_o = obstacle_offsets(x[..., None, :], obs.obstacle_centre, obs.obstacle_radius)
-        sensed_o = obs.obstacle_mask & (np.einsum("...k,...k->...", psi_o, psi_o) <= c.r2)
         psi_f = x[..., None, :] - obs.neighbour_position
-        sensed_f = obs.neighbour_mask & (np.einsum("...k,...k->...", psi_f, psi_f) <= c.r2) & c.formation
-        _, f = field(x - obs.target, DensePairs(sensed_o), psi_o, DensePairs(sensed_f), psi_f, c.p_agent,
+        sensed_f = obs.neighbour_mask & c.formation
+        _, f = field(x - obs.target, DensePairs(obs.obstacle_mask), psi_o, DensePairs(sensed_f), psi_f, c.p_agent,
                      c.multiplicative, law=c.neighbours, p_pairs=c.p_pair, energy=False)
         return saturate(f, np.asarray(obs.v_max, dtype=float))
 
@@ -132,7 +131,6 @@ class _Columns:
         self.p_pair = _Potentials({n: col([getattr(l.p, n) for l in laws], 2) for n in _POTENTIAL})
         self.multiplicative = np.array([l.combination == "multiplicative" for l in laws])[:, None]
         self.formation = np.array([l.formation for l in laws])[:, None, None]
-        self.r2 = col([c.sensing_radius ** 2 for c in contexts], 2)
         first = _neighbours(laws[0])
         self.neighbours = None if first is None else NeighbourLaw(
             first.interaction, col([c.sensing_radius for c in contexts], 2),
@@ -144,7 +142,7 @@ class _Columns:
         out = cls.__new__(cls)
         out.p_agent = out.p_pair = law.p
         out.multiplicative, out.formation = law.combination, law.formation
-        out.r2, out.neighbours = context.sensing_radius ** 2, _neighbours(law)
+        out.neighbours = _neighbours(law)
         return out
 
 
@@ -161,13 +159,12 @@ class _Potentials:
 def _velocity_2d(x: float, y: float, goal: Point, obstacles: Iterable[Circle], neighbours: Iterable[Point],
                    sensing_radius: float, p: PotentialParams, combination: Combination, formation: bool,
                    v_max: float, law: NeighbourLaw | None = None) -> Point:
-    """Commanded velocity of the agent at (x, y) from what it sensed: obstacles whose nearest boundary
-    point, and neighbours, within ``sensing_radius`` count (the others are ignored here). ``law``: an
-    interaction other than the paper's."""
-    r2_max = sensing_radius * sensing_radius
+    """Commanded velocity of the agent at (x, y) from what it sensed: every obstacle and neighbour given
+    (the ones within the sensing radius; ``sensing_radius`` sets the cutoff interaction's fall-off).
+    ``law``: an interaction other than the paper's."""
     goal_weight, variant = 1.0, None
     if formation and law is not None and not law.interaction.is_paper:
-        variant, goal_weight = _neighbour_force_2d(x, y, goal, neighbours, r2_max, p, law)
+        variant, goal_weight = _neighbour_force_2d(x, y, goal, neighbours, sensing_radius, p, law)
     gx, gy = x - goal[0], y - goal[1]
     lg2 = p.l_g**2
     e = math.exp(-(gx * gx + gy * gy) / lg2)
@@ -183,8 +180,6 @@ def _velocity_2d(x: float, y: float, goal: Point, obstacles: Iterable[Circle], n
         scale = 1.0 - rho / dist if dist > 0.0 else 0.0
         px, py = dx * scale, dy * scale
         d2 = px * px + py * py
-        if d2 > r2_max:
-            continue
         e = p.c_o * math.exp(-d2 / lo2)
         u_o += e
         k = 2.0 / lo2 * e
@@ -205,8 +200,6 @@ def _velocity_2d(x: float, y: float, goal: Point, obstacles: Iterable[Circle], n
         for nx, ny in neighbours:
             px, py = x - nx, y - ny
             r2 = px * px + py * py
-            if r2 > r2_max:
-                continue
             g = (-2.0 * p.c_r / lr2 * math.exp(-r2 / lr2) + 2.0 * p.c_a / la2 * math.exp(-r2 / la2)
                  + 2.0 * p.c_a_prime)
             ffx += -g * px
@@ -222,17 +215,15 @@ def _velocity_2d(x: float, y: float, goal: Point, obstacles: Iterable[Circle], n
     return fx, fy
 
 
-def _neighbour_force_2d(x: float, y: float, goal: Point, neighbours: Iterable[Point], r2_max: float,
-                     p: PotentialParams, law: NeighbourLaw) -> tuple[Point, float]:
-    """:func:`zswarm.paper.neighbour_law.neighbour_force` for one agent in floats: its force from the neighbours
-    within reach and the weight of its goal term."""
+def _neighbour_force_2d(x: float, y: float, goal: Point, neighbours: Iterable[Point], radius: float,
+                        p: PotentialParams, law: NeighbourLaw) -> tuple[Point, float]:
+    """:func:`zswarm.paper.neighbour_law.neighbour_force` for one agent in floats: its force from its
+    neighbours and the weight of its goal term."""
     spec = law.interaction
     sensed = []
     for nx, ny in neighbours:
         px, py = x - nx, y - ny
-        r2 = px * px + py * py
-        if r2 <= r2_max:
-            sensed.append((r2, px, py))
+        sensed.append((px * px + py * py, px, py))
     if spec.nearest:
         sensed.sort(key=lambda s: s[0])  # stable: ties keep the order heard, as the vectorized rank does
         del sensed[law.k_nearest:]
@@ -240,7 +231,6 @@ def _neighbour_force_2d(x: float, y: float, goal: Point, neighbours: Iterable[Po
     gd = math.sqrt(gx * gx + gy * gy)
     tx, ty = (gx / gd, gy / gd) if gd > 0.0 else (0.0, 0.0)
     lr2, la2 = p.l_r**2, p.l_a**2
-    radius = math.sqrt(r2_max)
     rx = ry = ax = ay = wsum = block = 0.0
     for r2, px, py in sensed:
         r = math.sqrt(r2)

@@ -128,18 +128,26 @@ class Observations:
 
     @classmethod
     def of_swarm(cls, position: np.ndarray, velocity: np.ndarray, target: np.ndarray, v_max: float, dt: float,
-                 state: np.ndarray, pairs: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+                 state: np.ndarray, pairs: tuple[np.ndarray, ...],
                  obstacles: tuple[np.ndarray, np.ndarray, np.ndarray]) -> Observations:
         """One swarm's observations (leading axes (1, N)) from flat lists: ``pairs`` (agent i, the
-        neighbour's position, velocity, age) and ``obstacles`` (agent i, centre, radius), each padded
-        to the most any agent has."""
+        neighbour's position, velocity, age; or agent i and neighbour j, sensed exactly and now) and
+        ``obstacles`` (agent i, centre, radius), each padded to the most any agent has."""
         n, d = position.shape
-        agent, nb_pos, nb_vel, nb_age = pairs
+        agent = pairs[0]
         slot, k = _slots(agent, n)
-        shape = (1, n, k)
-        npos, nvel, nage = np.full(shape + (d,), _PAD), np.full(shape + (d,), _PAD), np.full(shape, _PAD)
-        nmask = np.zeros(shape, dtype=bool)
-        npos[0, agent, slot], nvel[0, agent, slot], nage[0, agent, slot], nmask[0, agent, slot] = nb_pos, nb_vel, nb_age, True
+        if len(pairs) == 2:  # exact: one gather of the swarm's own rows, a padding row beyond them
+            index = np.full((n, k), n)
+            index[agent, slot] = pairs[1]
+            rows = np.concatenate([position, velocity, np.zeros((n, 1))], axis=1)
+            packed = np.concatenate([rows, np.full((1, 2 * d + 1), _PAD)])[index][None]
+        else:
+            packed = np.full((1, n, k, 2 * d + 1), _PAD)  # one scatter for position, velocity and age
+            packed[0, agent, slot] = np.concatenate([pairs[1], pairs[2], np.asarray(pairs[3], dtype=float)[:, None]],
+                                                    axis=1)
+        npos, nvel, nage = packed[..., :d], packed[..., d:2 * d], packed[..., 2 * d]
+        nmask = np.zeros((1, n, k), dtype=bool)
+        nmask[0, agent, slot] = True
         o_agent, centre, radius = obstacles
         o_slot, m = _slots(o_agent, n)
         ocen, orad, omask = np.full((1, n, m, d), _PAD), np.ones((1, n, m)), np.zeros((1, n, m), dtype=bool)
@@ -161,7 +169,10 @@ class Observations:
             target=self.target[index].copy(), v_max=float(v_max), dt=self.dt, state=self.state[index].copy())
 
     def replace(self, **changes: Any) -> Observations:
-        return dataclasses.replace(self, **changes)
+        """A copy with some fields changed (no checks: the cheap copy a step makes several times)."""
+        out = object.__new__(type(self))
+        out.__dict__.update(self.__dict__, **changes)
+        return out
 
 
 _PAD = 1e6  # what a masked slot holds: a law that reads it unmasked gives a visibly wrong answer
@@ -172,11 +183,14 @@ def _slots(agent: np.ndarray, n: int) -> tuple[np.ndarray, int]:
     agent = np.asarray(agent, dtype=np.intp)
     if len(agent) == 0:
         return agent, 0
+    counts = np.bincount(agent, minlength=n)
+    first = np.cumsum(counts) - counts
+    if np.all(agent[1:] >= agent[:-1]):  # already grouped by agent (the pair search's usual order)
+        return np.arange(len(agent)) - first[agent], int(counts.max())
     order = np.argsort(agent, kind="stable")
-    first = np.searchsorted(agent[order], agent[order], side="left")
     slot = np.empty(len(agent), dtype=np.intp)
-    slot[order] = np.arange(len(agent)) - first
-    return slot, int(np.bincount(agent, minlength=n).max())
+    slot[order] = np.arange(len(agent)) - first[agent[order]]
+    return slot, int(counts.max())
 
 
 @dataclass(frozen=True)

@@ -101,13 +101,16 @@ FIELDS: dict[str, FieldSpec] = {
     "accel": FieldSpec("body", float, 0.0, True, "double-integrator: the largest acceleration"),
     "law": FieldSpec("law", str, 0.0, False, "the control law: apf (the paper's), olfati-saber, vasarhelyi, "
                      "boids, FILE.py:NAME, package.module:NAME or an installed entry point (zswarm laws)"),
+    "groups": FieldSpec("mix", str, 0.0, False, "a mixed swarm: COUNT:LAW[/BODY] joined by commas, e.g. "
+                        "4:boids/unicycle (agents 0-3 run boids in unicycles; the rest run law in body)"),
 }
 
 #: ``law.NAME``: one of the law's own parameters (a finite number; the law checks its name and range).
 LAW_PREFIX = "law."
 
 #: How a name-valued field is read.
-_NAMES = {"interaction": lambda v: parse_interaction(v).name, "body": parse_body, "law": lambda v: _law_name(v)}
+_NAMES = {"interaction": lambda v: parse_interaction(v).name, "body": parse_body, "law": lambda v: _law_name(v),
+          "groups": lambda v: parse_groups(v)}
 
 
 def _law_name(value: Any) -> str:
@@ -115,6 +118,33 @@ def _law_name(value: Any) -> str:
         raise ParamError(f"law must be a name (apf, olfati-saber, vasarhelyi, boids, FILE.py:NAME or "
                          f"package.module:NAME; zswarm laws lists them) (got {value!r})")
     return value.strip()
+
+
+def parse_groups(value: Any) -> str:
+    """``groups``, checked and written canonically: COUNT:LAW[/BODY] joined by commas ("" for none)."""
+    if not isinstance(value, str):
+        raise ParamError(f"groups must be COUNT:LAW[/BODY] joined by commas, e.g. 4:boids/unicycle (got {value!r})")
+    return ",".join(f"{count}:{law}" + (f"/{body}" if body else "") for count, law, body in groups_of(value))
+
+
+def groups_of(text: str) -> list[tuple[int, str, str | None]]:
+    """The groups ``text`` lists, in order: (how many agents, the law, the body or None for the set's own).
+    A law's name may hold ``:`` and ``/`` (FILE.py:NAME); a body is the part after the last ``/`` when
+    that part is a body's name."""
+    out = []
+    for item in (part.strip() for part in text.split(",") if text.strip()):
+        count, _, rest = item.partition(":")
+        law, slash, body = rest.rpartition("/")
+        if not slash or body.strip() not in KINDS:
+            law, body = rest, ""
+        try:
+            n = int(count)
+        except ValueError:
+            n = 0
+        if n < 1 or not law.strip():
+            raise ParamError(f"groups: {item!r} is not COUNT:LAW[/BODY] with COUNT >= 1 (e.g. 4:boids/unicycle)")
+        out.append((n, _law_name(law), parse_body(body) if body else None))
+    return out
 
 
 Value = float | int | str
@@ -254,8 +284,20 @@ class LawChoice:
 
 
 @dataclass(frozen=True)
+class MixParams:
+    """A mixed swarm (``groups``): groups of agents with their own law and body, listed in the order of
+    their ids; the agents beyond them run the set's ``law`` in its ``body`` (:func:`groups_of`)."""
+
+    groups: str = ""
+
+    def __post_init__(self) -> None:
+        _check(self)
+
+
+@dataclass(frozen=True)
 class Params:
-    """A complete parameter set: potentials, swarm, design margins, interaction, body and the law."""
+    """A complete parameter set: potentials, swarm, design margins, interaction, body, the law and the
+    groups of a mixed swarm."""
 
     potential: PotentialParams = field(default_factory=PotentialParams)
     swarm: SwarmParams = field(default_factory=SwarmParams)
@@ -263,12 +305,18 @@ class Params:
     interaction: InteractionParams = field(default_factory=InteractionParams)
     body: BodyParams = field(default_factory=BodyParams)
     law: LawChoice = field(default_factory=LawChoice)
+    mix: MixParams = field(default_factory=MixParams)
+
+    def __post_init__(self) -> None:
+        listed = sum(count for count, _, _ in groups_of(self.mix.groups))
+        if listed > self.swarm.n_agents:
+            raise ParamError(f"groups list {listed} agents, more than n_agents = {self.swarm.n_agents}")
 
     def flat(self) -> dict[str, Value]:
         """Every effective value by field name (the keys of :data:`FIELDS`, and ``law.NAME`` for each
         parameter set for the law)."""
         out: dict[str, Value] = {}
-        for part in (self.potential, self.swarm, self.margins, self.interaction, self.body):
+        for part in (self.potential, self.swarm, self.margins, self.interaction, self.body, self.mix):
             out.update(dataclasses.asdict(part))
         out.update(self.law.flat())
         return out
@@ -276,7 +324,8 @@ class Params:
     def with_values(self, values: Mapping[str, Any]) -> Params:
         """A copy with some fields replaced (already-typed values; validated). Choosing another law
         drops the settings of the one before it."""
-        groups: dict[str, dict[str, Any]] = {g: {} for g in ("potential", "swarm", "margins", "interaction", "body")}
+        groups: dict[str, dict[str, Any]] = {g: {} for g in ("potential", "swarm", "margins", "interaction", "body",
+                                                             "mix")}
         law, settings = self.law.law, dict(self.law.settings)
         for name, value in values.items():
             if name.startswith(LAW_PREFIX):
@@ -295,6 +344,7 @@ class Params:
             interaction=dataclasses.replace(self.interaction, **groups["interaction"]),
             body=dataclasses.replace(self.body, **groups["body"]),
             law=LawChoice(law, tuple(settings.items())),
+            mix=dataclasses.replace(self.mix, **groups["mix"]),
         )
 
     def with_overrides(self, assignments: list[str]) -> Params:

@@ -97,12 +97,21 @@ class BatchSimulator:
         self.upper = np.triu(np.ones((self.n, self.n), dtype=bool), 1)
         self.step_index = 0
         self.counts = np.zeros((b, 3), dtype=np.int64)  # interventions, stalled, braked (agent-steps)
+        self._geometry: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._pending_counts: np.ndarray | None = None
 
     def _within(self, x: np.ndarray) -> np.ndarray:
         """(B, N, N): agent j within the sensing radius of agent i (i != j), on dense blocks."""
-        d = x[:, :, None, :] - x[:, None, :, :]
-        return (np.einsum("bijk,bijk->bij", d, d) <= np.square(self.radius)[:, None, None]) & self.off_diagonal
+        return (_squared_distances(x) <= np.square(self.radius)[:, None, None]) & self.off_diagonal
+
+    def _now(self) -> tuple[np.ndarray, np.ndarray]:
+        """The squared distances between the agents (B, N, N) and each agent's clearance to each obstacle
+        (B, N, M) at this step: found once, for what the agents sense and for the tally."""
+        x = self.positions
+        if self._geometry is None or self._geometry[0] is not x:  # new positions: a step, or a state set
+            clearance = metrics.obstacle_clearance(x[:, :, None, :], self.centers[:, None, :, :], self.radii[:, None, :])
+            self._geometry = (x, _squared_distances(x), clearance)
+        return self._geometry[1:]
 
     def sensed_now(self) -> tuple[Observations, Guard | None]:
         """What every agent of every run senses now, on dense blocks: every other agent within the sensing
@@ -111,7 +120,8 @@ class BatchSimulator:
         newest it heard of each, with its age)."""
         x, v = self.state.position, self.state.velocity
         b, n, dims = x.shape
-        near = self._within(x)
+        r2, clearance = self._now()
+        near = (r2 <= np.square(self.radius)[:, None, None]) & self.off_diagonal
         nb_pos = np.broadcast_to(x[:, None, :, :], (b, n, n, dims))
         nb_vel = np.broadcast_to(v[:, None, :, :], (b, n, n, dims))
         nb_age = np.zeros((b, n, n))
@@ -120,9 +130,11 @@ class BatchSimulator:
             f, k = self.faulty, self.step_index
             believed, heard, heard_goal = self.channel.step(k, x[f], self.prey[f], v[f])
             velocity, age = self.channel.heard_motion(k)
-            nb_pos, nb_vel, near, goal = nb_pos.copy(), nb_vel.copy(), near.copy(), goal.copy()
-            nb_pos[f], nb_vel[f], nb_age[f], near[f], goal[f] = believed, velocity, age, heard, heard_goal
-        clearance = metrics.obstacle_clearance(x[:, :, None, :], self.centers[:, None, :, :], self.radii[:, None, :])
+            nb_pos, near, goal = nb_pos.copy(), near.copy(), goal.copy()
+            nb_pos[f], nb_age[f], near[f], goal[f] = believed, age, heard, heard_goal
+            if self.channel.velocities:  # (a law that reads none is given the true ones, unread)
+                nb_vel = nb_vel.copy()
+                nb_vel[f] = velocity
         m = self.centers.shape[1]
         obs = Observations(
             position=x, velocity=v, neighbour_position=nb_pos, neighbour_velocity=nb_vel, neighbour_age=nb_age,
@@ -141,7 +153,8 @@ class BatchSimulator:
             heard, believed, heard_age = self.channel.known(self.step_index, x[f])
             point, mask = point.copy(), mask.copy()
             point[f], age[f], mask[f] = believed, heard_age, heard & self.off_diagonal
-        return obs, Guard(point, age, mask)
+        look = np.broadcast_to(np.asarray(barrier.lookahead if isinstance(barrier, Barrier) else 0.0), (b, n))
+        return obs, Guard(point, age, mask, look[:, None, :])
 
     def command(self) -> Stepped:
         """Every agent's step (:mod:`zswarm.control.step`) from what it senses now."""
@@ -174,11 +187,8 @@ class BatchSimulator:
     def sensed(self) -> Sensed:
         """What every run senses now, for the tally: the pairs of its sensing graph (dense) and its
         sensed obstacles."""
-        x = self.positions
-        d = x[:, :, None, :] - x[:, None, :, :]
-        r2 = np.einsum("bijk,bijk->bij", d, d)
+        r2, clearance = self._now()
         r, i, j = np.nonzero((r2 <= np.square(self.radius)[:, None, None]) & self.upper)
-        clearance = metrics.obstacle_clearance(x[:, :, None, :], self.centers[:, None, :, :], self.radii[:, None, :])
         ro, a, m = np.nonzero(self.has_obstacle[:, None, :] & (clearance <= self.radius[:, None, None]))
         return Sensed(r, i, j, np.sqrt(r2[r, i, j]), ro, a, m, clearance[ro, a, m])
 
@@ -188,6 +198,12 @@ class BatchSimulator:
         for motion, rows in self.motions.items():
             out[rows] = prey_motion.step(motion, self.prey[rows], self.dt, self.positions[rows])
         return out
+
+
+def _squared_distances(x: np.ndarray) -> np.ndarray:
+    """|P_i - P_j|^2 of every pair of every run (B, N, N)."""
+    d = x[:, :, None, :] - x[:, None, :, :]
+    return np.einsum("bijk,bijk->bij", d, d)
 
 
 @dataclass

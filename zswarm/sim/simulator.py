@@ -67,6 +67,7 @@ class Simulator:
                                       velocities=self.control.hears_velocities)
                         if faulted else None)
         self.filtered = None  # what the filter did at the last step
+        self._near: tuple | None = None
         self.tally = SafetyTally(scenario.dt)
 
     @property
@@ -87,6 +88,14 @@ class Simulator:
     def t(self) -> float:
         return self.step_index * self.scenario.dt
 
+    def near(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Who senses whom now, (i, j) within the sensing radius, and which obstacles, (agent, obstacle):
+        found once a step, for what the agents sense and for the tally."""
+        x = self.state.position
+        if self._near is None or self._near[0] is not x:  # new positions: a step, or a state set
+            self._near = (x, *pairs_within(x, self.scenario.params.swarm.sensing_radius), *self.obstacles.sensed(x))
+        return self._near[1:]
+
     def sensed(self) -> tuple[Observations, Guard | None]:
         """What every agent senses now: its observation (its neighbours within the sensing radius, exactly
         or through the faulty channel with their velocities and ages; the obstacles within it; the
@@ -99,9 +108,9 @@ class Simulator:
             pairs = (i, believed, heard_velocity, age)
         else:
             goal = np.broadcast_to(self.prey, x.shape)
-            i, j = pairs_within(x, p.sensing_radius)
-            pairs = (i, x[j], v[j], np.zeros(len(i)))
-        a, m = self.obstacles.sensed(x)
+            i, j, _, _ = self.near()
+            pairs = (i, j)
+        _, _, a, m = self.near()
         obs = Observations.of_swarm(x, v, goal, p.v_max, self.scenario.dt, np.zeros((n, 0)), pairs,
                                     (a, self.obstacles.centers[m], self.obstacles.radii[m]))
         barrier = self.control.filter
@@ -115,7 +124,8 @@ class Simulator:
         points = barrier.points(BodyState(x[None], v[None], self.state.heading[None]))[0]
         if points is not x:
             i, j = pairs_within(points, p.sensing_radius)
-        return obs, Guard.of_pairs(n, i, points[j], np.zeros(len(i)))
+        look = np.broadcast_to(np.asarray(barrier.lookahead, dtype=float), (1, n))[0]
+        return obs, Guard.of_pairs(n, i, points[j], np.zeros(len(i)), look[j])
 
     def command(self) -> Stepped:
         """Every agent's step from what it senses now (the bodies' next states: :meth:`advance`)."""
@@ -164,7 +174,7 @@ class OneRun:
         self.sim.advance(stepped)
 
     def sensed(self) -> Sensed:
-        return Sensed.of_swarm(self.sim.positions, self.sim.scenario.params.swarm.sensing_radius, self.sim.obstacles)
+        return Sensed.of_pairs(self.sim.positions, *self.sim.near(), self.sim.obstacles)
 
     def safety_counts(self) -> np.ndarray:
         t = self.sim.tally

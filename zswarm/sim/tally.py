@@ -25,7 +25,7 @@ from typing import Callable, Protocol
 import numpy as np
 
 from zswarm.control.step import Stepped
-from zswarm.paper.neighbours import obstacle_clearance, pairs_within
+from zswarm.paper.neighbours import obstacle_clearance
 from zswarm.swarm import metrics
 
 
@@ -44,14 +44,13 @@ class Sensed:
     clearance: np.ndarray
 
     @classmethod
-    def of_swarm(cls, x: np.ndarray, radius: float, obstacles) -> Sensed:
-        """What one swarm at ``x`` (N, D) senses, from the cell grid (``obstacles``: an
+    def of_pairs(cls, x: np.ndarray, i: np.ndarray, j: np.ndarray, a: np.ndarray, m: np.ndarray, obstacles) -> Sensed:
+        """What one swarm at ``x`` (N, D) senses: its pairs (i, j) within the sensing radius (each both ways)
+        and its sensed obstacles (agent ``a``, obstacle ``m`` of ``obstacles``, an
         :class:`~zswarm.paper.neighbours.ObstacleIndex`)."""
-        i, j = pairs_within(x, radius)
         keep = i < j
         i, j = i[keep], j[keep]
         d = x[i] - x[j]
-        a, m = obstacles.sensed(x)
         clearance = obstacle_clearance(x[a], obstacles.centers[m], obstacles.radii[m])
         zero = np.zeros(len(i), dtype=np.intp)
         return cls(zero, i, j, np.sqrt(np.einsum("ij,ij->i", d, d)), np.zeros(len(a), dtype=np.intp), a, m, clearance)

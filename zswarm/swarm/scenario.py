@@ -23,7 +23,7 @@ from zswarm.errors import UsageError
 from zswarm.paper.neighbour_law import neighbour_law
 from zswarm.paper.neighbours import ObstacleIndex
 from zswarm.paper.numeric import all_finite
-from zswarm.paper.params import DEFAULT_PARAMS, LawChoice, Params
+from zswarm.paper.params import DEFAULT_PARAMS, LawChoice, Params, groups_of
 from zswarm.paper.potentials import COMBINATIONS, Combination
 from zswarm.swarm.prey import PreyMotion
 
@@ -92,8 +92,11 @@ class Scenario:
         if prey_speed >= self.params.swarm.v_max:
             raise ValueError(f"the prey must be slower than the agents (Section 5): prey speed "
                              f"{prey_speed:g} >= v_max {self.params.swarm.v_max}")
-        if d == 3 and self.params.body.body == "unicycle":
+        if d == 3 and any(body == "unicycle" for _, body in self.groups()):
             raise ValueError("a unicycle drives on the ground: use body = point or double-integrator in 3-D")
+        listed = sum(count for count, _, _ in groups_of(self.params.mix.groups))
+        if listed > self.n_agents:
+            raise ValueError(f"groups list {listed} agents, more than the scenario's {self.n_agents}")
 
     @property
     def dimensions(self) -> int:
@@ -109,12 +112,24 @@ class Scenario:
         return int(round(self.duration / self.dt))
 
     def groups(self) -> list[tuple[LawChoice, str]]:
-        """Its groups of agents: each group's law and body (the last: the scenario's own)."""
-        return [(self.params.law, self.params.body.body)]
+        """Its groups of agents, each one's law and body: those ``groups`` lists (a mixed swarm), then the
+        scenario's own law and body, which every agent beyond them runs (:func:`zswarm.paper.params.groups_of`)."""
+        own = self.params.law
+        listed = [(own if law == own.law else LawChoice(law), body or self.params.body.body)
+                  for _, law, body in groups_of(self.params.mix.groups)]
+        return listed + [(own, self.params.body.body)]
 
     def group_of(self, ids: np.ndarray) -> np.ndarray:
-        """The group (an index into :meth:`groups`) of each agent id."""
-        return np.zeros(len(ids), dtype=np.intp)
+        """The group (an index into :meth:`groups`) of each agent id: the listed groups take ids from 0 in
+        order; every id beyond them is in the last."""
+        edges = np.cumsum([count for count, _, _ in groups_of(self.params.mix.groups)], dtype=np.intp)
+        return np.searchsorted(edges, np.asarray(ids), side="right")
+
+    def members(self) -> list[tuple[np.ndarray, LawChoice, str]]:
+        """Each group that has agents: their ids, its law and its body (one group for a plain scenario)."""
+        ids = np.arange(self.n_agents)
+        of = self.group_of(ids)
+        return [(ids[of == g], choice, body) for g, (choice, body) in enumerate(self.groups()) if (of == g).any()]
 
     def obstacle_arrays(self) -> tuple[np.ndarray, np.ndarray]:
         """Centres (M, D) and radii (M,)."""
