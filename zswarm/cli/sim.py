@@ -51,7 +51,7 @@ def run_sim(args: argparse.Namespace) -> int:
     from zswarm.sim.simulator import simulate
 
     from zswarm.args import UsageError
-    from zswarm.laws.registry import bind
+    from zswarm.control.step import control_step
     from zswarm.design.guidelines import judged
 
     if args.record is not None and args.record.is_file() and not args.force:
@@ -59,13 +59,13 @@ def run_sim(args: argparse.Namespace) -> int:
     agents = {"n_agents": args.agents} if args.agents is not None else {}
     scenario = get_scenario(args.scenario, {**parse_assignments(args.assignments), **agents})
     scenario.check_placement()  # before the design check, which takes seconds at large N
-    bind(scenario, args.potential)  # a law that does not load or answers wrongly: refused here, in one line
+    control_step([scenario], [args.potential], args.safety or "off", probe=True)  # a bad law or filter: one line
     explain = " ".join(["zswarm design --scenario", args.scenario, *(f"--set {a}" for a in args.assignments)])
     design, line = judged(scenario.params, scenario.dt, explain, args.require_design)
     if line is not None:
         print(line, file=sys.stderr, flush=True)
     faults = faults_from_args(args)
-    safety = safety_mode(scenario, args.safety, faults.active)
+    safety = safety_mode(scenario, args.safety)
     viewer = viewer_from_args(args)
     result = simulate(scenario, args.seed, combination=args.potential, duration=args.duration,
                       record=args.record, record_every=args.record_every,

@@ -18,7 +18,7 @@ from typing import Sequence
 
 from zswarm.args import Parser, UsageError, add_law_arg, add_param_args, positive_seconds, seed_arg
 from zswarm.files import out_dir, write_json
-from zswarm.launch.sweep import Cell, aggregate, cell_spec, run_cell_distributed, simulate_cell, write_curves, write_tables
+from zswarm.launch.sweep import Cell, aggregate, cell_spec, run_cell_distributed, simulate_cells, write_curves, write_tables
 from zswarm.swarm.faults import FaultModel, parse_duration_list
 
 def build_parser(prog: str = "zswarm sweep") -> Parser:
@@ -74,11 +74,11 @@ def main(argv: Sequence[str] | None, prog: str = "zswarm sweep") -> int:
         raise UsageError(str(exc)) from None
     from zswarm.swarm.scenarios import get_scenario
 
-    from zswarm.laws.registry import bind
+    from zswarm.control.step import control_step
     from zswarm.paper.params import parse_assignments
 
     args.overrides = {**parse_assignments(args.assignments), **({"n_agents": args.agents} if args.agents is not None else {})}
-    bind(get_scenario(args.scenario, args.overrides))  # a bad scenario, parameter or law stops here
+    control_step([get_scenario(args.scenario, args.overrides)], probe=True)  # a bad scenario, set or law stops here
     if args.out.exists() and not args.out.is_dir():
         raise UsageError(f"--out {args.out} is a file; give a directory (a new one, or a sweep's to resume it)")
     out_dir(args.out)
@@ -88,11 +88,13 @@ def main(argv: Sequence[str] | None, prog: str = "zswarm sweep") -> int:
     print(f"sweep: {len(cells)} cells, {len(cells) - len(todo)} already finished", flush=True)
     start = time.monotonic()
     try:
+        unsimulated = [c for c in todo if not (args.out / "cells" / c.name / "sim.json").exists()]
+        for cell, summary in zip(unsimulated, simulate_cells(unsimulated, args, jitter)):
+            (args.out / "cells" / cell.name).mkdir(parents=True, exist_ok=True)
+            write_json(args.out / "cells" / cell.name / "sim.json", summary)
         for k, cell in enumerate(todo, 1):
             folder = args.out / "cells" / cell.name
             folder.mkdir(parents=True, exist_ok=True)
-            if not (folder / "sim.json").exists():
-                write_json(folder / "sim.json", simulate_cell(cell, args, jitter).summary)
             if not args.sim_only and not (folder / "run.json").exists():
                 run_cell_distributed(cell, args, folder, jitter)
             elapsed = time.monotonic() - start

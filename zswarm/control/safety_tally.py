@@ -20,7 +20,7 @@ from zswarm.errors import ParamError
 from zswarm.control import safety as sf
 
 
-def safety_of(scenario, mode: str, faulted: bool = False) -> sf.Safety | None:
+def safety_of(scenario, mode: str) -> sf.Safety | None:
     """The filter a run of ``scenario`` uses under ``mode`` (None: off), one for all its agents whatever
     their bodies (a unicycle's look-ahead widens the rows of its own pairs:
     :func:`zswarm.control.safety.widening`); raises :class:`ParamError` for a combination the filter cannot
@@ -28,13 +28,9 @@ def safety_of(scenario, mode: str, faulted: bool = False) -> sf.Safety | None:
     sf.parse_mode(mode)
     if mode == "off":
         return None
-    bodies = {body for _, body in scenario.groups()}
-    if "double-integrator" in bodies:
+    if any(body == "double-integrator" for _, body in scenario.groups()):
         raise ParamError("--safety barrier needs a body that can stop within a step; a double-integrator "
                          "needs v^2/(2 accel) to stop, which this filter does not model: use --safety off")
-    if "unicycle" in bodies and faulted:
-        raise ParamError("--safety barrier with a unicycle in the simulator needs its neighbours' headings, "
-                         "which the simulated faulty channel does not carry: run it as processes, or --safety off")
     return sf.safety_for(scenario.params, scenario.dt)  # each body's look-ahead widens its own rows (the step)
 
 

@@ -38,6 +38,16 @@ from zswarm.laws.contract import Observation, Observations, _slots
 BodyState = bodies.BodyState
 
 
+def ahead(position: np.ndarray, heading: np.ndarray, look: np.ndarray | float) -> np.ndarray:
+    """Where bodies are steered and guarded: each ``look`` ahead of its axle along its heading (a
+    unicycle's tracked point, :func:`zswarm.control.body.tracked_point`), or where it is (``look`` 0: its
+    heading, NaN or not, is not read)."""
+    look = np.broadcast_to(np.asarray(look, dtype=float), np.shape(position)[:-1])
+    if not look.any():
+        return position
+    return bodies.tracked_point(position, np.where(look > 0, heading, 0.0), look)
+
+
 @dataclass(frozen=True)
 class Guard:
     """What the filter keeps each agent clear of: its neighbours' tracked points as it believes them (G
@@ -94,11 +104,8 @@ class Barrier:
     lookahead: np.ndarray | float = 0.0  # broadcasts against (L...)
 
     def points(self, state: bodies.BodyState) -> np.ndarray:
-        """Where each body is steered and guarded (:func:`zswarm.control.body.tracked_point`)."""
-        look = np.broadcast_to(np.asarray(self.lookahead, dtype=float), state.position.shape[:-1])
-        if not look.any():
-            return state.position
-        return bodies.tracked_point(state.position, np.where(look > 0, state.heading, 0.0), look)
+        """Where each body is steered and guarded (:func:`ahead`)."""
+        return ahead(state.position, state.heading, self.lookahead)
 
     def __call__(self, wanted: np.ndarray, obs: Observations, guard: Guard, state: bodies.BodyState) -> sf.Filtered:
         lead, dims = wanted.shape[:-1], wanted.shape[-1]
@@ -269,20 +276,18 @@ _ALL = (slice(None), slice(None))
 
 
 def control_step(scenarios: Sequence, combinations_: Sequence | None = None, safety: Sequence[str] | str = "off",
-                 faulted: Sequence[bool] | bool = False, agents: Sequence[int] | None = None,
-                 probe: bool = False) -> ControlStep:
+                 agents: Sequence[int] | None = None, probe: bool = False) -> ControlStep:
     """The step of runs of ``scenarios`` (the same N, dt and dimension) over leading axes (runs, agents):
-    each group of each run bound to its law (:func:`zswarm.laws.registry.bind`), runs whose groups can
-    step together merged (their parameters as columns: :meth:`zswarm.laws.contract.SwarmLaw.merge`),
-    and each run's filter under ``safety`` (``faulted``: its data comes through the simulated faulty
-    channel). ``agents``: only these agents of the one scenario (an agent process: its own id)."""
+    each group of each run bound to its law (:func:`zswarm.laws.registry.bind`, ``probe``: and called
+    once on a probe observation), runs whose groups can step together merged (their parameters as
+    columns: :meth:`zswarm.laws.contract.SwarmLaw.merge`), and each run's filter under ``safety``.
+    ``agents``: only these agents of the one scenario (an agent process: its own id)."""
     from zswarm.control.safety_tally import safety_of
     from zswarm.laws.registry import bind
 
     b = len(scenarios)
     combos = list(combinations_) if combinations_ is not None else [None] * b
     modes = [safety] * b if isinstance(safety, str) else list(safety)
-    faults = [faulted] * b if isinstance(faulted, bool) else list(faulted)
     first = scenarios[0]
     ids = np.arange(first.n_agents) if agents is None else np.asarray(agents, dtype=np.intp)
     keyed: dict[tuple, list[tuple[int, BoundLaw, np.ndarray]]] = {}
@@ -307,7 +312,7 @@ def control_step(scenarios: Sequence, combinations_: Sequence | None = None, saf
     filters: dict[sf.Safety, list[int]] = {}
     lookahead = np.zeros((b, len(ids)))
     for r, s in enumerate(scenarios):
-        chosen = safety_of(s, modes[r], faults[r])
+        chosen = safety_of(s, modes[r])
         if chosen is not None:
             filters.setdefault(chosen, []).append(r)
         of = s.group_of(ids)

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Sequence
 
-from zswarm.laws.registry import bind
+from zswarm.control.step import control_step
 from zswarm.errors import UsageError
 from zswarm.files import check_run_files
 from zswarm.paper.params import parse_assignments
@@ -80,7 +80,8 @@ def plan_from_args(args: argparse.Namespace, cores: int | None = None, memory_mi
     if "agents" in args.role:
         check_capacity(len(ids), args.fork, memory_mib)
     spec.scenario.check_placement()  # every agent would fail to place itself, one by one
-    bind(spec.scenario, spec.combination)  # a law that does not load or answers wrongly: refused here, in one line
+    # every group's law loaded and probed, and the filter checked: refused here, in one line
+    control_step([spec.scenario], [spec.combination], spec.safety, probe=True)
     files_note = ""
     if "world" in args.role:
         args.record, args.summary, files_note = run_files(args.record, args.summary, args.force)

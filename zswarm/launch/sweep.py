@@ -2,7 +2,7 @@
 
 Each cell keeps its own directory (``DIR/cells/<cell>/``): the distributed run's ``run.rrd`` and
 ``run.json`` (:func:`zswarm.launch.run_once.run_once`) and the reference simulator's ``sim.json``
-under the same faults and seed. :func:`aggregate` folds the finished cells into rows (mean and spread
+under the same faults and seed (every cell's simulation stepped at once: :func:`simulate_cells`). :func:`aggregate` folds the finished cells into rows (mean and spread
 over repeats), :func:`write_tables` and :func:`write_curves` write ``results.csv``, ``results.md`` and
 ``sweep.rrd``. ``zswarm sweep`` (:mod:`zswarm.cli.sweep`) drives them.
 """
@@ -58,6 +58,27 @@ def simulate_cell(cell: Cell, args: argparse.Namespace, jitter: float, **kw):
 
     spec = cell_spec(cell, args, jitter)
     return simulate(spec.scenario, spec.seed, duration=spec.duration, faults=spec.faults, safety=spec.safety, **kw)
+
+
+def simulate_cells(cells: list[Cell], args: argparse.Namespace, jitter: float) -> list[dict[str, Any]]:
+    """Every cell's reference simulation, stepped together by the batched simulator (one array program,
+    :mod:`zswarm.sim.batch`; each run as it is alone, up to the order of sums), as summaries; a swarm too
+    large for it, one cell at a time."""
+    from zswarm.laws.registry import bind
+    from zswarm.sim.batch import MAX_AGENTS, Member, simulate_batch
+
+    specs = [cell_spec(c, args, jitter) for c in cells]
+    if not specs:
+        return []
+    scenario = specs[0].scenario
+    if scenario.n_agents > MAX_AGENTS:
+        return [simulate_cell(c, args, jitter).summary for c in cells]
+    steps = int(round((specs[0].duration or scenario.duration) / scenario.dt))
+    members = [Member(s.scenario, s.seed, s.faults if s.faults.active else None, safety=s.safety) for s in specs]
+    outcomes = simulate_batch(members, steps, components=True).outcomes
+    law = bind(scenario, probe=False).describe()  # what the swarm ran (a mixed swarm's groups: in each outcome)
+    return [{"scenario": s.scenario.name, "seed": s.seed, "duration": steps * scenario.dt, "safety": s.safety,
+             "law": law, "simulator": "batched", **o.to_dict()} for s, o in zip(specs, outcomes)]
 
 
 def _stats(values: list[Any]) -> tuple[float | None, float | None]:

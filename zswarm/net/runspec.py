@@ -169,18 +169,17 @@ def add_safety_arg(parser) -> None:
     parser.add_argument("--safety", choices=MODES, default=None,
                         help="barrier: every command passes the safety filter, robust to the age of each "
                              "neighbour's data (docs/safety.md); off: the law alone (default barrier; off for a "
-                             "double-integrator body, which the filter cannot keep safe, and for a unicycle in "
-                             "the simulator under faults, whose channel carries no headings)")
+                             "double-integrator body, which the filter cannot keep safe)")
 
 
-def safety_mode(scenario: Scenario, asked: str | None, simulated_faults: bool = False) -> str:
+def safety_mode(scenario: Scenario, asked: str | None) -> str:
     """The filter a run uses: as asked, checked against the body (one line, exit 2, where it cannot keep
     that body safe), or by default barrier wherever it can and off elsewhere."""
     from zswarm.errors import ParamError
     from zswarm.control.safety_tally import safety_of
 
     try:
-        safety_of(scenario, asked or "barrier", simulated_faults)
+        safety_of(scenario, asked or "barrier")
     except ParamError as exc:
         if asked is None:
             return "off"

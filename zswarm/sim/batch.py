@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from zswarm.control.step import Barrier, Guard, Stepped, control_step
+from zswarm.control.step import Barrier, Guard, Stepped, ahead, control_step
 from zswarm.laws.contract import Observations
 from zswarm.paper.potentials import Combination
 from zswarm.sim.batch_channel import BatchChannel
@@ -71,8 +71,7 @@ class BatchSimulator:
         self.members = members
         b = len(members)
         scen = [m.scenario for m in members]
-        self.control = control_step(scen, [m.combination for m in members], [m.safety for m in members],
-                                    [m.faulty for m in members])
+        self.control = control_step(scen, [m.combination for m in members], [m.safety for m in members])
         self.radius = np.array([s.params.swarm.sensing_radius for s in scen])
         self.v_max = np.array([s.params.swarm.v_max for s in scen])
         positions = np.stack([s.initial_positions(np.random.default_rng(m.seed)) for s, m in zip(scen, members)])
@@ -89,15 +88,17 @@ class BatchSimulator:
         for r, s in enumerate(scen):
             self.motions.setdefault(s.prey, np.zeros(b, dtype=bool))[r] = True
         self.faulty = np.flatnonzero([m.faulty for m in members])
+        barrier = self.control.filter
+        self._headed = isinstance(barrier, Barrier) and bool(np.any(barrier.lookahead))  # guarded points ahead
         self.channel = (BatchChannel(self.n, [members[r].faults for r in self.faulty], self.dt,
                                      self.radius[self.faulty], self.v_max[self.faulty], dims=self.dims,
-                                     velocities=self.control.hears_velocities)
+                                     velocities=self.control.hears_velocities, headings=self._headed)
                         if len(self.faulty) else None)
         self.off_diagonal = ~np.eye(self.n, dtype=bool)
+        self._geometry: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self.upper = np.triu(np.ones((self.n, self.n), dtype=bool), 1)
         self.step_index = 0
         self.counts = np.zeros((b, 3), dtype=np.int64)  # interventions, stalled, braked (agent-steps)
-        self._geometry: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._pending_counts: np.ndarray | None = None
 
     def _within(self, x: np.ndarray) -> np.ndarray:
@@ -128,7 +129,7 @@ class BatchSimulator:
         goal = np.broadcast_to(self.prey[:, None, :], x.shape)
         if self.channel is not None:  # the faulty runs use what reached them instead
             f, k = self.faulty, self.step_index
-            believed, heard, heard_goal = self.channel.step(k, x[f], self.prey[f], v[f])
+            believed, heard, heard_goal = self.channel.step(k, x[f], self.prey[f], v[f], self.state.heading[f])
             velocity, age = self.channel.heard_motion(k)
             nb_pos, near, goal = nb_pos.copy(), near.copy(), goal.copy()
             nb_pos[f], nb_age[f], near[f], goal[f] = believed, age, heard, heard_goal
@@ -148,12 +149,14 @@ class BatchSimulator:
         points = barrier.points(self.state) if isinstance(barrier, Barrier) else x
         mask = near if points is x and self.channel is None else self._within(points)
         point, age = np.broadcast_to(points[:, None, :, :], (b, n, n, dims)), np.zeros((b, n, n))
+        look = np.broadcast_to(np.asarray(barrier.lookahead if isinstance(barrier, Barrier) else 0.0), (b, n))
         if self.channel is not None:
             f = self.faulty
             heard, believed, heard_age = self.channel.known(self.step_index, x[f])
+            if self._headed:  # each one's point ahead of its axle, as last heard
+                believed = ahead(believed, self.channel.belief_heading, look[f][:, None, :])
             point, mask = point.copy(), mask.copy()
             point[f], age[f], mask[f] = believed, heard_age, heard & self.off_diagonal
-        look = np.broadcast_to(np.asarray(barrier.lookahead if isinstance(barrier, Barrier) else 0.0), (b, n))
         return obs, Guard(point, age, mask, look[:, None, :])
 
     def command(self) -> Stepped:
@@ -213,18 +216,19 @@ class BatchResult:
     prey_trajectory: np.ndarray | None = None  # (steps + 1, B, D)
 
 
-def simulate_batch(members: list[Member], steps: int, keep_trajectory: bool = False) -> BatchResult:
-    """Run every member for ``steps`` steps through the one step loop (:func:`zswarm.sim.tally.drive`)."""
+def simulate_batch(members: list[Member], steps: int, keep_trajectory: bool = False,
+                   components: bool = False) -> BatchResult:
+    """Run every member for ``steps`` steps through the one step loop (:func:`zswarm.sim.tally.drive`);
+    ``components``: tally the sensing graph's groups at every step (``max_components``)."""
     sim = BatchSimulator(members)
     tally = OutcomeTally(len(members), sim.n, sim.dt, np.array([m.scenario.capture_radius for m in members]),
-                         np.array([m.scenario.params.swarm.robot_radius for m in members]))
-    if not keep_trajectory:
-        drive(sim, steps, tally)
-        return BatchResult(tally.outcomes(sim.safety_counts()))
-    traj, prey_traj = np.empty((steps + 1, *sim.positions.shape)), np.empty((steps + 1, *sim.prey.shape))
+                         np.array([m.scenario.params.swarm.robot_radius for m in members]), components,
+                         [m.scenario for m in members])
+    traj = np.empty((steps + 1, *sim.positions.shape)) if keep_trajectory else None
+    prey_traj = np.empty((steps + 1, *sim.prey.shape)) if keep_trajectory else None
 
     def keep(k: int, stepped: Stepped) -> None:
         traj[k], prey_traj[k] = sim.positions, sim.prey
 
-    drive(sim, steps, tally, watch=keep)
-    return BatchResult(tally.outcomes(sim.safety_counts()), traj, prey_traj)
+    drive(sim, steps, tally, watch=keep if keep_trajectory else None)
+    return BatchResult(tally.outcomes(sim.safety_counts(), sim.channel, sim.faulty), traj, prey_traj)

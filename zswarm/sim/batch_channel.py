@@ -23,11 +23,13 @@ BLOCK_BYTES = 64 * 2**20  # and at most this much memory for them (N = 2000 draw
 
 class BatchChannel:
     def __init__(self, n: int, models: list[FaultModel], dt: float, sensing_radius: np.ndarray,
-                 v_max: np.ndarray, staleness: float = 0.5, dims: int = 2, velocities: bool = False) -> None:
+                 v_max: np.ndarray, staleness: float = 0.5, dims: int = 2, velocities: bool = False,
+                 headings: bool = False) -> None:
         """``sensing_radius``, ``v_max``: of each run (B,). An agent's cells cover the disc
         R + 2 v_max dt about it (:attr:`zswarm.net.runspec.RunSpec.subscription_radius`).
         ``velocities``: carry each pose's velocity with it (a law that uses its neighbours' velocities;
-        otherwise they read as 0, and the runs do not pay for them)."""
+        otherwise they read as 0, and the runs do not pay for them); ``headings``: each pose's heading (a
+        unicycle's: the safety filter guards its point ahead of its axle)."""
         self.velocities = velocities
         b = len(models)
         self.n, self.dt = n, dt
@@ -49,6 +51,8 @@ class BatchChannel:
         motion = (b, self.slots, n, dims) if velocities else (b, 1, n, dims)
         self.history_velocity = np.zeros(motion)  # what each pose says of its velocity
         self.belief_velocity = np.zeros((b, n, n, dims) if velocities else (b, 1, n, dims))
+        self.history_heading = np.zeros((b, self.slots, n)) if headings else None
+        self.belief_heading = np.zeros((b, n, n)) if headings else None
         self.incoming = np.full((b, self.slots, n, s), -1, dtype=np.int64)
         self.belief_stamp = np.full((b, n, s), -1, dtype=np.int64)
         self.belief_received = np.full((b, n, n), -1, dtype=np.int64)  # the step each newest pose arrived
@@ -56,6 +60,7 @@ class BatchChannel:
         self.bad = np.zeros((b, n, s), dtype=bool)
         self.stale_steps = int(round(staleness / dt))
         self.lost = np.zeros(b, dtype=np.int64)
+        self.steps = 0  # steps published: n (n - 1) pose links and n prey links each
         self.delay_counts = np.zeros((b, max_delay + 1), dtype=np.int64)  # delivered messages by delay (steps)
         self.block = max(1, min(BLOCK, BLOCK_BYTES // (b * 3 * n * (n + 1) * 8)))
         self._uniforms: np.ndarray | None = None
@@ -69,17 +74,20 @@ class BatchChannel:
             self._block_start = k
         return self._uniforms[k - self._block_start]
 
-    def step(self, k: int, positions: np.ndarray, prey: np.ndarray,
-             velocities: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def step(self, k: int, positions: np.ndarray, prey: np.ndarray, velocities: np.ndarray | None = None,
+             headings: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Publish step k and deliver what arrives at it; (positions (B, N, 2), prey (B, 2)) ->
         (believed positions (B, N, N, 2), which of them agent i uses (B, N, N), goal per agent (B, N, 2),
         NaN where no fresh prey position has reached it). ``velocities`` (B, N, 2): what each pose says
         of its sender's velocity, believed with its position (:meth:`heard_motion`)."""
         n = self.n
+        self.steps += 1
         sources = np.concatenate([positions, prey[:, None, :]], axis=1)
         self.history[:, k % self.slots] = sources
         if self.velocities:
             self.history_velocity[:, k % self.slots] = velocities
+        if self.history_heading is not None:
+            self.history_heading[:, k % self.slots] = headings
         u = self._draws(k)
         self.bad = np.where(self.bad, u[:, 0] >= self.r_bad, u[:, 0] < self.p_bad)
         lost = np.where(self.gilbert, self.bad, u[:, 0] < self.dropout)
@@ -103,9 +111,12 @@ class BatchChannel:
         self.belief_stamp[br, bi, bj] = stamp
         self.belief_received[newer[:, :, :n]] = k
         self.belief_pos[br, bi, bj] = self.history[br, stamp % self.slots, bj]
+        pose = bj < n
         if self.velocities:
-            pose = bj < n
             self.belief_velocity[br[pose], bi[pose], bj[pose]] = self.history_velocity[
+                br[pose], stamp[pose] % self.slots, bj[pose]]
+        if self.history_heading is not None:
+            self.belief_heading[br[pose], bi[pose], bj[pose]] = self.history_heading[
                 br[pose], stamp[pose] % self.slots, bj[pose]]
         self.incoming[:, k % self.slots] = -1
         fresh = (self.belief_stamp >= 0) & (k - self.belief_stamp <= self.stale_steps)
@@ -113,6 +124,19 @@ class BatchChannel:
         believed = self.belief_pos[:, :, :n]
         near = fresh[:, :, :n] & (np.linalg.norm(positions[:, :, None, :] - believed, axis=-1) <= self.radius)
         return believed, near, goal
+
+    def observed_dropout(self, r: int) -> float | None:
+        """The share of run r's messages lost so far."""
+        sent = self.steps * self.n * self.n
+        return int(self.lost[r]) / sent if sent else None
+
+    def observed_latency_ms(self, r: int) -> float | None:
+        """The median delay of run r's delivered messages (whole steps)."""
+        counts = self.delay_counts[r]
+        total = int(counts.sum())
+        if total == 0:
+            return None
+        return int(np.searchsorted(np.cumsum(counts), (total + 1) // 2)) * self.dt * 1000.0
 
     def heard_motion(self, k: int) -> tuple[np.ndarray, np.ndarray]:
         """After :meth:`step` k: the velocity each agent believes of each other (B, N, N, D), and the

@@ -25,20 +25,21 @@ class FaultyChannel:
     (the same rules, the same draws), plus the counters a run's summary reports."""
 
     def __init__(self, n: int, model: FaultModel, dt: float, sensing_radius: float, v_max: float,
-                 staleness: float = 0.5, seed: int = 0, dims: int = 2, velocities: bool = False) -> None:
+                 staleness: float = 0.5, seed: int = 0, dims: int = 2, velocities: bool = False,
+                 headings: bool = False) -> None:
         if n > MAX_AGENTS:
             raise ValueError(f"faults in the simulator handle at most {MAX_AGENTS} agents (got {n})")
         self.n, self.dt = n, dt
         self.batch = BatchChannel(n, [dataclasses.replace(model, seed=seed)], dt, np.array([sensing_radius]),
-                                  np.array([v_max]), staleness, dims, velocities)
-        self.sent = 0
+                                  np.array([v_max]), staleness, dims, velocities, headings)
 
-    def step(self, k: int, positions: np.ndarray, prey: np.ndarray, velocities: np.ndarray | None = None):
+    def step(self, k: int, positions: np.ndarray, prey: np.ndarray, velocities: np.ndarray | None = None,
+             headings: np.ndarray | None = None):
         """Publish step k, deliver what arrives at step k; return (i, j, believed positions, goal per agent).
         ``velocities``: each agent's, carried with its pose (:meth:`heard_motion`)."""
         believed, near, goal = self.batch.step(k, positions[None], np.asarray(prey, dtype=float)[None],
-                                               None if velocities is None else velocities[None])
-        self.sent += self.n * self.n  # n (n - 1) pose links and n prey links
+                                               None if velocities is None else velocities[None],
+                                               None if headings is None else headings[None])
         i, j = np.nonzero(near[0])
         return i, j, believed[0][i, j], goal[0]
 
@@ -56,19 +57,15 @@ class FaultyChannel:
         return i, j, believed[0][i, j], age[0][i, j]
 
     @property
-    def lost(self) -> int:
-        return int(self.batch.lost[0])
+    def headings(self) -> np.ndarray | None:
+        """The heading each agent believes of each other (N, N), where the channel carries them."""
+        return None if self.batch.belief_heading is None else self.batch.belief_heading[0]
 
     @property
     def observed_latency_ms(self) -> float | None:
         """Median delay of the delivered messages (whole steps)."""
-        counts = self.batch.delay_counts[0]
-        total = int(counts.sum())
-        if total == 0:
-            return None
-        k = int(np.searchsorted(np.cumsum(counts), (total + 1) // 2))
-        return k * self.dt * 1000.0
+        return self.batch.observed_latency_ms(0)
 
     @property
     def observed_dropout(self) -> float | None:
-        return self.lost / self.sent if self.sent else None
+        return self.batch.observed_dropout(0)

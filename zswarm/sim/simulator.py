@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from zswarm.control.safety_tally import SafetyTally
-from zswarm.control.step import Barrier, BodyState, Filter, Guard, Stepped, control_step
+from zswarm.control.step import Barrier, BodyState, Filter, Guard, Stepped, ahead, control_step
 from zswarm.laws.contract import Observations
 from zswarm.paper.field import compile_law
 from zswarm.paper.neighbours import ObstacleIndex, pairs_within
@@ -51,7 +51,7 @@ class Simulator:
         p = scenario.params
         self.law = compile_law(p, self.combination, scenario.formation)  # the observer's (energy, spacing)
         faulted = faults is not None and faults.active
-        self.control = control_step([scenario], [self.combination], safety, faulted, probe=True)
+        self.control = control_step([scenario], [self.combination], safety, probe=True)
         if shield is not None:
             self.control.filter = shield
         self.rng = np.random.default_rng(seed)
@@ -64,7 +64,8 @@ class Simulator:
         self.step_index = 0
         self.channel = (FaultyChannel(len(self.positions), faults, scenario.dt, p.swarm.sensing_radius,
                                       p.swarm.v_max, seed=faults.seed, dims=scenario.dimensions,
-                                      velocities=self.control.hears_velocities)
+                                      velocities=self.control.hears_velocities,
+                                      headings=self.headings is not None and self.control.filter is not None)
                         if faulted else None)
         self.filtered = None  # what the filter did at the last step
         self._near: tuple | None = None
@@ -72,8 +73,9 @@ class Simulator:
 
     @property
     def bound(self):
-        """The law of its first group (the scenario's law)."""
-        return self.control.groups[0].law
+        """The scenario's own law (in a mixed swarm, the law of the agents beyond the listed groups)."""
+        own = self.scenario.params.law.law
+        return next((g.law for g in self.control.groups if g.law.name == own), self.control.groups[0].law)
 
     @property
     def positions(self) -> np.ndarray:
@@ -103,7 +105,7 @@ class Simulator:
         x, v, n = self.state.position, self.state.velocity, len(self.state.position)
         p, k = self.scenario.params.swarm, self.step_index
         if self.channel is not None:
-            i, j, believed, goal = self.channel.step(k, x, self.prey, v)
+            i, j, believed, goal = self.channel.step(k, x, self.prey, v, self.state.heading)
             heard_velocity, age = self.channel.heard_motion(k, i, j)
             pairs = (i, believed, heard_velocity, age)
         else:
@@ -116,15 +118,17 @@ class Simulator:
         barrier = self.control.filter
         if barrier is None:
             return obs, None
-        if self.channel is not None:
-            gi, gj, points, age = self.channel.known(k, x)
-            return obs, Guard.of_pairs(n, gi, points, age)
         if not isinstance(barrier, Barrier):  # another filter (a shield): the exact neighbours
             return obs, Guard.of_pairs(n, i, x[j], np.zeros(len(i)))
+        look = np.broadcast_to(np.asarray(barrier.lookahead, dtype=float), (1, n))[0]
+        if self.channel is not None:  # the newest each heard, at its point ahead of its axle as heard
+            gi, gj, points, age = self.channel.known(k, x)
+            if self.channel.headings is not None:
+                points = ahead(points, self.channel.headings[gi, gj], look[gj])
+            return obs, Guard.of_pairs(n, gi, points, age, look[gj])
         points = barrier.points(BodyState(x[None], v[None], self.state.heading[None]))[0]
         if points is not x:
             i, j = pairs_within(points, p.sensing_radius)
-        look = np.broadcast_to(np.asarray(barrier.lookahead, dtype=float), (1, n))[0]
         return obs, Guard.of_pairs(n, i, points[j], np.zeros(len(i)), look[j])
 
     def command(self) -> Stepped:

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
-from typing import Callable, Protocol
+from typing import Any, Callable, Protocol
 
 import numpy as np
 
@@ -92,16 +92,34 @@ class Outcome:
     safety_interventions: int = 0  # agent-steps the safety filter changed (zswarm.control.safety_tally)
     safety_stalled_ticks: int = 0
     safety_braked_ticks: int = 0
+    max_components: int | None = None  # the most groups the sensing graph split into (when tallied)
+    observed_dropout: float | None = None  # through the simulated faulty channel
+    observed_latency_ms: float | None = None
+    groups: tuple[dict, ...] = ()  # a mixed swarm's groups (zswarm.swarm.metrics.GroupTally)
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        out = asdict(self)
+        out["groups"] = list(self.groups)
+        return out
 
 
 class OutcomeTally:
     """The per-run outcome of B runs of N agents, folded step by step."""
 
-    def __init__(self, b: int, n: int, dt: float, capture_radius: np.ndarray, robot_radius: np.ndarray) -> None:
+    def __init__(self, b: int, n: int, dt: float, capture_radius: np.ndarray, robot_radius: np.ndarray,
+                 components: bool = False, scenarios: list | None = None) -> None:
+        """``components``: tally the groups of the sensing graph at every step (an N-node label pass per
+        step), not only at the end; ``scenarios`` (one per run): a mixed swarm's groups are tallied too."""
         self.b, self.n, self.dt = b, n, dt
+        self.components = np.zeros(b, dtype=np.int64) if components else None
+        self.group, self.group_names, self.groups = None, None, None
+        if scenarios is not None and any(len(s.members()) > 1 for s in scenarios):
+            ids = np.arange(n)
+            self.group = np.stack([s.group_of(ids) for s in scenarios])
+            self.group_names = [[metrics.group_names(ids[self.group[r] == g], choice, body)
+                                 if (self.group[r] == g).any() else None for g, (choice, body) in enumerate(s.groups())]
+                                for r, s in enumerate(scenarios)]
+            self.groups = metrics.GroupTally(b, max(len(s.groups()) for s in scenarios))
         self.capture_radius = np.asarray(capture_radius, dtype=float)
         self.robot = np.asarray(robot_radius, dtype=float)
         self.capture_step = np.full(b, -1)
@@ -123,9 +141,23 @@ class OutcomeTally:
         close = metrics.too_close(s.distance, self.robot[s.run])
         fresh = self.close.fresh(metrics.pair_keys((s.run * self.n + s.i)[close], s.j[close]))
         self.collisions += np.bincount(s.run[close][fresh], minlength=self.b)
+        if self.groups is not None:
+            self.groups.observe(self.group, s.run, s.i, s.j, s.distance,
+                                np.linalg.norm(positions - prey[:, None, :], axis=-1))
+            self.groups.collided(self.group, s.run[close][fresh], s.i[close][fresh], s.j[close][fresh])
+        if self.components is not None:
+            np.maximum(self.components, self._groups_now(s), out=self.components)
         touch = metrics.touching(s.clearance, self.robot[s.obstacle_run])
         fresh = self.touch.fresh(metrics.pair_keys((s.obstacle_run * self.n + s.agent)[touch], s.obstacle[touch]))
         self.contacts += np.bincount(s.obstacle_run[touch][fresh], minlength=self.b)
+
+    def _groups_now(self, s: Sensed) -> np.ndarray:
+        """(B,): the groups of each run's sensing graph now."""
+        n = self.n
+        labels = metrics.components(self.b * n, np.concatenate([s.run * n + s.i, s.run * n + s.j]),
+                                    np.concatenate([s.run * n + s.j, s.run * n + s.i]))
+        first = labels == np.arange(self.b * n)  # each group's smallest node labels it
+        return np.bincount(np.arange(self.b * n)[first] // n, minlength=self.b)
 
     @property
     def collided(self) -> bool:
@@ -147,8 +179,13 @@ class OutcomeTally:
             medians.append(None if math.isnan(median) else median)
         return groups, medians
 
-    def outcomes(self, safety_counts: np.ndarray) -> list[Outcome]:
+    def outcomes(self, safety_counts: np.ndarray, channel: Any = None, faulty: np.ndarray | None = None) -> list[Outcome]:
+        """Each run's outcome; ``channel`` (a :class:`zswarm.sim.batch_channel.BatchChannel` of the runs
+        ``faulty``): what it observed of each of them."""
         groups, nearest = self.final_shape()
+        seen: dict[int, tuple[float | None, float | None]] = {}
+        if channel is not None:
+            seen = {int(r): (channel.observed_dropout(k), channel.observed_latency_ms(k)) for k, r in enumerate(faulty)}
         return [Outcome(
             capture_time=None if s < 0 else float(s * self.dt), min_pair_distance=float(self.min_pair[r]),
             collisions=int(self.collisions[r]),
@@ -157,7 +194,10 @@ class OutcomeTally:
             final_centroid_goal_distance=float(self.centroid_distance[r]),
             final_components=groups[r], final_median_nearest=nearest[r],
             safety_interventions=int(safety_counts[r, 0]), safety_stalled_ticks=int(safety_counts[r, 1]),
-            safety_braked_ticks=int(safety_counts[r, 2]))
+            safety_braked_ticks=int(safety_counts[r, 2]),
+            max_components=None if self.components is None else int(self.components[r]),
+            observed_dropout=seen.get(r, (None, None))[0], observed_latency_ms=seen.get(r, (None, None))[1],
+            groups=() if self.groups is None else tuple(self.groups.result(r, self.group_names[r])))
             for r, s in enumerate(self.capture_step)]
 
 

@@ -117,6 +117,50 @@ class Onsets:
         return int(self.fresh(pair_keys(pairs[:, 0], pairs[:, 1])).sum())
 
 
+def group_names(ids: np.ndarray, choice: Any, body: str) -> dict[str, Any]:
+    """How a summary names a group: its agents (a range of ids), its law and its body."""
+    ids = np.asarray(ids)
+    return {"agents": f"{ids.min()}-{ids.max()}" if len(ids) > 1 else str(ids[0]), "count": int(len(ids)),
+            "law": choice.law, "body": body}
+
+
+class GroupTally:
+    """Each group of a mixed swarm, B runs, folded step by step: its collisions (onsets of pairs with a
+    member: a pair of two groups counts for both), its closest pair with a member and, at the last step
+    observed, its members' mean distance to the goal."""
+
+    def __init__(self, b: int, groups: int) -> None:
+        self.b, self.g = b, groups
+        self.collisions = np.zeros((b, groups), dtype=np.int64)
+        self.min_pair = np.full((b, groups), np.inf)
+        self.goal = np.full((b, groups), np.nan)
+
+    def collided(self, group: np.ndarray, run: np.ndarray, i: np.ndarray, j: np.ndarray) -> None:
+        """The pairs (run, i, j) that began colliding now; ``group`` (B, N): each agent's group."""
+        gi, gj = group[run, i], group[run, j]
+        np.add.at(self.collisions, (run, gi), 1)
+        other = gi != gj
+        np.add.at(self.collisions, (run[other], gj[other]), 1)
+
+    def observe(self, group: np.ndarray, run: np.ndarray, i: np.ndarray, j: np.ndarray, distance: np.ndarray,
+                to_goal: np.ndarray) -> None:
+        """One step: ``group`` (B, N) each agent's group; the pairs (run, i, j) of the sensing graph with
+        their ``distance`` (each pair once); ``to_goal`` (B, N) each agent's distance to the goal."""
+        gi, gj = group[run, i], group[run, j]
+        np.minimum.at(self.min_pair, (run, gi), distance)
+        np.minimum.at(self.min_pair, (run, gj), distance)
+        flat = (np.arange(self.b)[:, None] * self.g + group).ravel()
+        total = np.bincount(flat, weights=to_goal.ravel(), minlength=self.b * self.g)
+        count = np.bincount(flat, minlength=self.b * self.g)
+        self.goal = np.divide(total, count, out=np.full(len(total), np.nan), where=count > 0).reshape(self.b, self.g)
+
+    def result(self, r: int, names: list[dict[str, Any]]) -> list[dict[str, Any]]:
+        """Run r's groups: each one's ``names`` entry (who, which law and body; None: a group without
+        agents, left out) with its outcome."""
+        return [{**names[g], "collisions": int(self.collisions[r, g]), "min_pair_distance": _num(self.min_pair[r, g]),
+                 "final_mean_goal_distance": _num(self.goal[r, g])} for g in range(self.g) if names[g] is not None]
+
+
 def median_nearest(nearest: np.ndarray) -> float:
     """The median nearest-neighbour distance over the agents that have one within R (inf: none); NaN
     when no agent has one."""
@@ -203,15 +247,24 @@ class Summary:
     series: dict[str, array] = field(default_factory=lambda: {k: array("d") for k in METRIC_NAMES})
     collisions: int = 0
     obstacle_collisions: int = 0
+    groups: list[dict[str, Any]] | None = None  # a mixed swarm's groups (who, law, body) and their tally
+    group_tally: GroupTally | None = None
     _pairs: Onsets = field(default_factory=Onsets)
     _contacts: Onsets = field(default_factory=Onsets)
 
-    def add(self, t: float, metrics: dict[str, float], colliding: np.ndarray, contacts: np.ndarray) -> None:
+    def add(self, t: float, metrics: dict[str, float], colliding: np.ndarray, contacts: np.ndarray) -> np.ndarray:
+        """One step; returns which ``colliding`` pairs began colliding now."""
         self.times.append(float(t))
         for k in METRIC_NAMES:
             self.series[k].append(metrics[k])
-        self.collisions += self._pairs.count(colliding)
+        if len(colliding):
+            fresh = self._pairs.fresh(pair_keys(colliding[:, 0], colliding[:, 1]))
+        else:
+            self._pairs.count(colliding)
+            fresh = np.zeros(0, dtype=bool)
+        self.collisions += int(fresh.sum())
         self.obstacle_collisions += self._contacts.count(contacts)
+        return fresh
 
     def capture_time(self) -> float | None:
         d = np.asarray(self.series["centroid_goal_distance"])
@@ -254,6 +307,7 @@ class Summary:
             "final_order": _num(s["order"][-1]),
             "final_energy": _num(s["energy"][-1]),
             "steps_observed": len(self.times),
+            **({"groups": self.group_tally.result(0, self.groups)} if self.group_tally is not None else {}),
         }
 
 

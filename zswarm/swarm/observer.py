@@ -13,7 +13,7 @@ import numpy as np
 
 from zswarm.paper.formation import epsilon
 from zswarm.paper.field import Law, compile_law, swarm_field
-from zswarm.swarm.metrics import MetricContext, Summary, step_metrics
+from zswarm.swarm.metrics import GroupTally, MetricContext, Summary, group_names, step_metrics
 from zswarm.paper.neighbours import ObstacleIndex, pairs_within
 from zswarm.paper.potentials import Combination
 from zswarm.swarm.scenarios import Scenario
@@ -35,6 +35,11 @@ class SwarmObserver:
             spacing=self.law.spacing if scenario.formation else None, obstacles=self.obstacles)
         self.summary = Summary(capture_radius=scenario.capture_radius,
                                epsilon=epsilon(p.potential, scenario.n_agents))
+        if len(scenario.members()) > 1:  # a mixed swarm: each group in the summary
+            of, ids = scenario.group_of(np.arange(scenario.n_agents)), np.arange(scenario.n_agents)
+            self.summary.groups = [group_names(ids[of == g], choice, body) if (of == g).any() else None
+                                   for g, (choice, body) in enumerate(scenario.groups())]
+            self.summary.group_tally = GroupTally(1, len(self.summary.groups))
 
     def thresholds(self) -> dict[str, float]:
         """The lines the metrics are read against: capture radius, 2 d^r, d_m^ro and Prop 3's epsilon."""
@@ -58,5 +63,16 @@ class SwarmObserver:
         if energy is None:
             energy = self.energy(positions, prey, pairs)
         metrics, colliding, contacts = step_metrics(positions, velocities, prey, self.context, energy, pairs)
-        self.summary.add(t, metrics, np.asarray(ids)[colliding] if len(colliding) else colliding, contacts)
+        fresh = self.summary.add(t, metrics, np.asarray(ids)[colliding] if len(colliding) else colliding, contacts)
+        groups = self.summary.group_tally
+        if groups is not None:  # a mixed swarm: each group's share
+            group = self.scenario.group_of(np.asarray(ids))[None]
+            i, j = pairs
+            keep = i < j
+            i, j = i[keep], j[keep]
+            zero = np.zeros(len(i), dtype=np.intp)
+            groups.observe(group, zero, i, j, np.linalg.norm(positions[i] - positions[j], axis=1),
+                           np.linalg.norm(positions - prey, axis=1)[None])
+            hit = colliding[fresh]
+            groups.collided(group, np.zeros(len(hit), dtype=np.intp), hit[:, 0], hit[:, 1])
         return metrics
