@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from zswarm.args import UsageError, add_law_arg, add_param_args
-from zswarm.design.guidelines import check, no_guidelines
+from zswarm.design.guidelines import check, coverage
 from zswarm.design.text import render
 from zswarm.design.nearest import Found, nearest_passing
 from zswarm.paper.params import DEFAULT_PARAMS, PAPER_PARAMS, Params, parse_assignments
@@ -54,10 +54,11 @@ def _progress(line: str) -> None:
 
 def run(args: argparse.Namespace) -> int:
     params, dt = judged(args)
-    note = no_guidelines(params)
-    if note is not None:  # Propositions 1-5 are the paper's law's
+    guided, note = coverage(params)
+    if guided is None:  # Propositions 1-5 are the paper's law's
         print(json.dumps({"ok": None, "law": params.law.law, "note": note}) if args.json else note)
         return 0
+    params = guided  # a mixed swarm: the agents they cover, among themselves (said below)
     from zswarm.files import check_writable
     from zswarm.record.design_figure import FORMATS
 
@@ -67,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
                 raise UsageError(f"{path} exists; give another path or --force")
             check_writable(path, suffixes)
     report = check(params, dt=dt)
-    out: dict[str, Any] = report.to_json()
+    out: dict[str, Any] = {**report.to_json(), **({"covers": note} if note else {})}
     nearest = None
     if args.nearest and not report.ok:
         nearest = nearest_passing(params, dt=dt, progress=_progress)
@@ -87,6 +88,8 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(out, indent=2))
     else:
         print(render(report))
+        if note:
+            print(f"note: {note}")
         if args.nearest and not report.ok:
             if isinstance(nearest, Found):
                 print("nearest passing set: " + "  ".join(

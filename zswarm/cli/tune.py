@@ -84,6 +84,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _plan(args: argparse.Namespace):
     """The checked settings: the plan, the search space, the task each candidate is judged on, the faults."""
+    from zswarm.design.guidelines import has_guidelines
     from zswarm.net.runspec import faults_from_args
     from zswarm.sim.batch import MAX_AGENTS
     from zswarm.tune.objective import Task
@@ -103,7 +104,7 @@ def _plan(args: argparse.Namespace):
     space = Space.build(names, scenario.params)
     faults = faults_from_args(args)
     plan = Plan.of(args.scenario, overrides, list(space.names), args.seed, args.seeds, args.validate, args.holdout, args.out)
-    safety = "off" if scenario.params.law.law == "apf" else "barrier"  # no guidelines: the filter is the guarantee
+    safety = "off" if has_guidelines(scenario.params.law.law) else "barrier"  # none: the filter is the guarantee
     return plan, space, Task(scenario, plan.seeds, faults, args.potential, args.miss_penalty, safety), faults
 
 

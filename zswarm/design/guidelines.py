@@ -50,7 +50,7 @@ from zswarm.paper.formation import (
 )
 from zswarm.paper.neighbour_law import GATE_INNER
 from zswarm.paper.numeric import maximize, sign_changes
-from zswarm.paper.params import DesignMargins, Params, PotentialParams
+from zswarm.paper.params import DesignMargins, Params, PotentialParams, groups_of
 
 GRID = 40_001
 
@@ -271,26 +271,60 @@ def check(params: Params, swarm: bool = True, dt: float | None = None) -> Design
                         guarantee(params, dt))
 
 
+def has_guidelines(law: str) -> bool:
+    """Propositions 1-5 and the swarm checks are about this law (a property of the law:
+    :attr:`zswarm.laws.contract.SwarmLaw.guidelines`; apf's alone among the built-ins)."""
+    from zswarm.errors import UsageError
+    from zswarm.laws.registry import resolve
+
+    try:
+        return bool(resolve(law)[0].guidelines)
+    except UsageError:
+        return False  # a law that does not load has none (a run of it is refused anyway)
+
+
+def coverage(params: Params) -> tuple[Params | None, str | None]:
+    """Which agents the guidelines judge, and a line that says what they cover: every agent (the set
+    itself, no line); the agents of a mixed swarm whose law has them, among themselves (the set at
+    their N); or none (None, the line)."""
+    groups = groups_of(params.mix.groups)
+    rest = params.swarm.n_agents - sum(count for count, _, _ in groups)
+    laws = [(count, law, body or params.body.body) for count, law, body in groups]
+    laws += [(rest, params.law.law, params.body.body)] if rest else []
+    guided = [(count, law) for count, law, _ in laws if has_guidelines(law)]
+    n = sum(count for count, _ in guided)
+    if n == params.swarm.n_agents:
+        return params, None
+    others = ", ".join(f"{count} {law}/{body}" for count, law, body in laws if not has_guidelines(law))
+    if not guided:
+        who = f"law {params.law.law}" if len(laws) == 1 else f"laws {others}"
+        return None, (f"{who}: there are no analytical guidelines for it (Propositions 1-5 and the swarm checks are "
+                      "the paper's law's, apf); the safety filter is the guarantee (--safety barrier)")
+    names = ", ".join(sorted({law for _, law in guided}))
+    return params.with_values({"n_agents": n, "groups": ""}), (
+        f"the guidelines cover the {n} agents that run {names}, among themselves; the other agents ({others}) have "
+        "none, and the safety filter is the guarantee between every two agents (--safety barrier)")
+
+
 def no_guidelines(params: Params) -> str | None:
-    """For a law other than the paper's: the one line that says the guidelines do not cover it (None
-    for ``apf``, which Propositions 1-5 and the swarm checks are about)."""
-    if params.law.law == "apf":
-        return None
-    return (f"law {params.law.law}: there are no analytical guidelines for it (Propositions 1-5 and the swarm "
-            "checks are the paper's law's, apf); the safety filter is the guarantee (--safety barrier)")
+    """The one line that says the guidelines cover no agent of the set (None: they cover some)."""
+    guided, note = coverage(params)
+    return note if guided is None else None
 
 
 def verdict(params: Params, dt: float | None = None) -> dict[str, Any]:
     """What a run records of its own design (``"design"`` in its summary): the verdict for the set it
-    runs (its N, sensing radius and interaction), the failing checks, and the paper's own verdict; for a
-    law other than apf, ``ok`` None and the line of :func:`no_guidelines`."""
-    note = no_guidelines(params)
-    if note is not None:
+    runs (its N, sensing radius and interaction), the failing checks, and the paper's own verdict, with
+    what they cover in a mixed swarm (``covers``); where the guidelines cover no agent, ``ok`` None and
+    the line of :func:`no_guidelines`."""
+    guided, note = coverage(params)
+    if guided is None:
         return {"ok": None, "law": params.law.law, "note": note, "failures": [], "paper_failures": [],
                 "interaction": None, "n_agents": params.swarm.n_agents}
-    report = check(params, dt=dt)
+    report = check(guided, dt=dt)
     return {"ok": report.ok, "failures": report.failures(), "paper_failures": report.paper_failures(),
-            "interaction": params.interaction.interaction, "n_agents": params.swarm.n_agents}
+            "interaction": params.interaction.interaction, "n_agents": guided.swarm.n_agents,
+            **({"covers": note} if note else {})}
 
 
 def judged(params: Params, dt: float | None, explain: str, required: bool) -> tuple[dict[str, Any], str | None]:
@@ -304,6 +338,8 @@ def judged(params: Params, dt: float | None, explain: str, required: bool) -> tu
         line = result["note"]
     elif not result["ok"]:
         line = warning_line(result, explain)
+    elif "covers" in result:
+        return result, "note: " + result["covers"]
     else:
         return result, None
     if required:

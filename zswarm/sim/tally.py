@@ -118,7 +118,7 @@ class OutcomeTally:
             self.group = np.stack([s.group_of(ids) for s in scenarios])
             self.group_names = [[metrics.group_names(ids[self.group[r] == g], choice, body)
                                  if (self.group[r] == g).any() else None for g, (choice, body) in enumerate(s.groups())]
-                                for r, s in enumerate(scenarios)]
+                                if len(s.members()) > 1 else [] for r, s in enumerate(scenarios)]
             self.groups = metrics.GroupTally(b, max(len(s.groups()) for s in scenarios))
         self.capture_radius = np.asarray(capture_radius, dtype=float)
         self.robot = np.asarray(robot_radius, dtype=float)

@@ -157,8 +157,8 @@ class GroupTally:
     def result(self, r: int, names: list[dict[str, Any]]) -> list[dict[str, Any]]:
         """Run r's groups: each one's ``names`` entry (who, which law and body; None: a group without
         agents, left out) with its outcome."""
-        return [{**names[g], "collisions": int(self.collisions[r, g]), "min_pair_distance": _num(self.min_pair[r, g]),
-                 "final_mean_goal_distance": _num(self.goal[r, g])} for g in range(self.g) if names[g] is not None]
+        return [{**name, "collisions": int(self.collisions[r, g]), "min_pair_distance": _num(self.min_pair[r, g]),
+                 "final_mean_goal_distance": _num(self.goal[r, g])} for g, name in enumerate(names) if name is not None]
 
 
 def median_nearest(nearest: np.ndarray) -> float:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from zswarm.design.guidelines import DesignReport, check
+from zswarm.design.guidelines import DesignReport, check, has_guidelines
 from zswarm.paper.params import Params
 
 CHECKS = ("prop1", "prop2", "prop3", "prop4", "prop5", "formation", "contact", "swarm")
@@ -69,7 +69,7 @@ def judge(params: Params, waived: frozenset[str] = frozenset()) -> Verdict:
     """Check ``params`` (the squeeze only when everything else that counts passes). A law other than
     apf has no guidelines: every set of it is feasible, and the safety filter and the objective's
     disqualifications are what keep it apart."""
-    if params.law.law != "apf":
+    if not has_guidelines(params.law.law):
         return Verdict(violation=0.0, failures=(), report=None, squeezed=False)
     report = check(params, swarm=False)
     counted = {k: v for k, v in amounts(report).items() if k not in waived and k != "swarm"}

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
+from zswarm.design.guidelines import has_guidelines
 from zswarm.files import write_json
 from zswarm.paper.params import FIELDS, Params
 from zswarm.tune.feasibility import CHECKS
@@ -156,7 +157,7 @@ def choose(s: Searched, plan: Plan, space, task, faults, command: str,
     recommended = best_params if tuned_wins else s.start_params
     write_best_toml(plan.out / "best.toml", recommended, plan, best["validation_objective"], command,
                     kept_start=not tuned_wins)
-    if recommended.law.law == "apf":
+    if has_guidelines(recommended.law.law):
         report = check(recommended)  # the full report, waived checks included, for the reader
         write_json(plan.out / "design.json", report.to_json())
         (plan.out / "design.txt").write_text(render(report) + "\n")
@@ -181,7 +182,7 @@ def design_failures(params: Params) -> list[str]:
     """The checks ``params`` fails (none for a law the guidelines do not cover)."""
     from zswarm.design.guidelines import check
 
-    return list(check(params).failures()) if params.law.law == "apf" else []
+    return list(check(params).failures()) if has_guidelines(params.law.law) else []
 
 
 def finish(s: Searched, plan: Plan) -> None:
@@ -196,7 +197,7 @@ def finish(s: Searched, plan: Plan) -> None:
 def write_best_toml(path: Path, params: Params, plan: Plan, objective: float, command: str,
                     kept_start: bool = False) -> None:
     flat = params.flat()
-    law = params.law.law != "apf"  # its own parameters go in a [law] table
+    law = not has_guidelines(params.law.law)  # its own parameters go in a [law] table
     keep = ([] if law else list(TUNABLE)) + [n for n in plan.overrides if n in FIELDS and n != "law"
                                              and FIELDS[n].group != "potential"]
     swarm = " ".join(f"--set {n}={flat[n]:g}" for n in ("n_agents", "sensing_radius", "v_max", "robot_radius"))

@@ -33,7 +33,12 @@ class Space:
     def build(cls, names: list[str] | None, base: Params) -> Space:
         """apf: ``names`` of the potential (all by default), in log space; another law: the parameters
         it declares ``ranges`` for (all by default), each range mapped onto [0, 1]."""
-        if base.law.law != "apf":
+        from zswarm.design.guidelines import has_guidelines
+
+        if base.mix.groups:
+            raise UsageError("zswarm tune searches the parameters of one law; a mixed swarm (groups) is not tuned: "
+                             "tune each law on its own")
+        if not has_guidelines(base.law.law):
             return cls._of_law(names, base)
         names = list(TUNABLE) if names is None else names
         unknown = [n for n in names if n not in TUNABLE]
