@@ -101,7 +101,7 @@ def test_the_tally_counts_onsets_per_run_and_a_single_run_is_a_batch_of_one() ->
     pair index in another run is another pair. And run_outcome (the grid simulator as a batch of one)
     gives the outcome the batched simulator gives that run."""
     from zswarm.sim.outcome import run_outcome
-    from zswarm.sim.tally import OutcomeTally, Sensed
+    from zswarm.swarm.tally import OutcomeTally, Sensed
 
     tally = OutcomeTally(2, 3, 0.1, np.array([0.5, 0.5]), np.array([0.1, 0.1]))
     none = np.zeros(0, dtype=np.intp)

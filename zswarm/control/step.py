@@ -31,6 +31,7 @@ import numpy as np
 
 from zswarm.control import body as bodies
 from zswarm.control import safety as sf
+from zswarm.errors import ParamError
 from zswarm.laws.bound import BoundLaw, LawFailed
 from zswarm.laws.contract import Observation, Observations, _slots
 
@@ -282,7 +283,6 @@ def control_step(scenarios: Sequence, combinations_: Sequence | None = None, saf
     once on a probe observation), runs whose groups can step together merged (their parameters as
     columns: :meth:`zswarm.laws.contract.SwarmLaw.merge`), and each run's filter under ``safety``.
     ``agents``: only these agents of the one scenario (an agent process: its own id)."""
-    from zswarm.control.safety_tally import safety_of
     from zswarm.laws.registry import bind
 
     b = len(scenarios)
@@ -325,6 +325,20 @@ def control_step(scenarios: Sequence, combinations_: Sequence | None = None, saf
                         for safety_, rows in filters.items())
         barrier = Barrier(groups_, float(lookahead.max()) if agents is not None else lookahead)
     return ControlStep(groups, first.dt, barrier)
+
+
+def safety_of(scenario, mode: str) -> sf.Safety | None:
+    """The filter a run of ``scenario`` uses under ``mode`` (None: off), one for all its agents whatever
+    their bodies (a unicycle's look-ahead widens the rows of its own pairs:
+    :func:`zswarm.control.safety.widening`); raises :class:`ParamError` for a combination the filter cannot
+    keep safe."""
+    sf.parse_mode(mode)
+    if mode == "off":
+        return None
+    if any(body == "double-integrator" for _, body in scenario.groups()):
+        raise ParamError("--safety barrier needs a body that can stop within a step; a double-integrator "
+                         "needs v^2/(2 accel) to stop, which this filter does not model: use --safety off")
+    return sf.safety_for(scenario.params, scenario.dt)  # each body's look-ahead widens its own rows (the step)
 
 
 def _merged(found: list[tuple[int, BoundLaw, np.ndarray]]) -> list[tuple[list[int], BoundLaw]]:

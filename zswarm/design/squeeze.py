@@ -18,13 +18,13 @@ from functools import lru_cache
 
 import numpy as np
 
-from zswarm.swarm.metrics import components
-from zswarm.paper.neighbour_law import neighbour_law
-from zswarm.paper.neighbours import pairs_within
+from zswarm.control.step import BodyState, Stepped, control_step
+from zswarm.laws.contract import Observations
+from zswarm.paper.neighbours import ObstacleIndex, pairs_within
 from zswarm.paper.params import Params
-from zswarm.paper.formation import formation_offset
-from zswarm.paper.field import field
-from zswarm.paper.potentials import saturate
+from zswarm.swarm.prey import PreyMotion
+from zswarm.swarm.scenario import Obstacle, Scenario
+from zswarm.swarm.tally import OutcomeTally, Sensed, drive
 
 
 @dataclass(frozen=True)
@@ -55,41 +55,75 @@ def _ball(n: int, spacing: float) -> np.ndarray:
     return grid[order[:n]]
 
 
-@lru_cache(maxsize=512)
-def squeeze(params: Params, n: int, seed: int = 2006, duration: float = 60.0, dt: float = 0.05) -> Squeeze:
-    """``n`` agents of the set ``params`` (its potentials, sensing radius, speed and interaction)."""
-    p, sensing_radius, v_max = params.potential, params.swarm.sensing_radius, params.swarm.v_max
-    law = neighbour_law(params)
-    # the obstacle where the goal pulls hardest (|psi_g| = l_g/sqrt2, eq 8's peak; at least 1 away), the
-    # swarm 1 behind it: the press of Fig 10 at its strongest, whatever the goal's range
-    reach = max(1.0, p.l_g / math.sqrt(2.0))
+def squeeze_scenario(params: Params, n: int, seed: int = 2006, duration: float = 60.0, dt: float = 0.05) -> Scenario:
+    """The squeeze as a scenario: ``n`` agents of the set (the paper's law, multiplicative, in point
+    bodies) in a disc (a ball) 1 behind a point obstacle on the line to a static goal at the origin, where
+    the goal pulls hardest (|psi_g| = l_g/sqrt2, eq 8's peak; at least 1 away): the press of Fig 10 at its
+    strongest, whatever the goal's range."""
+    reach = max(1.0, params.potential.l_g / math.sqrt(2.0))
     if params.swarm.dimensions == 2:
         x = _disc(n, 0.5) + np.array([-reach - 1.0 - 0.5 * math.sqrt(n) / 1.5, 0.0])
-    else:  # a ball of agents behind a point obstacle, pressed the same way
+    else:
         x = _ball(n, 0.5) + np.array([-reach - 1.0 - 0.5 * math.ceil(n ** (1.0 / 3.0)) / 2.0, 0.0, 0.0])
     x = x + np.random.default_rng(seed).uniform(-0.02, 0.02, x.shape)  # no exact symmetry
-    obstacle = np.zeros((1, x.shape[1]))
-    obstacle[0, 0] = -reach
-    c_f = formation_offset(p)
-    min_pair = min_obs = math.inf
-    nearest = np.full(n, math.inf)
-    for _ in range(int(round(duration / dt))):
-        i, j = pairs_within(x, sensing_radius)
-        psi_f = x[i] - x[j]
-        d = np.sqrt(np.einsum("ij,ij->i", psi_f, psi_f))
-        if len(d):
-            min_pair = min(min_pair, float(d.min()))
-            nearest = np.full(n, math.inf)
-            np.minimum.at(nearest, i, d)
-        psi_o = x - obstacle
-        dist_o = np.sqrt(np.einsum("ij,ij->i", psi_o, psi_o))
-        min_obs = min(min_obs, float(dist_o.min()))
-        sensed = dist_o <= sensing_radius
-        agents = np.flatnonzero(sensed)
-        _, f = field(x, agents, psi_o[sensed], i, psi_f, p, "multiplicative", c_f, law)
-        x = x + dt * saturate(f, v_max)
-    finite = nearest[np.isfinite(nearest)]
-    i, j = pairs_within(x, sensing_radius)
-    return Squeeze(n_agents=n, min_pair_distance=min_pair, min_obstacle_distance=min_obs,
-                   final_median_nearest=float(np.median(finite)) if len(finite) else math.inf,
-                   final_groups=len(np.unique(components(n, i, j))))
+    own = params.with_values({"n_agents": n, "law": "apf", "body": "point", "groups": ""})
+    d = params.swarm.dimensions
+    return Scenario("squeeze", "a swarm pressed against an obstacle by the goal (Fig 10)", own,
+                    (Obstacle(-reach, 0.0),), (0.0,) * d, PreyMotion("static"), (-1.0,) * d + (1.0,) * d,
+                    tuple(map(tuple, x)), duration, dt, "multiplicative", True, 1e-9)
+
+
+class _Pressed:
+    """The squeeze stepped through the one control step and loop (:class:`zswarm.swarm.tally.Engine`,
+    a batch of one), every agent sensing exactly."""
+
+    def __init__(self, scenario: Scenario) -> None:
+        self.scenario, self.dt, self.step_index = scenario, scenario.dt, 0
+        self.control = control_step([scenario])
+        x = np.array(scenario.starts, dtype=float)
+        self.state = BodyState(x[None], np.zeros_like(x)[None], np.full((1, len(x)), np.nan))
+        self.obstacles = ObstacleIndex(*scenario.obstacle_arrays(), scenario.params.swarm.sensing_radius)
+        self.prey = np.zeros((1, len(x[0])))
+        self._found: tuple | None = None
+
+    @property
+    def positions(self) -> np.ndarray:
+        return self.state.position
+
+    def _near(self) -> tuple[np.ndarray, ...]:
+        """(i, j) within the sensing radius and the sensed obstacles (agent, obstacle), once a step."""
+        key, x = self.state.position, self.state.position[0]
+        if self._found is None or self._found[0] is not key:
+            self._found = (key, *pairs_within(x, self.scenario.params.swarm.sensing_radius), *self.obstacles.sensed(x))
+        return self._found[1:]
+
+    def command(self) -> Stepped:
+        x, v = self.state.position[0], self.state.velocity[0]
+        i, j, a, m = self._near()
+        obs = Observations.of_swarm(x, v, np.zeros_like(x), self.scenario.params.swarm.v_max, self.dt,
+                                    np.zeros((len(x), 0)), (i, j), (a, self.obstacles.centers[m], self.obstacles.radii[m]))
+        return self.control(obs, None, self.state)
+
+    def advance(self, stepped: Stepped) -> None:
+        self.state, self.step_index = stepped.state, self.step_index + 1
+
+    def sensed(self) -> Sensed:
+        return Sensed.of_pairs(self.state.position[0], *self._near(), self.obstacles)
+
+    def safety_counts(self) -> np.ndarray:
+        return np.zeros((1, 3), dtype=np.int64)
+
+
+@lru_cache(maxsize=512)
+def squeeze(params: Params, n: int, seed: int = 2006, duration: float = 60.0, dt: float = 0.05) -> Squeeze:
+    """``n`` agents of the set ``params`` (its potentials, sensing radius, speed and interaction) pressed
+    against the obstacle (:func:`squeeze_scenario`): the one step loop and tally of every simulation."""
+    scenario = squeeze_scenario(params, n, seed, duration, dt)
+    engine = _Pressed(scenario)
+    tally = OutcomeTally(1, n, dt, np.array([scenario.capture_radius]), np.array([params.swarm.robot_radius]))
+    drive(engine, scenario.steps, tally)
+    o = tally.outcomes(engine.safety_counts())[0]
+    return Squeeze(n_agents=n, min_pair_distance=o.min_pair_distance,
+                   min_obstacle_distance=o.min_obstacle_clearance if o.min_obstacle_clearance is not None else math.inf,
+                   final_median_nearest=o.final_median_nearest if o.final_median_nearest is not None else math.inf,
+                   final_groups=o.final_components)

@@ -135,6 +135,12 @@ class Observations:
         ``obstacles`` (agent i, centre, radius), each padded to the most any agent has."""
         n, d = position.shape
         agent = pairs[0]
+        if len(pairs) == 2 and n <= _DENSE:  # exact and small: every agent a slot, masked (no copy)
+            nmask = np.zeros((1, n, n), dtype=bool)
+            nmask[0, agent, pairs[1]] = True
+            npos, nvel = np.broadcast_to(position, (1, n, n, d)), np.broadcast_to(velocity, (1, n, n, d))
+            return cls._with_obstacles(position, velocity, target, v_max, dt, state, obstacles, npos, nvel,
+                                       np.zeros((1, n, n)), nmask)
         slot, k = _slots(agent, n)
         if len(pairs) == 2:  # exact: one gather of the swarm's own rows, a padding row beyond them
             index = np.full((n, k), n)
@@ -148,6 +154,13 @@ class Observations:
         npos, nvel, nage = packed[..., :d], packed[..., d:2 * d], packed[..., 2 * d]
         nmask = np.zeros((1, n, k), dtype=bool)
         nmask[0, agent, slot] = True
+        return cls._with_obstacles(position, velocity, target, v_max, dt, state, obstacles, npos, nvel, nage, nmask)
+
+    @classmethod
+    def _with_obstacles(cls, position, velocity, target, v_max, dt, state, obstacles, npos, nvel, nage,
+                        nmask) -> Observations:
+        """:meth:`of_swarm`'s observations, its obstacles padded to the most any agent senses."""
+        n, d = position.shape
         o_agent, centre, radius = obstacles
         o_slot, m = _slots(o_agent, n)
         ocen, orad, omask = np.full((1, n, m, d), _PAD), np.ones((1, n, m)), np.zeros((1, n, m), dtype=bool)
@@ -176,6 +189,7 @@ class Observations:
 
 
 _PAD = 1e6  # what a masked slot holds: a law that reads it unmasked gives a visibly wrong answer
+_DENSE = 128  # up to this many agents, a swarm's observations hold every agent as a masked slot
 
 
 def _slots(agent: np.ndarray, n: int) -> tuple[np.ndarray, int]:

@@ -142,7 +142,7 @@ class Health:
     queue_max: int = 0
     tick_lag_max_ms: float = 0.0
     poses: int = 0  # other agents' poses taken in (however they arrived)
-    # the safety filter (zswarm.control.safety_tally): ticks it changed the command, left it under a
+    # the safety filter (zswarm.swarm.tally): ticks it changed the command, left it under a
     # tenth of the law's speed, and braked on data too old
     interventions: int = 0
     stalled_ticks: int = 0

@@ -176,7 +176,7 @@ def safety_mode(scenario: Scenario, asked: str | None) -> str:
     """The filter a run uses: as asked, checked against the body (one line, exit 2, where it cannot keep
     that body safe), or by default barrier wherever it can and off elsewhere."""
     from zswarm.errors import ParamError
-    from zswarm.control.safety_tally import safety_of
+    from zswarm.control.step import safety_of
 
     try:
         safety_of(scenario, asked or "barrier")

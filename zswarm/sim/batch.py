@@ -12,7 +12,7 @@ the same rules as :class:`zswarm.sim.channel.FaultyChannel` with each run's own 
 each run is the run :func:`zswarm.sim.simulator.simulate` makes alone, up to the order of
 floating-point sums (``tests/test_batch.py`` holds every position within 1e-9 at every step).
 
-Each run's outcome is folded by the one step loop and tally (:mod:`zswarm.sim.tally`) that a single
+Each run's outcome is folded by the one step loop and tally (:mod:`zswarm.swarm.tally`) that a single
 run of :func:`zswarm.sim.outcome.run_outcome` goes through as a batch of one.
 """
 
@@ -26,7 +26,7 @@ from zswarm.control.step import Barrier, Guard, Stepped, ahead, control_step
 from zswarm.laws.contract import Observations
 from zswarm.paper.potentials import Combination
 from zswarm.sim.batch_channel import BatchChannel
-from zswarm.sim.tally import Outcome, OutcomeTally, Sensed, drive
+from zswarm.swarm.tally import Outcome, OutcomeTally, Sensed, drive
 from zswarm.swarm import metrics
 from zswarm.swarm import prey as prey_motion
 from zswarm.swarm.faults import FaultModel
@@ -218,7 +218,7 @@ class BatchResult:
 
 def simulate_batch(members: list[Member], steps: int, keep_trajectory: bool = False,
                    components: bool = False) -> BatchResult:
-    """Run every member for ``steps`` steps through the one step loop (:func:`zswarm.sim.tally.drive`);
+    """Run every member for ``steps`` steps through the one step loop (:func:`zswarm.swarm.tally.drive`);
     ``components``: tally the sensing graph's groups at every step (``max_components``)."""
     sim = BatchSimulator(members)
     tally = OutcomeTally(len(members), sim.n, sim.dt, np.array([m.scenario.capture_radius for m in members]),

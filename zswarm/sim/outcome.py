@@ -2,7 +2,7 @@
 
 :func:`run_outcome` steps the reference simulator (its cell grid scales to thousands of agents) as a
 batch of one (:class:`zswarm.sim.simulator.OneRun`) through the step loop and tally of
-:mod:`zswarm.sim.tally` that the batched simulator's runs go through: the same keys, each counted as
+:mod:`zswarm.swarm.tally` that the batched simulator's runs go through: the same keys, each counted as
 :class:`zswarm.swarm.metrics.Summary` counts it.
 """
 
@@ -13,7 +13,7 @@ import numpy as np
 from zswarm.swarm.scenarios import Scenario
 from zswarm.control.step import Filter
 from zswarm.sim.simulator import OneRun, Simulator
-from zswarm.sim.tally import Outcome, OutcomeTally, drive
+from zswarm.swarm.tally import Outcome, OutcomeTally, drive
 
 
 def run_outcome(scenario: Scenario, seed: int, stop_at_collision: bool = False, safety: str = "off",

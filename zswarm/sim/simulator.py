@@ -22,7 +22,6 @@ from typing import Any
 
 import numpy as np
 
-from zswarm.control.safety_tally import SafetyTally
 from zswarm.control.step import Barrier, BodyState, Filter, Guard, Stepped, ahead, control_step
 from zswarm.laws.contract import Observations
 from zswarm.paper.field import compile_law
@@ -30,7 +29,7 @@ from zswarm.paper.neighbours import ObstacleIndex, pairs_within
 from zswarm.paper.potentials import Combination
 from zswarm.provenance import versions
 from zswarm.sim.channel import FaultyChannel
-from zswarm.sim.tally import Sensed, drive
+from zswarm.swarm.tally import SafetyTally, Sensed, drive
 from zswarm.swarm import prey as prey_motion
 from zswarm.swarm.faults import FaultModel
 from zswarm.swarm.metrics import Summary
@@ -152,7 +151,7 @@ class Simulator:
 
 
 class OneRun:
-    """The reference simulator seen as a batch of one (:class:`zswarm.sim.tally.Engine`): (1, N, D)
+    """The reference simulator seen as a batch of one (:class:`zswarm.swarm.tally.Engine`): (1, N, D)
     arrays, its sensing graph from the cell grid."""
 
     def __init__(self, sim: Simulator) -> None:

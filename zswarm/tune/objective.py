@@ -20,7 +20,7 @@ from zswarm.paper.params import Params
 from zswarm.paper.potentials import Combination
 from zswarm.swarm.scenarios import Scenario
 from zswarm.sim.batch import Member, simulate_batch
-from zswarm.sim.tally import Outcome
+from zswarm.swarm.tally import Outcome
 
 INFEASIBLE = 1e6
 

@@ -24,6 +24,7 @@ from typing import Any, Callable, Protocol
 
 import numpy as np
 
+from zswarm.control import safety as sf
 from zswarm.control.step import Stepped
 from zswarm.paper.neighbours import obstacle_clearance
 from zswarm.swarm import metrics
@@ -89,7 +90,7 @@ class Outcome:
     final_centroid_goal_distance: float
     final_components: int  # groups of the sensing graph at the end
     final_median_nearest: float | None  # median distance to the nearest neighbour within R, at the end
-    safety_interventions: int = 0  # agent-steps the safety filter changed (zswarm.control.safety_tally)
+    safety_interventions: int = 0  # agent-steps the safety filter changed (zswarm.swarm.tally)
     safety_stalled_ticks: int = 0
     safety_braked_ticks: int = 0
     max_components: int | None = None  # the most groups the sensing graph split into (when tallied)
@@ -220,3 +221,42 @@ def drive(engine: Engine, steps: int, tally: OutcomeTally | None = None, stop_at
             watch(k, stepped)
         if k < steps:
             engine.advance(stepped)
+
+
+class SafetyTally:
+    """What the safety filter did over one run, step by step (the counts every engine reports):
+
+    - ``safety_interventions``: agent-steps (ticks) whose command the filter changed;
+    - ``safety_stalled_ticks``: agent-steps it left under a tenth of the law's speed (a deadlock shows as a
+      run of these), ``safety_stalled_agents`` the agents stalled for at least a second in a row at some
+      point, ``safety_stalled_at_end`` those stalled at the last step;
+    - ``safety_braked_ticks``: agent-steps stopped because a neighbour's data was older than the bound.
+
+    An agent process counts the same per tick (``agents.counters``); the world sums them."""
+
+    def __init__(self, dt: float = 0.05) -> None:
+        self.steps = 0
+        self.interventions = self.stalled_steps = self.braked_steps = 0
+        self.stalled_now = np.zeros(0, dtype=bool)
+        self.run = np.zeros(0, dtype=np.int64)
+        self.long = np.zeros(0, dtype=bool)
+        self.second = max(int(round(1.0 / dt)), 1)
+
+    def add(self, f: sf.Filtered) -> None:
+        if len(self.run) != len(f.acted):
+            self.run = np.zeros(len(f.acted), dtype=np.int64)
+            self.long = np.zeros(len(f.acted), dtype=bool)
+        self.steps += 1
+        self.interventions += int(f.acted.sum())
+        self.stalled_steps += int(f.stalled.sum())
+        self.braked_steps += int(f.braked.sum())
+        self.run = np.where(f.stalled, self.run + 1, 0)
+        self.long |= self.run >= self.second
+        self.stalled_now = f.stalled
+
+    def result(self) -> dict[str, Any]:
+        if self.steps == 0:
+            return {}
+        return {"safety_interventions": self.interventions, "safety_stalled_ticks": self.stalled_steps,
+                "safety_stalled_at_end": int(self.stalled_now.sum()), "safety_stalled_agents": int(self.long.sum()),
+                "safety_braked_ticks": self.braked_steps}
