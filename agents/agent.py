@@ -27,7 +27,6 @@ from agents.reach import Reach
 from agents.sensing import Body, Sensing
 from zswarm.control.step import Acted, ControlStep
 from zswarm.laws.bound import LawFailed
-from zswarm.laws.contract import Neighbour, Observation, Obstacle
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Bridge
 from zswarm.net.injector import FaultInjector
@@ -98,7 +97,8 @@ class Agent:
                                                  self.lookahead, guard=filtered and not late)
         b = self.body
         try:
-            one = self.control.one(self.observation(goal, neighbours, step), guarded, late, b.velocity, b.heading)
+            one = self.control.one(b.position, b.velocity, b.heading, *self.sensed(neighbours, step), goal, guarded,
+                                   late)
         except LawFailed as exc:
             self.law_failure = str(exc)
             b.vx = b.vy = 0.0
@@ -145,24 +145,16 @@ class Agent:
         c.stalled_run = c.stalled_run + 1 if stalled else 0
         c.stalled_long |= c.stalled_run * self.dt >= 1.0
 
-    def observation(self, goal: tuple[float, ...], neighbours: list[msg.Pose], step: int | None) -> Observation:
-        """What the law sees this tick (:class:`zswarm.laws.contract.Observation`): its neighbours within
-        the sensing radius with their velocities and ages (0 in lockstep, where the step's poses are
-        exact), the obstacles within it, the target."""
+    def sensed(self, neighbours: list[msg.Pose], step: int | None) -> tuple[list, list]:
+        """What its law may use this tick: each neighbour within the sensing radius as (position,
+        velocity, age: 0 in lockstep, where the step's poses are exact), and each obstacle within it as
+        (centre..., radius)."""
         b, s = self.body, self.sensing
         radius, now, scale = s.radius, time.time(), self.spec.time_scale
-        seen = [p for p in neighbours if b.distance(p) <= radius]
-        if seen:
-            pos, vel = np.array([p.position for p in seen]), np.array([p.velocity for p in seen])
-            near = tuple(Neighbour(pos[k], vel[k], 0.0 if step is not None else max(now - p.stamp, 0.0) * scale)
-                         for k, p in enumerate(seen))
-        else:
-            near = ()
+        near = [(p.position, p.velocity, 0.0 if step is not None else max(now - p.stamp, 0.0) * scale)
+                for p in neighbours if b.distance(p) <= radius]
         here, dims = b.position, len(b.position)
-        obstacles = tuple(Obstacle(np.array(o[:dims]), o[dims]) for o in s.obstacles
-                          if math.dist(here, o[:dims]) - o[dims] <= radius)
-        return Observation(np.array(here), np.array(b.velocity), near, obstacles, np.array(goal, dtype=float),
-                           self.v_max, self.dt)
+        return near, [o for o in s.obstacles if math.dist(here, o[:dims]) - o[dims] <= radius]
 
     # --- outbound --------------------------------------------------------------------------------------
 

@@ -50,7 +50,9 @@ def disagreement(law: str, dims: int, body: str, safety: str, cases: int = 40) -
         guarded = _guard(rng, obs, dims)
         brake = bool(rng.random() < 0.05)
         heading = float(rng.uniform(-np.pi, np.pi)) if body == "unicycle" else None
-        got = one.one(obs, guarded, brake, tuple(obs.velocity.tolist()), heading)
+        got = one.one(tuple(obs.position.tolist()), tuple(obs.velocity.tolist()), heading,
+                      [(tuple(n.position.tolist()), tuple(n.velocity.tolist()), n.age) for n in obs.neighbours],
+                      [(*o.centre.tolist(), o.radius) for o in obs.obstacles], tuple(obs.target.tolist()), guarded, brake)
         state = BodyState(obs.position[None, None], obs.velocity[None, None], np.array([[np.nan if heading is None
                                                                                        else heading]]))
         want = batched(Observations.stack([[obs]]), Guard.of_one(guarded, dims, brake), state)

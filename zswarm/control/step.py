@@ -33,7 +33,7 @@ from zswarm.control import body as bodies
 from zswarm.control import safety as sf
 from zswarm.errors import ParamError
 from zswarm.laws.bound import BoundLaw, LawFailed
-from zswarm.laws.contract import Observation, Observations, _slots
+from zswarm.laws.contract import Neighbour, Observation, Observations, Obstacle, _slots
 
 
 BodyState = bodies.BodyState
@@ -227,38 +227,60 @@ class ControlStep:
             position[ix], velocity[ix], heading[ix] = moved
         return Stepped(bodies.BodyState(position, velocity, heading), command, filtered)
 
-    def one(self, obs: Observation, guarded: Sequence[tuple[tuple[float, ...], float, float]], brake: bool,
-            velocity: tuple[float, ...], heading: float | None, when: str = "") -> One:
-        """The step of the one agent this step was made for (:func:`control_step` with ``agents``), a
-        batch of one: ``obs`` what its law sees, ``guarded`` the (tracked point, age, look-ahead) of each
-        neighbour the filter guards it against (:class:`Guard`), ``brake`` its world is late, ``velocity`` and ``heading`` its
-        body's. The same numbers as the batched form, in plain floats where that is cheaper."""
+    def one(self, position: tuple[float, ...], velocity: tuple[float, ...], heading: float | None,
+            neighbours: Sequence[tuple[tuple[float, ...], tuple[float, ...], float]],
+            obstacles: Sequence[tuple[float, ...]], target: tuple[float, ...],
+            guarded: Sequence[tuple[tuple[float, ...], float, float]], brake: bool, when: str = "") -> One:
+        """The step of the one agent this step was made for (:func:`control_step` with ``agents``), a batch
+        of one, from what it holds in plain floats: its body (``position``, ``velocity``, ``heading``), the
+        neighbours its law may use (position, velocity, age: each within the sensing radius), the
+        obstacles within it (centre..., radius), the ``target``; ``guarded`` the (tracked point, age,
+        look-ahead) of each neighbour the filter guards it against (:class:`Guard`), ``brake`` its world
+        is late. The same numbers as the batched form; in plain floats where that is cheaper (a law's
+        single form in floats, :attr:`zswarm.laws.contract.SwarmLaw.floats`; the filter; the point body)."""
         g = self.groups[0]
-        if g.law.state_size:
-            obs = dataclasses.replace(obs, state=g.state[0, 0])
+        law = g.law
+        fast = law.law.floats if len(position) == 2 and not law.state_size else None
         try:
-            v, g.state[0, 0] = g.law.decide(obs)
+            if fast is not None:  # no observation to build: the law reads the floats
+                v = law.checked(fast(position, target, obstacles, [n[0] for n in neighbours], law.context.v_max))
+            else:
+                v, g.state[0, 0] = law.decide(_observation(position, velocity, neighbours, obstacles, target,
+                                                           law.context.v_max, self.dt, g.state[0, 0]))
         except Exception as exc:  # noqa: BLE001 - a user's law may raise anything: said in one line
-            raise LawFailed.of(g.law.name, exc, when) from None
-        u_hat, acted = tuple(v.tolist()), None
+            raise LawFailed.of(law.name, exc, when) from None
+        u_hat, acted = (v if type(v) is tuple else tuple(v.tolist())), None
         command = u_hat
         if self.filter is not None:
             (_, safety), = self.filter.groups
-            speed = math.sqrt(sum(c * c for c in u_hat))
             if brake:
+                speed = math.hypot(*u_hat)
                 command, acted = (0.0,) * len(u_hat), Acted(speed > 0.0, speed > 0.0, True)
             else:
-                position, look = tuple(obs.position.tolist()), float(self.filter.lookahead)
-                point = bodies.tracked_point(position, heading, look)
-                obstacles = [(*o.centre.tolist(), o.radius) for o in obs.obstacles]
+                look = float(self.filter.lookahead)
+                point = bodies.tracked_point(position, heading, look) if look else position
                 command, acted = _filter_floats(safety, point, u_hat, guarded, obstacles, look)
         if g.body.kind == "point":
-            return One(command, acted, tuple(p + self.dt * c for p, c in zip(obs.position.tolist(), command)),
-                       command, None)
-        state = bodies.BodyState(obs.position, np.array(velocity), np.array(np.nan if heading is None else heading))
+            dt = self.dt
+            return One(command, acted, tuple([p + dt * c for p, c in zip(position, command)]), command, None)
+        state = bodies.BodyState(np.array(position), np.array(velocity), np.array(np.nan if heading is None else heading))
         moved = bodies.step(g.body, state, np.array(command), self.dt)
         return One(command, acted, tuple(moved.position.tolist()), tuple(moved.velocity.tolist()),
                    float(moved.heading) if g.body.headed else None)
+
+
+def _observation(position, velocity, neighbours, obstacles, target, v_max: float, dt: float,
+                 state: np.ndarray) -> Observation:
+    """One agent's :class:`~zswarm.laws.contract.Observation` from what it holds in plain floats."""
+    dims = len(position)
+    if neighbours:
+        pos, vel = np.array([n[0] for n in neighbours], dtype=float), np.array([n[1] for n in neighbours], dtype=float)
+        near = tuple(Neighbour(p, v, n[2]) for p, v, n in zip(pos, vel, neighbours))
+    else:
+        near = ()
+    seen = tuple(Obstacle(np.array(o[:dims], dtype=float), float(o[dims])) for o in obstacles)
+    return Observation(np.array(position, dtype=float), np.array(velocity, dtype=float), near, seen,
+                       np.array(target, dtype=float), v_max, dt, state)
 
 
 def _take(obs: Observations, index: tuple[Any, Any]) -> Observations:
@@ -371,16 +393,16 @@ def _filter_floats(safety: sf.Safety, point: tuple[float, ...], u_hat: tuple[flo
     what the filter did (None: nothing)."""
     rate, v, dims = safety.kappa / safety.period, safety.v_max, len(point)
     far = 2.0 * v * math.sqrt(2.0) / rate  # a gap this wide gives b >= |a| v_max for every row: none binds
-    distance, hair = safety.distance, 1.0 + sf.HAIR
+    distance, hair, oldest = safety.distance, 1.0 + sf.HAIR, safety.max_age
     binding: list[tuple[tuple[float, ...], float]] = []
     violated = stale = False
     for q, age, theirs in neighbours:
         d = math.dist(point, q)
         widen = (look + theirs) * hair
-        max_age = safety.max_age - widen / v
         gap = d - distance - widen - v * age
-        if gap >= far and age <= max_age:
+        if gap >= far and age <= oldest - widen / v:
             continue  # most neighbours, most ticks: nothing more is computed
+        max_age = oldest - widen / v
         psi = [point[k] - q[k] for k in range(dims)]
         b = 0.5 * rate * max(gap, 0.0)
         spread = min(v * age / d, 1.0) if d > 0 else 1.0

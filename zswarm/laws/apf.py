@@ -82,14 +82,18 @@ class Apf(SwarmLaw):
                                                                      [laws[r].context for r in rows]))))
         return out
 
+    def floats(self, position, target, obstacles, neighbours, v_max: float) -> tuple[float, float]:
+        """The single form in plain floats (2-D): :func:`_velocity_2d` on what one agent holds."""
+        law = self.law
+        return _velocity_2d(position[0], position[1], target, obstacles, neighbours, self.context.sensing_radius,
+                            law.p, law.combination, law.formation, v_max, law.neighbours)
+
     def command(self, obs: Observation) -> Any:
         law, radius = self.law, self.context.sensing_radius
         if obs.dims == 2:
-            return _velocity_2d(
-                float(obs.position[0]), float(obs.position[1]), (float(obs.target[0]), float(obs.target[1])),
-                [(float(o.centre[0]), float(o.centre[1]), o.radius) for o in obs.obstacles],
-                [(float(n.position[0]), float(n.position[1])) for n in obs.neighbours],
-                radius, law.p, law.combination, law.formation, obs.v_max, law.neighbours)
+            return self.floats(obs.position.tolist(), obs.target.tolist(),
+                               [(*o.centre.tolist(), o.radius) for o in obs.obstacles],
+                               [n.position.tolist() for n in obs.neighbours], float(obs.v_max))
         centres = np.array([o.centre for o in obs.obstacles], dtype=float).reshape(-1, obs.dims)
         radii = np.array([o.radius for o in obs.obstacles], dtype=float)
         others = np.array([n.position for n in obs.neighbours], dtype=float).reshape(-1, obs.dims)

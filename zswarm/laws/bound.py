@@ -5,6 +5,7 @@ the cluster) calls a law through :class:`BoundLaw`."""
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -55,8 +56,11 @@ def function_law(fn: Callable[[Observation], Any], name: str) -> type[SwarmLaw]:
                                                 "reference": (fn.__doc__ or "").strip().split("\n")[0]})
 
 
-def checked(out: Any, dims: int, name: str) -> np.ndarray:
-    """``out`` as a velocity of ``dims`` finite floats, or :class:`LawError` saying what it is."""
+def checked(out: Any, dims: int, name: str) -> np.ndarray | tuple[float, ...]:
+    """``out`` as a velocity of ``dims`` finite floats (a tuple of floats stays one: a single form in
+    plain floats is not turned into an array), or :class:`LawError` saying what it is."""
+    if type(out) is tuple and len(out) == dims and all(isinstance(c, float) and math.isfinite(c) for c in out):
+        return out
     try:
         v = np.asarray(out, dtype=float)
     except (TypeError, ValueError):
@@ -85,7 +89,11 @@ class BoundLaw:
     def start_state(self, lead: tuple[int, ...] = ()) -> np.ndarray:
         return np.zeros((*lead, self.state_size))
 
-    def decide(self, obs: Observation) -> tuple[np.ndarray, np.ndarray]:
+    def checked(self, out: Any, dims: int = 2) -> np.ndarray | tuple[float, ...]:
+        """``out`` as a velocity of ``dims`` finite floats (:func:`checked`)."""
+        return checked(out, dims, self.name)
+
+    def decide(self, obs: Observation) -> tuple[np.ndarray | tuple[float, ...], np.ndarray]:
         """The single form: (velocity (D,), the agent's next state (S,))."""
         out = self.law.command(obs)
         if self.state_size:

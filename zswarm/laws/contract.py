@@ -269,6 +269,12 @@ class SwarmLaw:
             return dataclasses.asdict(self.params)
         return None
 
+    #: Optionally, the single form in plain floats for one 2-D agent without state, where numpy's per-call
+    #: cost would be most of the work: ``floats(position, target, obstacles, neighbour_positions, v_max)``
+    #: (tuples; obstacles as (cx, cy, radius)) -> (vx, vy). The control step calls it for an agent process
+    #: (:meth:`zswarm.control.step.ControlStep.one`); ``tests/test_control_step.py`` holds it to the batched form.
+    floats: Any = None
+
     def command(self, obs: Observation) -> Any:
         if type(self).batch is SwarmLaw.batch:
             raise NotImplementedError(f"law {self.name or type(self).__name__} defines neither command nor batch")

@@ -26,6 +26,7 @@ can be combined with ``+`` (``mean+gate``):
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 from zswarm.errors import ParamError
 
@@ -45,15 +46,15 @@ class Interaction:
     nearest: bool = False
     swirl: bool = False
 
-    @property
+    @cached_property
     def name(self) -> str:
         """Canonical name: ``paper``, or the modifiers in a fixed order joined by ``+``."""
         used = [m for m in MODIFIERS if getattr(self, m)]
         return "+".join(used) if used else "paper"
 
-    @property
-    def is_paper(self) -> bool:
-        return self.name == "paper"
+    @cached_property
+    def is_paper(self) -> bool:  # read by an agent's law every tick
+        return not (self.mean or self.cutoff or self.gate or self.nearest or self.swirl)
 
 
 PAPER = Interaction()
