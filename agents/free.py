@@ -1,4 +1,5 @@
-"""The free clock without an event loop: one agent's whole life is a plain loop at 1/period.
+"""The free clock: one agent's life is a loop at 1/period on an asyncio event loop (uvloop's, where it
+is installed: docs/benchmarks.md, "The agent's event loop").
 
 Every tick it takes in what arrived since the last one (samples wait in Zenoh's ring channels, or,
 under an injected delay, in the bridge's inbox stamped with the time they arrived; both pass the fault
@@ -14,6 +15,7 @@ world's final tick or when ``stopped()`` says so (SIGINT, SIGTERM).
 
 from __future__ import annotations
 
+import asyncio
 import time
 from typing import Callable
 
@@ -31,8 +33,8 @@ def take_in(agent: Agent, injector: FaultInjector | None) -> int:
     return n
 
 
-def wait_for_world(agent: Agent, injector: FaultInjector | None, timeout: float,
-                   stopped: Callable[[], bool]) -> bool:
+async def wait_for_world(agent: Agent, injector: FaultInjector | None, timeout: float,
+                         stopped: Callable[[], bool]) -> bool:
     """Until the world has answered the first obstacle query (it is there) and, beside a robot, the
     robot's first odometry came (the agent starts where it is), then enter the cells and hear who is
     in them (:func:`hear_cells`); False if that took longer than ``timeout`` seconds, the world
@@ -43,28 +45,28 @@ def wait_for_world(agent: Agent, injector: FaultInjector | None, timeout: float,
         if stopped() or time.monotonic() > deadline or s.obstacle_view.foreign_dims is not None:
             return False
         agent.reach.request_obstacles(time.time(), timeout=1.0)
-        time.sleep(0.2)  # a few wake-ups a second: hundreds of agents waiting together must not load the machine
+        await asyncio.sleep(0.2)  # a few wake-ups a second: hundreds of agents waiting must not load the machine
         take_in(agent, injector)
     agent.reach.follow_cells()
-    hear_cells(agent, injector, min(CELLS_WAIT, max(deadline - time.monotonic(), 0.0)), stopped)
+    await hear_cells(agent, injector, min(CELLS_WAIT, max(deadline - time.monotonic(), 0.0)), stopped)
     return True
 
 
 CELLS_WAIT = 2.0  # the longest an agent waits, at its start, for its cells' agents to answer
 
 
-def hear_cells(agent: Agent, injector: FaultInjector | None, wait: float, stopped: Callable[[], bool]) -> None:
+async def hear_cells(agent: Agent, injector: FaultInjector | None, wait: float, stopped: Callable[[], bool]) -> None:
     """Take in the answers of the cells it just entered before its first step: an agent that joins a
     swarm under way (a restart, a late start) then steers, and filters, from its first tick on the
     neighbours around it, not as if it were alone until their next poses come."""
     deadline = time.monotonic() + wait
     while agent.reach.asking and time.monotonic() < deadline and not stopped():
-        time.sleep(0.01)
+        await asyncio.sleep(0.01)
     take_in(agent, injector)
 
 
-def run_free(agent: Agent, injector: FaultInjector | None, stopped: Callable[[], bool],
-             desk: Desk | None = None) -> bool:
+async def run_free(agent: Agent, injector: FaultInjector | None, stopped: Callable[[], bool],
+                   desk: Desk | None = None) -> bool:
     """Tick until the run ends (False) or, after a tick, a process asks to take this agent over
     (``desk``, :mod:`agents.handoff`; True: the caller hands its state over and leaves)."""
     period = agent.spec.period
@@ -95,5 +97,5 @@ def run_free(agent: Agent, injector: FaultInjector | None, stopped: Callable[[],
         if desk is not None and desk.due:
             return True
         next_tick += period
-        time.sleep(max(next_tick - time.monotonic(), 0.0))
+        await asyncio.sleep(max(next_tick - time.monotonic(), 0.0))
     return False

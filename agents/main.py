@@ -11,7 +11,7 @@ import sys
 import time
 from array import array
 from pathlib import Path
-from typing import TYPE_CHECKING, Sequence
+from typing import TYPE_CHECKING, Any, Coroutine, Sequence
 
 import numpy as np
 import zenoh
@@ -205,8 +205,19 @@ def write_track(folder: Path, agent_id: int, track: array, dims: int) -> None:
     np.save(folder / f"agent-{agent_id}-{os.getpid()}.npy", rows)
 
 
+def run_loop(main: Coroutine[Any, Any, int]) -> int:
+    """Run an agent's coroutine on uvloop's event loop where it is installed (the cheaper loop:
+    docs/benchmarks.md, "The agent's event loop"), else on asyncio's own."""
+    try:
+        import uvloop
+    except ImportError:
+        return asyncio.run(main)
+    return uvloop.run(main)
+
+
 def run_free_agent(spec: RunSpec, args: argparse.Namespace, robots: RobotsFile | None = None) -> int:
-    """The free clock, without an event loop (:mod:`agents.free`)."""
+    """The free clock (:mod:`agents.free`): samples wait in the bridge's channels and inbox, taken in
+    once a tick of the loop."""
     # signals stop the run once it has a session; until then (a router still starting: up to
     # --connect-timeout) they end the process at once, as they would any other
     proc = Process(spec, args, loop=None, robots=robots)
@@ -215,8 +226,10 @@ def run_free_agent(spec: RunSpec, args: argparse.Namespace, robots: RobotsFile |
     done = moved = False
     owns = not args.takeover  # a taker-over speaks for the agent (its final report) once it has its state
     desk = None
-    try:
-        if not wait_for_world(agent, proc.injector, args.start_timeout, stopped):
+
+    async def life() -> int:
+        nonlocal done, moved, owns, desk
+        if not await wait_for_world(agent, proc.injector, args.start_timeout, stopped):
             if stopped():
                 return 0
             raise proc.no_world(args.start_timeout)
@@ -227,11 +240,14 @@ def run_free_agent(spec: RunSpec, args: argparse.Namespace, robots: RobotsFile |
             owns = True
         if args.movable or args.takeover:
             desk = Desk(proc.session, spec.keys.handoff(args.id))
-        moved = run_free(agent, proc.injector, stopped, desk)
+        moved = await run_free(agent, proc.injector, stopped, desk)
         if moved:
             desk.hand_over(encode_state(agent.body, agent.seq, agent.counters), stopped)
         done = True
         return law_failed(agent)
+
+    try:
+        return run_loop(life())
     finally:
         if desk is not None:
             desk.undeclare()
@@ -314,7 +330,7 @@ def _main(argv: Sequence[str] | None) -> int:
         if args.movable or args.takeover:
             raise UsageError("--movable/--takeover run on the free clock only (a lockstep step waits for every "
                              "agent's pose of the step)")
-        return asyncio.run(run_lockstep_agent(spec, args))
+        return run_loop(run_lockstep_agent(spec, args))
     return run_free_agent(spec, args, robots)  # robots run on the free clock only (robots_file)
 
 

@@ -5,6 +5,7 @@ the real agent's member token is heard, or once the forger falls silent)."""
 
 from __future__ import annotations
 
+import asyncio
 import threading
 import time
 
@@ -112,7 +113,7 @@ def test_the_real_agent_is_back_in_its_neighbours_table_within_the_bound() -> No
         forger.start()
         second = None
         try:
-            assert wait_for_world(first.agent, None, 10.0, lambda: False)
+            assert asyncio.run(wait_for_world(first.agent, None, 10.0, lambda: False))
             first.announce()
             deadline = time.monotonic() + 10.0
             while first.agent.sensing.neighbours.get(1) is None:  # the forger's pose came first
@@ -121,7 +122,7 @@ def test_the_real_agent_is_back_in_its_neighbours_table_within_the_bound() -> No
                 time.sleep(0.02)
             assert first.agent.sensing.neighbours.get(1).latest.position == forged
             second = agent(endpoint, 1, 0.35)
-            assert wait_for_world(second.agent, None, 10.0, lambda: False)
+            assert asyncio.run(wait_for_world(second.agent, None, 10.0, lambda: False))
             second.announce()
             started, back, real = time.monotonic(), None, (0.35, 0.5)
             silent, sent = 0.0, started  # the longest the real agent went without a pose (a starved test)

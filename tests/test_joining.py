@@ -9,6 +9,7 @@ run here over a real router, with a stand-in for the world's obstacle queryable.
 
 from __future__ import annotations
 
+import asyncio
 import time
 
 import zenoh
@@ -32,7 +33,7 @@ def test_an_agent_that_joins_hears_its_cells_before_its_first_step():
         keys = first.spec.keys
         world = stand_in_world(router, keys)
         try:
-            assert wait_for_world(first.agent, None, 10.0, lambda: False)
+            assert asyncio.run(wait_for_world(first.agent, None, 10.0, lambda: False))
             first.announce()
             first.agent.publish_pose(-1)  # it is there: its queryable answers for its cell
             deadline = time.monotonic() + 10.0
@@ -43,7 +44,7 @@ def test_an_agent_that_joins_hears_its_cells_before_its_first_step():
             late = agent(endpoint, 1, 0.9)
             try:
                 assert late.agent.sensing.neighbours.entries == {}
-                assert wait_for_world(late.agent, None, 10.0, lambda: False)
+                assert asyncio.run(wait_for_world(late.agent, None, 10.0, lambda: False))
                 assert not late.agent.reach.asking, "its start went on before its cells had answered"
                 # before any tick of its own, it knows the agent 0.4 away, where that agent is
                 heard = late.agent.sensing.neighbours.get(0)
