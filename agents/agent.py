@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from agents.reach import Reach
+from agents.outreach import Outreach
 from agents.sensing import Body, Sensing
 from zswarm.control.step import Acted, ControlStep
 from zswarm.laws.bound import LawFailed
@@ -48,7 +48,7 @@ class Agent:
     it asks of the network, the bridge, the compiled law, and optionally the fault injector on its
     inbound links and the ROS 2 robot that drives its body."""
 
-    def __init__(self, spec: RunSpec, agent_id: int, body: Body, sensing: Sensing, reach: Reach, bridge: Bridge,
+    def __init__(self, spec: RunSpec, agent_id: int, body: Body, sensing: Sensing, reach: Outreach, bridge: Bridge,
                  control: ControlStep, injector: FaultInjector | None = None, robot: Any = None,
                  staleness: float = 0.5, lockstep_wait: float = 0.25, track: array | None = None) -> None:
         """``control``: its control step (:func:`zswarm.control.step.control_step` for its own id);

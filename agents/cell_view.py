@@ -39,7 +39,7 @@ class CellView:
             self.cells[cell] = self.bridge.subscribe(self.keys.cell_poses(cell), "pose", remote=True)
             # without history: a history answer can come after the live removal of the same token (a
             # neighbour that left would seem to stay); who sits there already is asked for apart
-            # (agents.reach), and that answer counts only where nothing live came since
+            # (agents.outreach), and that answer counts only where nothing live came since
             self.members[cell] = self.bridge.subscribe_liveliness(self.keys.cell_members(cell), "in", history=False)
             self.since[cell] = self.body.step
         return new, left

@@ -36,6 +36,21 @@ class Counters:
     window_queue_max: int = 0
     window_lag_ms: float = 0.0
 
+    def count_sequence(self, pose: msg.Pose, nb, last: int | None, distance, radius: float) -> int:
+        """Observed loss from sequence numbers: a gap of g counts g - 1 lost when the sender was within
+        the sensing radius both before and after it (then every pose it sent reached the agent's cells;
+        otherwise it may simply have been out of range); a late arrival that filled a gap is taken back.
+        ``nb``: what it held of the sender before this pose, ``last`` the newest sequence number it saw of
+        it; returns the newest now."""
+        if last is not None and nb is not None and distance(pose) <= radius and distance(nb.latest) <= radius:
+            if pose.seq > last:
+                self.seq_lost += pose.seq - last - 1 if pose.seq - last - 1 <= 50 else 0
+                self.seq_received += 1
+            elif pose.seq < last and self.seq_lost > 0:
+                self.seq_lost -= 1
+                self.seq_received += 1
+        return max(pose.seq, last or 0)
+
     @staticmethod
     def add(hist: dict[int, int], ms: float) -> None:
         b = histogram.to_bin(ms)

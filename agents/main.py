@@ -19,7 +19,7 @@ import zenoh
 from agents.agent import Agent, starting_body
 from agents.free import run_free, take_in, wait_for_world
 from agents.handoff import Desk, HandoffError, apply_state, encode_state, take_over
-from agents.reach import Reach
+from agents.outreach import Outreach
 from agents.sensing import Sensing
 from zswarm.args import Parser, UsageError, run_main
 from zswarm.laws.bound import EXIT_LAW_FAILED
@@ -146,7 +146,7 @@ class Process:
                              channels=rings, capacity=CELL_CAPACITY,
                              reply_filter=injector.filter_replies if injector is not None else None)
         self.tracks: Path | None = args.tracks
-        self.agent = Agent(spec, args.id, body, sensing, Reach(sensing, self.bridge), self.bridge, control, injector,
+        self.agent = Agent(spec, args.id, body, sensing, Outreach(sensing, self.bridge), self.bridge, control, injector,
                            link, args.staleness, args.lockstep_wait, track=array("d") if args.tracks is not None else None)
         self.injector = injector
         self.declared = [self.bridge.subscribe_liveliness(keys.all_alive, "alive"),

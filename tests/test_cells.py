@@ -10,7 +10,7 @@ import zenoh
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from agents.reach import Reach
+from agents.outreach import Outreach
 from agents.sensing import Body, Sensing
 from zswarm.net.bridge import Bridge
 from zswarm.net.config import zenoh_config
@@ -50,7 +50,7 @@ def test_an_agent_listens_to_exactly_the_cells_its_disc_meets_along_a_walk():
     with zenoh.open(zenoh_config("peer")) as session:
         sensing = Sensing(spec, 0, Body(0.3, -0.2), probe_latency=True)
         bridge = Bridge(session, None, sensing.handle, batch=True, channels=True)
-        body, s = sensing.body, Reach(sensing, bridge)
+        body, s = sensing.body, Outreach(sensing, bridge)
         chosen = 0
         for _ in range(400):
             body.x, body.y = body.x + rng.normal(0, 0.04), body.y + rng.normal(0, 0.04)

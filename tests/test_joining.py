@@ -52,7 +52,7 @@ def test_an_agent_that_joins_hears_its_cells_before_its_first_step():
                 assert (heard.latest.x, heard.latest.y) == (0.5, 0.5)
                 late.announce()
                 deadline = time.monotonic() + 10.0
-                while 0 not in late.agent.sensing.alive:  # and its token: the law uses it at once
+                while 0 not in late.agent.sensing.membership.alive:  # and its token: the law uses it at once
                     assert time.monotonic() < deadline, "agent 0's liveliness token never came"
                     take_in(late.agent, None)
                     time.sleep(0.01)

@@ -256,7 +256,7 @@ def test_an_agent_guards_against_late_neighbours_and_quiet_ones_that_cannot_have
     for who, (p, age, received) in heard.items():
         pose = msg.Pose(who, 1, now - age, -1, *p, 0.0, 0.0)
         assert sensing.neighbours.accept(who, pose, received) is None
-        sensing.alive.add(who)
+        sensing.membership.alive.add(who)
     got = dict((p, a) for p, a, _ in sensing.sense(None, 0.5, 1.0, 0.05)[1])
     took = time.time() - now
     assert set(got) == {(0.3, 0.0), (0.0, 0.4), (0.0, -1.3), (0.0, -0.3)}
@@ -268,7 +268,7 @@ def test_an_agent_guards_against_late_neighbours_and_quiet_ones_that_cannot_have
     # the law uses every fresh one, in reach or not (the law itself looks at the distance), not the quiet
     assert {p.position for p in sensing.sense(None, 0.5, 1.0, 0.05)[0]} == {(0.3, 0.0), (0.0, 0.4), (3.0, 0.0),
                                                                             (0.0, -1.3)}
-    sensing.alive.discard(1)  # its token has not come yet: its poses say it is there, so it is guarded
+    sensing.membership.alive.discard(1)  # its token has not come yet: its poses say it is there, so it is guarded
     poses, guarded = sensing.sense(None, 0.5, 1.0, 0.05)  # one pass, as an agent's tick
     positions = [p.position for p in poses]
     assert (0.3, 0.0) in {p for p, _, _ in guarded}
@@ -305,7 +305,7 @@ def test_under_a_common_delay_a_quiet_neighbour_deep_inside_stays_guarded_in_age
             3: ((-0.9, 0.0), 4.0, now - 2.0)}   # quiet 2 s longer, 0.9 + 2.0 > 1.1: can have left
     for who, (p, age, received) in late.items():
         assert sensing.neighbours.accept(who, msg.Pose(who, 1, now - age, -1, *p, 0.0, 0.0), received) is None
-        sensing.alive.add(who)
+        sensing.membership.alive.add(who)
     got = {p: a for p, a, _ in sensing.sense(None, 0.5, 1.0, 0.05)[1]}
     took = time.time() - now
     assert set(got) == {(0.5, 0.0), (0.0, -0.3)}
@@ -333,7 +333,8 @@ def test_a_sender_that_never_announced_itself_and_fell_silent_is_not_guarded_for
     beyond both."""
     import time
 
-    from agents.sensing import TOKEN_GRACE, Body, Sensing
+    from agents.guard import TOKEN_GRACE
+    from agents.sensing import Body, Sensing
     from zswarm.net import messages as msg
     from zswarm.net.runspec import RunSpec
 
@@ -350,9 +351,9 @@ def test_a_sender_that_never_announced_itself_and_fell_silent_is_not_guarded_for
     guarded = lambda: {p for p, _, _ in sensing.sense(None, 0.5, 1.0, 0.05)[1]}  # noqa: E731
     hear(999, (0.4, 0.0), long_ago, long_ago + 0.2)  # made up long ago, silent since, no one else heard
     assert guarded() == set()
-    sensing.alive.add(999)  # had its token come: alone, its silence cannot be told from loss: guarded
+    sensing.membership.alive.add(999)  # had its token come: alone, its silence cannot be told from loss: guarded
     assert guarded() == {(0.4, 0.0)}
-    sensing.alive.discard(999)
+    sensing.membership.alive.discard(999)
     hear(7, (0.0, 0.4), long_ago, now - 0.01)  # its token late for seconds, but it keeps publishing
     hear(8, (-0.4, 0.0), now - 0.3, now - 0.3)  # first heard 0.3 s ago: its token may still come
     assert guarded() == {(0.0, 0.4), (-0.4, 0.0)}
@@ -381,30 +382,30 @@ def test_a_quiet_neighbour_whose_member_token_is_in_the_cells_is_guarded_whateve
              3: ((-0.9, 0.0), 2.0, now - 2.0)}    # quiet 2 s near the edge: can have left
     for who, (p, age, received) in heard.items():
         assert sensing.neighbours.accept(who, msg.Pose(who, 1, now - age, -1, *p, 0.0, 0.0), received) is None
-        sensing.alive.add(who)
+        sensing.membership.alive.add(who)
     guarded = lambda: {p: a for p, a, _ in sensing.sense(None, 0.5, 1.0, 0.05)[1]}  # noqa: E731
     assert set(guarded()) == {(0.5, 0.0)}
     cell = keys.cell(-0.9, 0.0)
     sensing.handle(("in", keys.member(cell, 3), b"", False, now))  # a cell it does not listen to
     assert set(guarded()) == {(0.5, 0.0)}
-    sensing.listen_to([cell, keys.cell(0.0, 0.0)], [])
+    sensing.membership.listen_to([cell, keys.cell(0.0, 0.0)], [])
     sensing.handle(("in", keys.member(cell, 3), b"", False, now))
     sensing.handle(("in", keys.member(keys.cell(0.0, 0.0), 0), b"", False, now))  # its own: ignored
-    assert set(guarded()) == {(0.5, 0.0), (-0.9, 0.0)} and 0 not in sensing.members
+    assert set(guarded()) == {(0.5, 0.0), (-0.9, 0.0)} and 0 not in sensing.membership.members
     assert aged(guarded()[(-0.9, 0.0)], 2.05, time.time() - now)  # its whole age: 2 s, and a tick ahead
     sensing.handle(("in", keys.member(cell, 3), b"", True, now))  # it left that cell
     assert set(guarded()) == {(0.5, 0.0)}
     sensing.handle(("in", keys.member(cell, 3), b"", False, now))
-    sensing.listen_to([], [cell])  # the agent stopped listening to it
+    sensing.membership.listen_to([], [cell])  # the agent stopped listening to it
     assert set(guarded()) == {(0.5, 0.0)}
     # a cell it starts to listen to: who sits there already comes as an answer, which counts only where
     # no live change of the same token came first (an answer can be older than a live removal)
-    sensing.listen_to([cell], [])
+    sensing.membership.listen_to([cell], [])
     sensing.handle(("in", keys.member(cell, 3), b"", True, now))  # live: it left
     sensing.handle(("in-now", keys.member(cell, 3), b"", False, now))  # the older answer: ignored
     assert set(guarded()) == {(0.5, 0.0)}
-    sensing.listen_to([], [cell])
-    sensing.listen_to([cell], [])
+    sensing.membership.listen_to([], [cell])
+    sensing.membership.listen_to([cell], [])
     sensing.handle(("in-now", keys.member(cell, 3), b"", False, now))  # nothing live since: it is there
     assert set(guarded()) == {(0.5, 0.0), (-0.9, 0.0)}
 
@@ -443,7 +444,7 @@ def test_a_quiet_neighbour_whose_poses_came_through_a_slower_path_is_given_that_
              5: ((0.0, -0.9), 6.0, 3.5)}    # took 2.5 s, quiet 3.5 s: longer than its extra delay
     for who, (p, sent, received) in heard.items():
         assert sensing.neighbours.accept(who, msg.Pose(who, 1, now - sent, -1, *p, 0.0, 0.0), now - received) is None
-        sensing.alive.add(who)
+        sensing.membership.alive.add(who)
     got = {p: a for p, a, _ in sensing.sense(None, 0.5, 1.0, 0.05)[1]}
     took = time.time() - now
     assert set(got) == {(0.5, 0.0), (-0.9, 0.0)}
@@ -491,7 +492,7 @@ def test_a_member_token_nobody_holds_any_longer_is_asked_about_and_let_go():
 
     import zenoh
 
-    from agents.reach import Reach
+    from agents.outreach import Outreach
     from agents.sensing import Body, Sensing
     from conftest import free_port
     from zswarm.net import messages as msg
@@ -506,32 +507,32 @@ def test_a_member_token_nobody_holds_any_longer_is_asked_about_and_let_go():
             zenoh.open(zenoh_config("peer", connect=[endpoint])) as session:
         sensing = Sensing(spec, 0, Body(0.0, 0.0), probe_latency=False)
         bridge = Bridge(session, None, deliver=sensing.handle, batch=True, channels=True)
-        reach = Reach(sensing, bridge)
+        reach = Outreach(sensing, bridge)
         now = time.time()
         at = {1: (0.5, 0.0), 3: (-0.9, 0.0), 4: (0.0, -0.95)}
         for who, p in at.items():
             age = 0.02 if who == 1 else 2.0  # 1 heard all along; 3 and 4 quiet for 2 s near the edge
             assert sensing.neighbours.accept(who, msg.Pose(who, 1, now - age, -1, *p, 0.0, 0.0), now - age) is None
-            sensing.alive.add(who)
+            sensing.membership.alive.add(who)
         cells = {who: keys.cell(*p) for who, p in at.items()}
-        sensing.listen_to(sorted(set(cells.values())), [])
+        sensing.membership.listen_to(sorted(set(cells.values())), [])
         token = holder.liveliness().declare_token(keys.member(cells[4], 4))  # 4 is still there
         for who in (3, 4):  # both came in as answers on entering the cells; 3's removal never came
             sensing.handle(("in-now", keys.member(cells[who], who), b"", False, now))
         guarded = lambda: {p for p, _, _ in sensing.sense(None, 0.5, 1.0, 0.05)[1]}  # noqa: E731
-        assert guarded() == {at[1], at[3], at[4]} and sensing.doubted == {3, 4}
+        assert guarded() == {at[1], at[3], at[4]} and sensing.membership.doubted == {3, 4}
         time.sleep(0.5)  # the holder's token has reached the other session
         reach.check_members(time.time())
         deadline = time.monotonic() + 10.0
-        while 3 in sensing.members and time.monotonic() < deadline:
+        while 3 in sensing.membership.members and time.monotonic() < deadline:
             bridge.drain()
             time.sleep(0.05)
-        assert 3 not in sensing.members and sensing.members[4] == {cells[4]}
+        assert 3 not in sensing.membership.members and sensing.membership.members[4] == {cells[4]}
         assert guarded() == {at[1], at[4]}
         # asked again no sooner than MEMBER_CHECK_S; a live change after a question wins over its answer
         asked = time.time()
         sensing.handle(("in", keys.member(cells[3], 3), b"", False, asked + 0.1))
         sensing.handle(("in-gone", keys.member(cells[3], 3), b"", True, asked))
-        assert sensing.members[3] == {cells[3]}
+        assert sensing.membership.members[3] == {cells[3]}
         token.undeclare()
         bridge.close()

@@ -316,10 +316,10 @@ def test_a_cluster_nodes_identities_are_made_there_and_signed_by_the_drivers_ca(
     import os
     import shutil
 
-    from zswarm.cluster.node import NodeHost
+    from zswarm.cluster.node import NodeActor
     from zswarm.cluster.pki import NodeIdentities
 
-    node = NodeHost("node1")
+    node = NodeActor("node1")
     link = DirectLink(node, "127.0.0.1")
     ids = NodeIdentities(certs)
     ids.make(link, ["router", "agent"])
@@ -345,7 +345,7 @@ def test_a_cluster_nodes_identities_are_made_there_and_signed_by_the_drivers_ca(
     shutil.copytree(certs, bare)
     os.unlink(bare / "ca.key")
     with pytest.raises(UsageError, match="has no ca.key"):
-        NodeIdentities(bare).make(DirectLink(NodeHost("node2"), "127.0.0.1"), ["router"])
+        NodeIdentities(bare).make(DirectLink(NodeActor("node2"), "127.0.0.1"), ["router"])
 
 
 def test_a_secure_directory_without_its_cas_key_is_refused_for_other_machines(certs, tmp_path):
@@ -365,14 +365,14 @@ def test_a_router_whose_certificate_the_mesh_refuses_is_refused_at_start(certs, 
     """A node's router joining the first router of a --secure mesh: with a certificate of the run's CA it
     joins; with one of another CA it says so and exits 2 within its --connect-timeout, and the node's
     start refuses it in one line (instead of a mesh split in two without a word)."""
-    from zswarm.cluster.node import NodeHost
+    from zswarm.cluster.node import NodeActor
     from zswarm.net.router import JOIN_FAILED
 
     foreign = tmp_path / "foreign"
     write_secure_dir(foreign, names=("router",))
     with processes() as kids:
         first = start_secure_router(kids, certs)
-        good, bad = NodeHost("node1"), NodeHost("node2")
+        good, bad = NodeActor("node1"), NodeActor("node2")
         try:
             assert good.start_router("127.0.0.1", first, ["--config", str(certs / "router.json5")], "tls")
             t = time.monotonic()

@@ -61,7 +61,7 @@ class Census:
 
 
 @dataclass
-class Reach:
+class CellTraffic:
     """How many other agents publish into the cells each agent listens to (sampled once a second from
     the poses the world holds): what a lossless transport hands an agent per round. The agents' own
     count of poses taken in is measured against it."""
@@ -120,7 +120,7 @@ class World:
         self.network_logged = self.network_agents_logged = 0.0  # wall times the network panel was last logged
         self.network_received = 0
         self.stalled = False  # the free clock is more than STALL behind
-        self.reach = Reach()
+        self.traffic = CellTraffic()
         self.pose_arrived = asyncio.Event()  # lockstep waits on it; set per pose only then
         self.wake_on_pose = spec.clock == "lockstep"
         self.stop = asyncio.Event()
@@ -276,7 +276,7 @@ class World:
             return None
         metrics = self.observer.observe(self.clock.t, ids, pos, vel, self.prey)
         self.last_seen = (self.clock.t, ids, pos)  # fresh arrays, replaced whole: read on a Zenoh thread
-        self.reach.sample(pos, self.spec.subscription_radius, self.keys.cell_size)
+        self.traffic.sample(pos, self.spec.subscription_radius, self.keys.cell_size)
         safety = (snap.safety, self.scenario.params.swarm.robot_radius) if self.spec.safety != "off" else None
         stamps = snap.stamps if self.spec.clock == "free" else None
         if stamps is not None:  # how far apart in time the poses it judges together were sent
@@ -466,7 +466,7 @@ class World:
                        "stopped_at_end": sorted(self.census.stopped_at_end),
                        "requested_faults": s.faults.requested(), "missed_lockstep_poses": c.missed_poses,
                        "world_late_ticks": c.late_ticks, "world_ticks": c.step + 1,
-                       "poses_in_reach_per_s": self.reach.per_s(s.period),
+                       "poses_in_reach_per_s": self.traffic.per_s(s.period),
                        "world_segments": self.recorder.segment + 1, "end_after_capture": self.end_after_capture,
                        "snapshot_spread_max_s": self.snapshot_spread if s.clock == "free" else None,
                        **self._timed_result(),

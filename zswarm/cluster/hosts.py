@@ -1,4 +1,4 @@
-"""The driver's side of each node: a pinned :class:`~zswarm.cluster.node.NodeHost` actor, a host of the
+"""The driver's side of each node: a pinned :class:`~zswarm.cluster.node.NodeActor` actor, a host of the
 run (:class:`zswarm.host.local.Host`) whose agents are handles with ``subprocess.Popen``'s
 interface, so that the supervisor, the chaos and the ending code treat an agent on another machine as
 they treat one forked here.
@@ -15,7 +15,7 @@ import threading
 import time
 from typing import Any, Callable, Sequence
 
-from zswarm.cluster.node import NodeHost
+from zswarm.cluster.node import NodeActor
 from zswarm.cluster.ray_cluster import import_ray
 from zswarm.launch.plan import id_ranges
 from zswarm.host.procs import Child, ForkedProc
@@ -51,7 +51,7 @@ class NodeLink:
         self.node_id, self.label, self.say = node["NodeID"], label, say
         self.cpus = int(node.get("Resources", {}).get("CPU", 1))
         strategy = NodeAffinitySchedulingStrategy(node_id=self.node_id, soft=False)
-        self.actor = ray.remote(NodeHost).options(num_cpus=0, scheduling_strategy=strategy).remote(label)
+        self.actor = ray.remote(NodeActor).options(num_cpus=0, scheduling_strategy=strategy).remote(label)
         self.procs: dict[str, RemoteProc] = {}
         self.lost = False
         self.closed = False

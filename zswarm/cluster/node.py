@@ -1,6 +1,6 @@
 """One machine of a cluster run: its Zenoh router and its share of agents, as ordinary OS processes.
 
-:class:`NodeHost` is a plain class; :mod:`zswarm.cluster.hosts` makes it a Ray actor pinned to its node
+:class:`NodeActor` is a plain class; :mod:`zswarm.cluster.hosts` makes it a Ray actor pinned to its node
 (``num_cpus=0``), one per node. It starts the node's router and a fleet that forks the node's agents
 (as ``zswarm run`` does on one machine), and answers the driver's polls with the agents that ended and
 the lines they wrote to stderr, prefixed with the node and the agent.
@@ -13,8 +13,8 @@ and the fleet are sessions of their own (:func:`zswarm.host.procs.start_router`,
 share of the CPU and the node's agents together another, rather than each a thread's share among
 the Ray worker's.
 
-Under ``--secure`` a node makes its own keys (:meth:`NodeHost.identities`) in a folder only its user
-reads, and is handed back the certificates the driver's CA signed for them (:meth:`NodeHost.install`):
+Under ``--secure`` a node makes its own keys (:meth:`NodeActor.identities`) in a folder only its user
+reads, and is handed back the certificates the driver's CA signed for them (:meth:`NodeActor.install`):
 no private key crosses the network. The folder goes when the node stops, or, if its actor was killed
 outright, when the next node actor of this user starts on that machine.
 """
@@ -61,7 +61,7 @@ def remove_stale_keys() -> None:
             continue
 
 
-class NodeHost:
+class NodeActor:
     """The driver's hands on one node (methods are called through Ray)."""
 
     def __init__(self, label: str) -> None:

@@ -1,9 +1,9 @@
 """``--secure`` over a cluster of other machines: every node's identities made where they are used.
 
-A node makes the key pairs of its router and of each agent that runs there (:meth:`NodeHost.identities
-<zswarm.cluster.node.NodeHost.identities>`) and sends their public halves; the driver's CA (the
+A node makes the key pairs of its router and of each agent that runs there (:meth:`NodeActor.identities
+<zswarm.cluster.node.NodeActor.identities>`) and sends their public halves; the driver's CA (the
 ``--secure`` directory's) signs them for the node's address and sends the certificates back with the
-run's access control (:meth:`NodeHost.install <zswarm.cluster.node.NodeHost.install>`). Nothing
+run's access control (:meth:`NodeActor.install <zswarm.cluster.node.NodeActor.install>`). Nothing
 secret crosses the network: private keys never leave their node, and the CA's key never leaves the
 driver. An agent that moves to another node, or rejoins on one when its node is lost, gets an
 identity there first.

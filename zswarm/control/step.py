@@ -37,6 +37,7 @@ from zswarm.laws.contract import Neighbour, Observation, Observations, Obstacle,
 
 
 BodyState = bodies.BodyState
+tracked_point = bodies.tracked_point
 
 
 def ahead(position: np.ndarray, heading: np.ndarray, look: np.ndarray | float) -> np.ndarray:

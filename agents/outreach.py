@@ -27,7 +27,7 @@ from zswarm.net.keys import cells_in_disc
 MEMBER_CHECK_S = 1.0
 
 
-class Reach:
+class Outreach:
     def __init__(self, sensing: Sensing, bridge: Bridge) -> None:
         self.sensing, self.bridge, self.keys = sensing, bridge, sensing.keys
         self.cell_view = CellView(self.keys, bridge, sensing.body, sensing.subscription_radius)
@@ -49,7 +49,7 @@ class Reach:
         new, left = self.cell_view.move()
         if not new and not left:
             return  # most ticks
-        self.sensing.listen_to(new, left)
+        self.sensing.membership.listen_to(new, left)
         for cell in new:
             # who sits in it already (its live member tokens were subscribed first: Sensing._member)
             self.bridge.tokens_into_inbox(self.keys.cell_members(cell), "in-now", 1.0)
@@ -59,10 +59,10 @@ class Reach:
 
     def check_members(self, now: float) -> None:
         """Ask again about the member tokens on which alone the safety filter guards a silent neighbour
-        (:attr:`agents.sensing.Sensing.doubted`): one nobody holds any longer is let go
-        (:meth:`agents.sensing.Sensing._member_gone`). Each token at most once every
+        (:attr:`agents.membership.Membership.doubted`): one nobody holds any longer is let go
+        (:meth:`agents.membership.Membership.member_gone`). Each token at most once every
         :data:`MEMBER_CHECK_S` seconds."""
-        s = self.sensing
+        s = self.sensing.membership
         if not s.doubted:
             return  # most ticks
         for who in s.doubted:
@@ -86,7 +86,7 @@ class Reach:
     async def update_cells(self) -> None:
         """Subscribe to the cells the sensing disc overlaps; ask new cells for their agents at once."""
         new, left = self.cell_view.move()
-        self.sensing.listen_to(new, left)
+        self.sensing.membership.listen_to(new, left)
         for cell in new:
             for key, payload in await self.bridge.get(self.keys.cell_poses(cell), timeout=1.0):
                 self.sensing.handle(("pose", key, payload, False, time.time()))

@@ -1,0 +1,96 @@
+"""Whom an agent counts as a member of the swarm: the liveliness tokens (alive, and since when) and
+the member tokens in the cells it listens to (where each neighbour is), the half of what it hears that
+says who is there rather than where.
+
+Only agents that hold a liveliness token are used as neighbours by the law; a member token in a cell
+the agent listens to keeps a silent neighbour guarded by the safety filter (its silence is loss, not
+departure), and vouches for its poses there (:func:`zswarm.net.poses.vouched_by`).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+from zswarm.net import messages as msg
+from zswarm.net.keys import Keys
+from zswarm.net.poses import vouched_by
+
+
+class Membership:
+    def __init__(self, keys: Keys, agent_id: int) -> None:
+        self.keys, self.id = keys, agent_id
+        self.alive: set[int] = set()  # ids with a liveliness token
+        self.announced: dict[int, float] = {}  # id -> when its liveliness token came (whom to believe first)
+        self.members: dict[int, set[tuple[int, ...]]] = {}  # id -> the cells it listens to that hold its token
+        self.member_news: set[tuple[int, tuple[int, ...]]] = set()  # (id, cell) that changed live since subscribed
+        self.member_live_at: dict[tuple[int, tuple[int, ...]], float] = {}  # (id, cell) -> its last live change
+        # ids the safety filter guards only because their member token is in a cell it listens to: that
+        # token is asked about again (agents.outreach.Outreach.check_members)
+        self.doubted: set[int] = set()
+        self.listening: set[tuple[int, ...]] = set()  # the cells it listens to (agents.cell_view)
+
+    def token(self, who: int, deleted: bool, received: float) -> None:
+        """Agent ``who``'s liveliness token came (or went) at ``received``."""
+        if not deleted:
+            self.alive.add(who)
+            self.announced.setdefault(who, received)
+        else:
+            self.alive.discard(who)
+            self.announced.pop(who, None)
+
+    def member(self, key: str, deleted: bool, live: bool = True) -> None:
+        """A member token came into (or left) one of the cells it listens to (``live``), or was there
+        when it asked (an answer that can come after a live change of the same token: it counts only
+        if none came)."""
+        parsed = self.keys.member_of(key)
+        if parsed is None or parsed[1] == self.id:
+            return
+        cell, who = parsed
+        if cell not in self.listening:
+            return  # an answer about a cell it has left since it asked
+        if live:
+            self.member_news.add((who, cell))
+            self.member_live_at[(who, cell)] = time.time()
+        elif (who, cell) in self.member_news:
+            return
+        if not deleted:
+            self.members.setdefault(who, set()).add(cell)
+        else:
+            self._not_in(who, {cell})
+
+    def member_gone(self, key: str, asked: float) -> None:
+        """The member token ``key`` was asked about at ``asked`` and nobody holds it: it is no longer in
+        that cell, unless a live change of it came since (a token's removal can miss an agent that took the
+        token in from the answer to its ask on entering the cell: docs/safety.md)."""
+        parsed = self.keys.member_of(key)
+        if parsed is None:
+            return
+        cell, who = parsed
+        if self.member_live_at.get((who, cell), -math.inf) < asked:
+            self._not_in(who, {cell})
+
+    def listen_to(self, new: list[tuple[int, ...]], left: list[tuple[int, ...]]) -> None:
+        """It listens to the cells ``new`` now, and no longer to ``left``: what their tokens said no
+        longer holds."""
+        self.listening.update(new)
+        if not left:
+            return
+        gone = set(left)
+        self.listening -= gone
+        self.member_news = {(who, cell) for who, cell in self.member_news if cell not in gone}
+        self.member_live_at = {k: t for k, t in self.member_live_at.items() if k[1] not in gone}
+        for who in list(self.members):
+            self._not_in(who, gone)
+
+    def _not_in(self, who: int, cells: set[tuple[int, ...]]) -> None:
+        """Agent ``who``'s token is in none of ``cells`` (it is forgotten when it is in no cell it listens to)."""
+        held = self.members.get(who)
+        if held is not None:
+            held -= cells
+            if not held:
+                del self.members[who]
+
+    def vouched(self, pose: msg.Pose) -> bool:
+        """The sender's member token is in the cell of ``pose`` (:func:`zswarm.net.poses.vouched_by`)."""
+        return vouched_by(self.members.get(pose.id), self.keys.cell(*pose.position))
