@@ -101,7 +101,8 @@ class _Pressed:
         x, v = self.state.position[0], self.state.velocity[0]
         i, j, a, m = self._near()
         obs = Observations.of_swarm(x, v, np.zeros_like(x), self.scenario.params.swarm.v_max, self.dt,
-                                    np.zeros((len(x), 0)), (i, j), (a, self.obstacles.centers[m], self.obstacles.radii[m]))
+                                    np.zeros((len(x), 0)), (i, j), (a, self.obstacles.centers[m], self.obstacles.radii[m]),
+                                    velocities=self.control.hears_velocities)
         return self.control(obs, None, self.state)
 
     def advance(self, stepped: Stepped) -> None:

@@ -129,29 +129,32 @@ class Observations:
     @classmethod
     def of_swarm(cls, position: np.ndarray, velocity: np.ndarray, target: np.ndarray, v_max: float, dt: float,
                  state: np.ndarray, pairs: tuple[np.ndarray, ...],
-                 obstacles: tuple[np.ndarray, np.ndarray, np.ndarray]) -> Observations:
+                 obstacles: tuple[np.ndarray, np.ndarray, np.ndarray], velocities: bool = True) -> Observations:
         """One swarm's observations (leading axes (1, N)) from flat lists: ``pairs`` (agent i, the
         neighbour's position, velocity, age; or agent i and neighbour j, sensed exactly and now) and
-        ``obstacles`` (agent i, centre, radius), each padded to the most any agent has."""
+        ``obstacles`` (agent i, centre, radius), each padded to the most any agent has. Without
+        ``velocities`` (no law reads them) exact neighbours' velocities read as 0."""
         n, d = position.shape
         agent = pairs[0]
+        slot, k = _slots(agent, n)
         if len(pairs) == 2 and n <= _DENSE:  # exact and small: every agent a slot, masked (no copy)
             nmask = np.zeros((1, n, n), dtype=bool)
             nmask[0, agent, pairs[1]] = True
             npos, nvel = np.broadcast_to(position, (1, n, n, d)), np.broadcast_to(velocity, (1, n, n, d))
             return cls._with_obstacles(position, velocity, target, v_max, dt, state, obstacles, npos, nvel,
                                        np.zeros((1, n, n)), nmask)
-        slot, k = _slots(agent, n)
-        if len(pairs) == 2:  # exact: one gather of the swarm's own rows, a padding row beyond them
+        if len(pairs) == 2:  # exact: a gather of the swarm's own rows, a padding row beyond them
             index = np.full((n, k), n)
             index[agent, slot] = pairs[1]
-            rows = np.concatenate([position, velocity, np.zeros((n, 1))], axis=1)
-            packed = np.concatenate([rows, np.full((1, 2 * d + 1), _PAD)])[index][None]
+            pad = np.full((1, d), _PAD)
+            npos = np.concatenate([position, pad])[index][None]
+            nvel = np.concatenate([velocity, pad])[index][None] if velocities else np.broadcast_to(0.0, npos.shape)
+            nage = np.broadcast_to(0.0, (1, n, k))
         else:
             packed = np.full((1, n, k, 2 * d + 1), _PAD)  # one scatter for position, velocity and age
             packed[0, agent, slot] = np.concatenate([pairs[1], pairs[2], np.asarray(pairs[3], dtype=float)[:, None]],
                                                     axis=1)
-        npos, nvel, nage = packed[..., :d], packed[..., d:2 * d], packed[..., 2 * d]
+            npos, nvel, nage = packed[..., :d], packed[..., d:2 * d], packed[..., 2 * d]
         nmask = np.zeros((1, n, k), dtype=bool)
         nmask[0, agent, slot] = True
         return cls._with_obstacles(position, velocity, target, v_max, dt, state, obstacles, npos, nvel, nage, nmask)
@@ -189,7 +192,7 @@ class Observations:
 
 
 _PAD = 1e6  # what a masked slot holds: a law that reads it unmasked gives a visibly wrong answer
-_DENSE = 128  # up to this many agents, a swarm's observations hold every agent as a masked slot
+_DENSE = 128  # up to this many agents, a swarm's observations hold every agent as a masked slot (no gather)
 
 
 def _slots(agent: np.ndarray, n: int) -> tuple[np.ndarray, int]:

@@ -113,7 +113,7 @@ class Simulator:
             pairs = (i, j)
         _, _, a, m = self.near()
         obs = Observations.of_swarm(x, v, goal, p.v_max, self.scenario.dt, np.zeros((n, 0)), pairs,
-                                    (a, self.obstacles.centers[m], self.obstacles.radii[m]))
+                                    (a, self.obstacles.centers[m], self.obstacles.radii[m]), self.control.hears_velocities)
         barrier = self.control.filter
         if barrier is None:
             return obs, None
