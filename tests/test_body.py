@@ -78,7 +78,8 @@ def test_a_double_integrator_never_exceeds_its_acceleration_and_cannot_stop_at_o
     assert accel.max() > 0.99 * p.body.accel  # the limit did bind
     assert max(np.linalg.norm(v, axis=1).max() for v in moved) <= p.swarm.v_max * (1 + 1e-12)
     # from full speed, a command to stop takes v / accel, not one step
-    spec = bodies.body_spec(scenario.params)
+    spec = bodies.BodySpec(scenario.params.body.body, scenario.params.swarm.v_max, scenario.params.body.turn_rate,
+                           scenario.params.body.lookahead, scenario.params.body.accel)
     state = bodies.BodyState(np.zeros((1, 2)), np.array([[1.0, 0.0]]), np.array([np.nan]))
     steps = 0
     while np.linalg.norm(state.velocity) > 0:

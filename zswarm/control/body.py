@@ -48,12 +48,6 @@ class BodySpec:
         return self.kind in HEADED
 
 
-def body_spec(params) -> BodySpec:
-    """The body of a parameter set (:class:`zswarm.paper.params.Params`)."""
-    b = params.body
-    return BodySpec(b.body, params.swarm.v_max, b.turn_rate, b.lookahead, b.accel)
-
-
 class BodyState(NamedTuple):
     """Where the bodies are, the velocity each last moved with, and each one's heading (NaN: none)."""
 

@@ -23,8 +23,10 @@ two tangents +-t in 2-D, the four +-t1 +-t2 in 3-D) makes the row hold for every
 the data allow (within theta_j of n_ij). The least n . u over that cone is on its rim,
 c_j n_ij . u - s_j |u_perp|, which the tilted rows bound (exactly in 2-D, from the safe side in 3-D,
 as |t1.u| + |t2.u| >= |u_perp|), unless -u is inside the cone: then it is -|u|, and the first row
-(|u| <= -n_ij . u / c_j there) bounds it: ``docs/safety.md``. With fresh data s_j = 0 and (S2) is one row. An agent on the free clock, whose
-neighbours tick on their own timers, adds one period T to the age it measures.
+(|u| <= -n_ij . u / c_j there) bounds it: ``docs/safety.md``. With fresh data s_j = 0 and (S2) is one
+row. An agent on the free clock, whose neighbours tick on their own timers, adds one period T to the age
+it measures. A unicycle is guarded at its point l ahead of its axle: a pair's D_s grows by l_i + l_j and
+an obstacle's D_o by l_i (:func:`widening`; the Robotarium's unicycle mapping).
 
 - Every right side is >= 0, so u = 0 (stop) is always feasible: the set is never empty, and the
   projection of u^ onto a convex set holding 0 is never longer than u^, so the speed limit holds.
@@ -48,8 +50,6 @@ from itertools import combinations
 from typing import NamedTuple
 
 import numpy as np
-
-from zswarm.paper.neighbours import pairs_within
 
 MODES: tuple[str, ...] = ("off", "barrier")
 TOL = 1e-12  # a candidate satisfies a row when a.u - b <= TOL (rounding of the exact solutions)
@@ -286,19 +286,6 @@ def _active_set_projections(u_hat: np.ndarray, A: np.ndarray, B: np.ndarray, val
     out = u_hat[:, None, :] - np.einsum("msid,msi->msd", AS, lam)
     out[~good] = np.nan
     return out
-
-
-def swarm_rows(safety: Safety, obstacles, points: np.ndarray,
-               pairs: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> Rows:
-    """The rows of every agent of a swarm at ``points``: its sensed obstacles (an
-    :class:`~zswarm.paper.neighbours.ObstacleIndex`) and ``pairs`` = (i, psi_ij, tau_j), what each
-    agent believes of its neighbours and how old it is (default: every pair within the sensing radius,
-    exact and fresh)."""
-    if pairs is None:
-        i, j = pairs_within(points, safety.sensing_radius)
-        pairs = (i, points[i] - points[j], np.zeros(len(i)))
-    a, m = obstacles.sensed(points)
-    return rows(safety, len(points), *pairs, a, points[a] - obstacles.centers[m], obstacles.radii[m])
 
 
 def guarantee(params, dt: float | None = None) -> dict:

@@ -306,17 +306,11 @@ def coverage(params: Params) -> tuple[Params | None, str | None]:
         "none, and the safety filter is the guarantee between every two agents (--safety barrier)")
 
 
-def no_guidelines(params: Params) -> str | None:
-    """The one line that says the guidelines cover no agent of the set (None: they cover some)."""
-    guided, note = coverage(params)
-    return note if guided is None else None
-
-
 def verdict(params: Params, dt: float | None = None) -> dict[str, Any]:
     """What a run records of its own design (``"design"`` in its summary): the verdict for the set it
     runs (its N, sensing radius and interaction), the failing checks, and the paper's own verdict, with
     what they cover in a mixed swarm (``covers``); where the guidelines cover no agent, ``ok`` None and
-    the line of :func:`no_guidelines`."""
+    the line of :func:`coverage`."""
     guided, note = coverage(params)
     if guided is None:
         return {"ok": None, "law": params.law.law, "note": note, "failures": [], "paper_failures": [],

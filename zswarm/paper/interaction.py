@@ -57,8 +57,6 @@ class Interaction:
         return not (self.mean or self.cutoff or self.gate or self.nearest or self.swirl)
 
 
-PAPER = Interaction()
-
 
 def parse_interaction(text: str) -> Interaction:
     """``paper``, ``scalable``, or modifiers joined by ``+`` (``mean+gate``); raises :class:`ParamError`."""
