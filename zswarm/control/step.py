@@ -400,7 +400,7 @@ def _filter_floats(safety: sf.Safety, point: tuple[float, ...], u_hat: tuple[flo
     for q, age, theirs in neighbours:
         d = math.dist(point, q)
         widen = (look + theirs) * hair
-        gap = d - distance - widen - v * age
+        gap = d - (distance + v * age) - widen  # the order of rows()' arithmetic
         if gap >= far and age <= oldest - widen / v:
             continue  # most neighbours, most ticks: nothing more is computed
         max_age = oldest - widen / v
