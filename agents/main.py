@@ -8,6 +8,7 @@ import math
 import os
 import signal
 import sys
+import threading
 import time
 from array import array
 from pathlib import Path
@@ -26,18 +27,17 @@ from zswarm.laws.bound import EXIT_LAW_FAILED
 from zswarm.control.step import control_step
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Bridge, Deliver, Inbound, teardown
-from zswarm.net.config import add_zenoh_args, config_from_args, open_session
+from zswarm.net.config import add_zenoh_args, config_from_args, connected, open_session
 from zswarm.net.injector import FaultInjector
 from zswarm.net.rings import CELL_CAPACITY
 from zswarm.net.runspec import RunSpec, add_run_args, spec_from_args
 from zswarm.stopping import stop_on_signals
 
-#: After its final report an agent keeps its session open, and puts the report again each time the
-#: world repeats the final tick (it does so every 0.25 s while a report is missing, world/main.py), until
-#: the world has been quiet for FINAL_QUIET_S or FINAL_LINGER_MAX_S have passed: a session closed at once
-#: can drop what it has not sent yet (12-agent, 3-router runs on 2 cores lost final reports that way).
-FINAL_QUIET_S = 0.6
-FINAL_LINGER_MAX_S = 3.0
+#: An agent puts its final report again every FINAL_RESEND_S until the world says it holds it
+#: (``keys.report_taken``), the world is gone, or FINAL_REPORT_MAX_S have passed: its silence proves
+#: nothing (a router stalled on a congested link delays everything it forwards), only the world's word does.
+FINAL_RESEND_S = 0.5
+FINAL_REPORT_MAX_S = 14.0
 
 if TYPE_CHECKING:
     from agents.robot_link import RobotLink
@@ -172,31 +172,40 @@ class Process:
         """Alive: a liveliness token under its id (only agents holding one count as neighbours)."""
         self.declared.append(self.session.liveliness().declare_token(self.spec.keys.alive(self.id)))
 
-    def close(self, final_stats: bool) -> None:
+    def close(self, final_stats: bool, ended: bool = True) -> None:
+        """Leave: the final report (``final_stats``: until the world holds it where the run ``ended``; put
+        once where a signal stopped the agent, the run torn down), then the session."""
         if self.agent.robot is not None:
             self.agent.robot.close()  # a zero Twist: a robot is never left driving on the last command
         if final_stats:
-            self.final_report()
+            self.final_report(wait=ended)
         teardown(self.bridge, self.declared, self.session)
         if self.tracks is not None and self.agent.track:
             write_track(self.tracks, self.id, self.agent.track, self.spec.scenario.dimensions)
 
-    def final_report(self) -> None:
-        """The run's totals (blocked rather than dropped on a congested link, sent at once), put again on
-        every final tick the world repeats while a report is missing, until it is quiet
-        (:data:`FINAL_QUIET_S`)."""
-        repeats: list[bool] = []  # after the final tick, all the world sends on its tick key is that tick again
-        heard = self.session.declare_subscriber(self.spec.keys.tick, lambda sample: repeats.append(True))
-        report, deadline = self.agent.stats(final=True), time.monotonic() + FINAL_LINGER_MAX_S
-        seen = -1
-        while len(repeats) != seen and time.monotonic() < deadline:
-            seen = len(repeats)
-            self.session.put(self.spec.keys.stats(self.id), report, encoding=msg.ENCODING,
-                             congestion_control=zenoh.CongestionControl.BLOCK, express=True)
-            quiet = min(time.monotonic() + FINAL_QUIET_S, deadline)
-            while len(repeats) == seen and time.monotonic() < quiet:
-                time.sleep(0.02)
-        heard.undeclare()
+    def final_report(self, wait: bool = True) -> None:
+        """The run's totals, put until the world says it holds them (:data:`FINAL_RESEND_S`), or it is
+        gone, or :data:`FINAL_REPORT_MAX_S` passed. A put that a congested link drops is put again, so
+        none waits for room there (a router waiting on one stalls everything it forwards). Without
+        ``wait``, put once."""
+        keys, report = self.spec.keys, self.agent.stats(final=True)
+        if not wait:
+            self.session.put(keys.stats(self.id), report, encoding=msg.ENCODING, express=True)
+            return
+        taken, gone = threading.Event(), threading.Event()
+        ack = self.session.declare_subscriber(keys.report_taken(self.id), lambda sample: taken.set())
+        world = self.session.liveliness().declare_subscriber(
+            keys.world_started, lambda sample: gone.set() if sample.kind == zenoh.SampleKind.DELETE else None)
+        if not any(r.ok is not None for r in self.session.liveliness().get(keys.world_started, timeout=1.0)):
+            gone.set()  # no world to report to
+        deadline = time.monotonic() + FINAL_REPORT_MAX_S
+        while True:
+            self.session.put(keys.stats(self.id), report, encoding=msg.ENCODING, express=True)
+            if (taken.wait(FINAL_RESEND_S) or gone.is_set() or time.monotonic() > deadline
+                    or not connected(self.session)):  # a router gone with the world: nobody to hear it
+                break
+        world.undeclare()
+        ack.undeclare()
 
 
 def write_track(folder: Path, agent_id: int, track: array, dims: int) -> None:
@@ -251,7 +260,8 @@ def run_free_agent(spec: RunSpec, args: argparse.Namespace, robots: RobotsFile |
     finally:
         if desk is not None:
             desk.undeclare()
-        proc.close(final_stats=(done or stopped()) and owns and not moved)  # a moved agent's counts went with it
+        # a moved agent's counts went with it
+        proc.close(final_stats=(done or stopped()) and owns and not moved, ended=done and not stopped())
 
 
 def take_over_agent(proc: Process, args: argparse.Namespace, stopped) -> bool:

@@ -91,7 +91,7 @@ PROCESS_MODULES = {
 #: run out of work unevenly, is short. Modules not named (a few seconds or less) keep their order, after
 #: these. A long module left out of it is handed out late and becomes the suite's tail.
 LONGEST_FIRST = (
-    "test_cluster", "test_distributed", "test_reliability", "test_design", "test_security", "test_usage",
+    "test_cluster", "test_distributed", "test_migration", "test_reliability", "test_design", "test_security", "test_usage",
     "test_law_processes", "test_experiments", "test_netns", "test_space_procs", "test_hostile",
     "test_robots", "test_scaling", "test_install", "test_render", "test_tune", "test_forged_pose", "test_sim",
     "test_faults", "test_monitor", "test_routers", "test_runspec", "test_design_swarm", "test_batch", "test_study",
@@ -99,21 +99,13 @@ LONGEST_FIRST = (
 )
 
 
-#: Handed out last, after every other module: test_migration (14 s). Its migrating run, in the suite's
-#: busiest minutes, loses some agents' final reports (7 of 12 once, and 10 of 12 handed out right after
-#: the long modules; the cause is not found: docs/benchmarks.md); handed out last it has passed in every
-#: run, at the cost of a tail of about 10 s that it runs nearly alone.
-LAST = ("test_migration",)
-
-
 def pytest_collection_modifyitems(config, items) -> None:
     """The ``procs`` marker: ``-m "not procs"`` is the quick tier (the math, the messages, the checks).
-    The order: :data:`LONGEST_FIRST`, then the rest, then :data:`LAST` (a stable sort: tests keep their
-    order in a module)."""
+    The order: :data:`LONGEST_FIRST`, then the rest (a stable sort: tests keep their order in a module)."""
     for item in items:
         if item.module.__name__ in PROCESS_MODULES or "cli" in getattr(item, "fixturenames", ()):
             item.add_marker(pytest.mark.procs)
-    rank = {name: k for k, name in enumerate(LONGEST_FIRST)} | {name: len(LONGEST_FIRST) + 1 for name in LAST}
+    rank = {name: k for k, name in enumerate(LONGEST_FIRST)}
     items.sort(key=lambda item: rank.get(item.module.__name__, len(LONGEST_FIRST)))
 
 

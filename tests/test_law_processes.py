@@ -43,7 +43,7 @@ def lockstep_against_reference(tmp_path, scenario: str, law: str, n: int, durati
     assert observed.shape == ref.trajectory.shape
     assert np.max(np.abs(observed - ref.trajectory)) < 1e-6  # at every step, every agent
     assert np.max(np.abs(observed[-1] - observed[0])) > 0.1  # and they moved
-    assert summary["missed_lockstep_poses"] == 0  # every step had every pose (the final reports are not this test's)
+    assert summary["missed_lockstep_poses"] == 0 and summary["agents_final_reports"] == n  # every step, every report
     return summary
 
 
@@ -89,15 +89,51 @@ def rush(obs):"""))
     assert res.returncode == 0, res.stderr
     assert "agent 0: law " in res.stderr and "raised RuntimeError: brittle law gave up (brittle.py:" in res.stderr
     assert "Traceback" not in res.stderr
-    assert "agent-0 exited with code 3 (its law failed" in res.stderr
+    assert res.stderr.count("agent 0: law ") == 1 and "agent-0 exited" not in res.stderr  # one line, the agent's
     assert "open run (no --secure): it believes any peer" in res.stdout  # said at the start of an open run
     summary = load_summary(tmp_path / "b.json")
     assert summary["law_failures"] == summary["crashed_agents"] == [0]
+    assert summary["crashes"] == {"0": "its law failed"}
     # it left with its counts (once, in a loaded suite run, 3 of 4: the recording's events say what the world saw)
     assert summary["agents_final_reports"] == 4 and summary["collisions"] == 0, (
         summary["agents_without_final_report"], summary["departures"], recorded_events(tmp_path / "b.rrd"))
     assert summary["world_ticks"] == 121  # the others ran to the end
     assert our_processes("brittlerun") == []
+
+
+def test_a_run_whose_every_agent_law_fails_stops_and_exits_1(tmp_path) -> None:
+    """The law raises on its 20th call in every process: one line per agent (no traceback), a last line
+    that says every agent exited with an error, exit 1, and the world stopped within 5 s of the last
+    failure (not at the end of the 20 s asked for), with every agent's final report."""
+    from swarm_procs import our_processes, run_launch
+
+    law = tmp_path / "late.py"
+    law.write_text(RUSH.replace("def rush(obs):", """calls = 0
+
+
+def late(obs):
+    global calls
+    calls += 1
+    if calls >= 20:
+        raise RuntimeError("late law gave up")
+    return rush(obs)
+
+
+def rush(obs):"""))
+    res = run_launch(tmp_path, "--law", f"{law}:late", "--agents", "5", "--duration", "20", "--run", "laterun",
+                     "--record", str(tmp_path / "l.rrd"))
+    assert res.returncode == 1, res.stderr
+    lines = res.stderr.strip().splitlines()
+    assert sorted(ln.split(":")[0] for ln in lines if "raised RuntimeError: late law gave up" in ln) == [
+        f"agent {i}" for i in range(5)], res.stderr
+    assert "every one of this machine's agents exited with an error (agents 0-4" in lines[-1], res.stderr
+    assert "Traceback" not in res.stderr
+    summary = load_summary(tmp_path / "l.json")
+    assert summary["law_failures"] == summary["crashed_agents"] == list(range(5))
+    last_failure = max(d["t"] for d in summary["departures"])
+    assert summary["duration"] - last_failure < 5.0 and summary["duration"] < 20.0, summary["departures"]
+    assert summary["agents_final_reports"] == 5
+    assert our_processes("laterun") == []
 
 
 def test_a_users_law_runs_in_a_sweep_and_collides_only_without_the_filter(tmp_path) -> None:

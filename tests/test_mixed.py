@@ -91,7 +91,7 @@ def test_lockstep_processes_run_a_mixed_swarm_as_the_reference_does(tmp_path):
     assert np.max(np.abs(observed - ref.trajectory)) < 1e-6  # at every step, every agent
     assert [(g["agents"], g["law"], g["body"]) for g in summary["groups"]] == [("0-1", "boids", "unicycle"),
                                                                                 ("2-4", "apf", "point")]
-    assert summary["collisions"] == 0
+    assert summary["collisions"] == 0 and summary["agents_final_reports"] == n
 
 
 def test_the_design_checks_say_they_cover_the_apf_group_among_itself():

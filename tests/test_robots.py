@@ -74,7 +74,11 @@ def test_six_robots_catch_the_prey_and_fail_safely(tmp_path):
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
         try:
             with Watch(endpoint, run) as watch:
-                watch.reach_step(300, timeout=90)  # 15 s: the reference catches the prey at 11.2 s
+                try:
+                    watch.reach_step(300, timeout=90)  # 15 s: the reference catches the prey at 11.2 s
+                except AssertionError as exc:  # say why: the launcher's last lines
+                    launch.proc.terminate()
+                    raise AssertionError(f"{exc}; the launcher said: {launch.proc.communicate(timeout=20)[1].decode()[-3000:]}")
                 tokens = [str(r.ok.key_expr) for r in session.liveliness().get("@ros2_lv/0/**", timeout=5.0)
                           if r.ok is not None]  # the ROS graph sees each agent's node and its cmd_vel
                 assert sum(t.endswith(f"/NN/%/%robot{i}/zswarm_agent_{i}") for t in tokens for i in range(N)) == N

@@ -232,7 +232,7 @@ def test_secure_swarm_never_sees_an_intruder(per_agent, tmp_path):
     assert launch.returncode == 0, err
     s = load_summary(record.with_suffix(".json"))
     assert sent > 10000
-    assert s["agents_reporting"] == 6 and s["collisions"] == 0
+    assert s["agents_reporting"] == 6 and s["collisions"] == 0, err[-3000:]
     heard = {int(k): set(v) for k, v in s["heard"].items()}
     assert all(h - {i} for i, h in heard.items()), "the agents heard each other"
     assert not any(7 in h for h in heard.values()), heard
@@ -384,3 +384,66 @@ def test_a_router_whose_certificate_the_mesh_refuses_is_refused_at_start(certs, 
         finally:
             good.stop(1.0)
             bad.stop(1.0)
+
+
+def test_certs_made_in_a_repository_stay_out_of_it_and_private(tmp_path):
+    """``zswarm certs pki`` in a clone: ``git status`` shows nothing under pki/ (a ``.gitignore`` in it
+    ignores everything), the folder is its owner's alone and every private key is mode 600."""
+    repo = tmp_path / "clone"
+    repo.mkdir()
+    subprocess.run(["git", "init", "-q", str(repo)], check=True)
+    res = run_cli("-m", "zswarm", "certs", "pki", cwd=repo, timeout=60)
+    assert res.returncode == 0, res.stderr
+    status = subprocess.run(["git", "status", "--porcelain", "--untracked-files=all"], cwd=repo,
+                            capture_output=True, text=True, check=True).stdout
+    assert status == "", status
+    keys = sorted((repo / "pki").glob("*.key"))
+    assert {k.name for k in keys} >= {"ca.key", "router.key", "world.key"}
+    assert all(k.stat().st_mode & 0o777 == 0o600 for k in keys), [(k.name, oct(k.stat().st_mode)) for k in keys]
+    assert (repo / "pki").stat().st_mode & 0o777 == 0o700
+
+
+def test_each_router_of_a_mesh_has_its_own_identity_and_one_left_out_is_shut_out(certs, tmp_path):
+    """--routers 3 --secure (and a cluster's nodes): routers ``router``, ``router-1``, ``router-2``, each
+    with its own key and certificate (made from the directory's CA), each named in the access control.
+    A router left out of the first router's list is shut out: an agent on it reaches no one there, where
+    it does while the router is listed."""
+    import shutil
+
+    from cryptography import x509
+
+    from zswarm.host.procs import start_mesh
+    from zswarm.net.security import router_configs, with_routers
+
+    d = tmp_path / "pki"
+    shutil.copytree(certs, d)
+    configs = router_configs(d, 3)
+    assert [p.name for p in configs] == ["router.json5", "router-1.json5", "router-2.json5"]
+    names = [x509.load_pem_x509_certificate((d / f"{n}.pem").read_bytes()).subject.rfc4514_string()
+             for n in ("router", "router-1", "router-2")]
+    assert names == ["CN=router", "CN=router-1", "CN=router-2"]
+    assert len({(d / f"{n}.key").read_bytes() for n in ("router", "router-1", "router-2")}) == 3
+    acl = json.loads(configs[0].read_text())["access_control"]
+    assert next(s for s in acl["subjects"] if s["id"] == "routers")["cert_common_names"] == [
+        n[3:] for n in names] and all(
+        json.loads(c.read_text())["access_control"] == acl for c in configs)
+    keys = Keys(RUN, 1.0)
+    for listed in (True, False):
+        if not listed:  # router 0 no longer names router-2
+            conf = json.loads(configs[0].read_text())
+            conf["access_control"] = with_routers(acl, ["router", "router-1"])
+            configs[0].write_text(json.dumps(conf))
+        heard: list[bytes] = []
+        with processes() as kids:
+            endpoints = [f"tls/127.0.0.1:{free_port()}" for _ in range(3)]
+            start_mesh(kids, endpoints, each=[["--config", str(c)] for c in configs])
+            with (session(d, "agent", endpoints[0]) as listener, session(d, "world", endpoints[0]) as world,
+                  session(d, "agent", endpoints[2]) as agent):
+                sub = listener.declare_subscriber(f"{keys.root}/**", lambda s: heard.append(s.payload.to_bytes()))
+                probe(world, keys.control, lambda: b"probe" in heard)
+                deadline = time.monotonic() + (10.0 if listed else 3.0)
+                while b"agent" not in heard and time.monotonic() < deadline:
+                    agent.put(keys.pose((0, 0), 5), b"agent")
+                    time.sleep(0.1)
+                sub.undeclare()
+        assert (b"agent" in heard) is listed, (listed, heard[-5:])

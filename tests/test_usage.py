@@ -102,6 +102,23 @@ CASES = [
     ([LAUNCH, "--config", "{junk}"], "cannot read zenoh config"),
     ([LAUNCH, "--router-config", "{missing}.json5"], "does not exist"),
     ([LAUNCH, "--config", "{junk}", "--secure", "{dir}/pki"], "give one"),
+    # faults the run does not have, refused before anything starts
+    ([LAUNCH, "--agents", "10", "--kill", "99@5"], "--kill 99@5: this machine runs 10 agents (give K <= 10)"),
+    ([LAUNCH, "--kill", "3@100", "--duration", "5"], "100 s is after the run's end: the run lasts 5 s"),
+    ([LAUNCH, "--world-crash", "100", "--duration", "5"], "--world-crash 100: 100 s is after the run's end"),
+    ([LAUNCH, "--world-outage", "3:1", "--role", "agents", "--connect", "tcp/127.0.0.1:1"], "give this machine the world role"),
+    ([LAUNCH, "--restart-after", "2"], "give --kill K@T too"),
+    ([LAUNCH, "--kill", "2@3", "--restart-after", "9", "--duration", "10"], "the restart falls after the run's end"),
+    ([LAUNCH, "--routers", "2", "--migrate-every", "30", "--duration", "10"], "no move falls within the run"),
+    # the router given is not there: the same line and exit code in every command
+    ([LAUNCH, "--connect", "tcp/127.0.0.1:1", "--connect-timeout", "1"], "cannot reach the router at tcp/127.0.0.1:1 within 1 s"),
+    ([LAUNCH, "--role", "agents", "--connect", "tcp/127.0.0.1:1", "--connect-timeout", "1"],
+     "cannot reach the router at tcp/127.0.0.1:1 within 1 s"),
+    (["-m", "zswarm", "monitor", "--run", "x", "--connect", "tcp/127.0.0.1:1", "--connect-timeout", "1"],
+     "cannot reach the router at tcp/127.0.0.1:1 within 1 s"),
+    # a simulation this machine would spend hours on; keys where nothing can be written
+    (["-m", "zswarm", "sim", "--agents", "100000", "--duration", "300"], "would take about"),
+    ([LAUNCH, "--secure", "/sys/zswarm-pki"], "--secure /sys/zswarm-pki: cannot write the keys there"),
     # sweep
     ([LAUNCH, "--seed", "-1"], "a seed is an integer"),
     ([LAUNCH, "--time-scale", "0"], "--time-scale must be in (0, 1000)"),
@@ -145,7 +162,7 @@ CASES = [
     (["-m", "agents", "--id", "0", "--clock", "lockstep", "--takeover"], "free clock only"),
     (["-m", "agents", "--id", "0", "--node", "70000"], "--node must be in 0..65535"),
     (["-m", "agents", "--id", "0", "--connect", "tcp/127.0.0.1:1", "--connect-timeout", "1"],
-     "cannot open a zenoh session after 1 s"),
+     "cannot reach the router at tcp/127.0.0.1:1 within 1 s"),
     (["-m", "agents", "--id", "0", "--start", "1;2"], "--start expects X,Y"),
     (["-m", "agents", "--id", "99", "--scenario", "moving-prey"], "has no spawn position"),
     (["-m", "world", "--scenario", "nope"], "unknown scenario"),
@@ -439,3 +456,19 @@ def test_cluster_auto_takes_only_the_cluster_ray_start_left_here(tmp_path):
     res = auto()
     assert res.returncode == 2 and len(res.stderr.strip().splitlines()) == 1, res.stderr
     assert "found no running Ray cluster: the last one ray start left on this machine, 127.0.0.1:1" in res.stderr
+
+
+def test_sim_says_how_long_a_large_swarm_takes_and_refuses_one_of_hours():
+    """``zswarm sim`` estimates its work before it starts: a line for a run of minutes, a refusal (one
+    line, exit 2: the CASES above) for one over TOO_LONG_S, nothing for a small one."""
+    from zswarm.errors import UsageError
+    from zswarm.sim.simulator import NOTE_S, TOO_LONG_S, cost_note
+    from zswarm.swarm.scenarios import get_scenario
+
+    scenario = get_scenario("moving-prey", {"n_agents": 100_000})
+    assert cost_note(get_scenario("moving-prey", {}), 30.0) is None
+    note = cost_note(scenario, 1.0)
+    assert note and note.startswith("note: about ") and "100000 agents, 1 s" in note
+    assert NOTE_S < float(note.split("about ")[1].split(" s")[0]) < TOO_LONG_S
+    with pytest.raises(UsageError, match="would take about"):
+        cost_note(scenario, 300.0)

@@ -14,20 +14,22 @@ from typing import Sequence
 from world.recorder import WorldRecorder
 from world.intake import BATCH_FROM
 from world.world import World
-from zswarm.args import Parser, UsageError, positive_seconds, run_main
+from zswarm.args import Parser, UsageError, id_ranges, positive_seconds, run_main
 from zswarm.files import check_run_files
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Bridge, teardown
-from zswarm.net.config import add_zenoh_args, config_from_args, open_session
+from zswarm.net.config import add_zenoh_args, config_from_args, connected, open_session
 from zswarm.net.runspec import RunSpec, add_run_args, spec_from_args
 from zswarm.record.live import Viewer, add_viewer_args, viewer_from_args
 
 
-#: Until every agent has sent its final stats (while one that has not is alive, else FINAL_STATS_WAIT
-#: after the last came), the final tick is published again this often.
+#: At the end the world waits for each agent's final report: while one that has not reported is alive (it
+#: puts its report until the world says it holds it), else FINAL_STATS_WAIT after the last came or went,
+#: FINAL_STATS_MAX in all. Every FINAL_TICK_REPEAT it asks again: the final tick, to the agents still to
+#: report.
 FINAL_TICK_REPEAT = 0.25
-FINAL_STATS_WAIT = 3.0  # seconds the world waits for the next agent's final stats at the end of a run
-FINAL_STATS_MAX = 15.0  # and at most, in all
+FINAL_STATS_WAIT = 3.0
+FINAL_STATS_MAX = 15.0
 
 
 def build_parser() -> Parser:
@@ -113,38 +115,40 @@ async def run_world(args: argparse.Namespace, spec: RunSpec, viewer: Viewer | No
         world.ending = True
         final = msg.Tick(world.clock.step + 1, time.time(), *map(float, world.prey), final=True)
         world.publish(keys.tick, final)
-        # let the agents' final stats arrive: while an agent that has not reported is still alive (it
-        # has yet to send them: on a loaded machine they trickle in over seconds), else FINAL_STATS_WAIT
-        # after the last one came or the last agent went without them; FINAL_STATS_MAX in all
-        began = heard_at = loop.time()
-        again = began + FINAL_TICK_REPEAT
-        reported = sum(world.stats.final(i) for i in expected)
-
-        def still_to_come() -> set[int]:
-            return {i for i in expected if i in world.census.alive and not world.stats.final(i)}
-
-        waiting = still_to_come()
-        while (reported < len(expected) and (waiting or loop.time() < heard_at + FINAL_STATS_WAIT)
-               and loop.time() < began + FINAL_STATS_MAX):
-            await asyncio.sleep(0.05)
-            bridge.drain()
-            now_reported = sum(world.stats.final(i) for i in expected)
-            if now_reported > reported:
-                reported, heard_at = now_reported, loop.time()
-            left, waiting = waiting, still_to_come()
-            if any(not world.stats.final(i) for i in left - waiting):
-                # gone without its final stats: they may still be on their way (the withdrawal of its token
-                # can arrive first: on a loaded machine the world once saw it go, gave up and lost them)
-                heard_at = loop.time()
-            if loop.time() >= again:  # an agent that missed the one final tick would run on, alone, forever
-                world.publish(keys.tick, final)
-                again += FINAL_TICK_REPEAT
-        if reported < len(expected):
-            world.event(f"final reports: {reported} of {len(expected)} after {loop.time() - began:.1f} s "
-                        f"({len(waiting)} agents still alive without one)")
+        await collect_final_reports(world, bridge, expected, lambda: world.publish(keys.tick, final, again=True))
         return world.finish()
     finally:
         teardown(bridge, declared, session)
+
+
+async def collect_final_reports(world: World, bridge: Bridge, expected: set[int], ask_again) -> None:
+    """Wait for the final report of each agent in ``expected`` (:data:`FINAL_STATS_WAIT`), never taking
+    an agent's leaving for its report (each report is acknowledged as it arrives: :meth:`World.handle`).
+    One still missing at the end is named in the log and the summary, its last periodic stats in its place."""
+    loop = asyncio.get_running_loop()
+    began = heard_at = again = loop.time()
+    left: set[int] = set()  # gone without a report: it may still be on its way
+    still = set(expected)
+
+    while True:
+        bridge.drain()
+        now_still = {i for i in still if not world.stats.final(i)}
+        if now_still != still:
+            still, heard_at = now_still, loop.time()
+        alive = still & world.census.alive
+        if still - alive - left:
+            left |= still - alive
+            heard_at = loop.time()
+        if (not still or loop.time() > began + FINAL_STATS_MAX or not connected(world.session)
+                or (not alive and loop.time() > heard_at + FINAL_STATS_WAIT)):
+            break
+        if loop.time() >= again:  # an agent that missed the final tick would run on, alone, forever
+            ask_again()
+            again = loop.time() + FINAL_TICK_REPEAT
+        await asyncio.sleep(0.05)
+    if still:
+        world.event(f"final reports: {len(expected) - len(still)} of {len(expected)} after {loop.time() - began:.1f} s; "
+                    f"agents {id_ranges(sorted(still))} sent none: their last periodic stats stand in")
 
 
 def _main(argv: Sequence[str] | None) -> int:

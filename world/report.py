@@ -29,8 +29,11 @@ def transport_summary(stats: list[msg.Stats], world_rejected: dict[str, int]) ->
     poses = sum(s.health.poses for s in stats)
     return {
         "agents_reporting": len(stats),
-        "agents_final_reports": sum(1 for s in stats if s.final),  # the rest: counts up to their last second
+        "agents_final_reports": sum(1 for s in stats if s.final),
+        # an agent without one is counted from its last periodic stats (up to its last second), marked so
         "agents_without_final_report": sorted(s.id for s in stats if not s.final),
+        **({"counted_without_final_report": "from their last periodic stats"} if any(not s.final for s in stats)
+           else {}),
         "messages_sent": sum(s.sent for s in stats),
         "messages_received": sum(s.received for s in stats),
         "messages_rejected": sum(rejected.values()), "rejected_by_reason": rejected,
@@ -76,7 +79,8 @@ class StatsBook:
         self.raw: dict[int, list[tuple[str, bytes]]] = {}
         self.good: dict[int, msg.Stats] = {}
 
-    def add(self, key: str, payload: bytes) -> None:
+    def add(self, key: str, payload: bytes) -> int | None:
+        """Keep one stats message; returns its agent's id where it is a final report (to acknowledge)."""
         who = self.agent_of(key)
         if who is None:
             self.rejected.add("kind")
@@ -87,6 +91,8 @@ class StatsBook:
             pending.append((key, payload))
             if len(pending) > 8:  # read every few seconds; never a backlog however long the run
                 self.get(who)
+            return who if msg.is_final_report(payload) else None
+        return None
 
     def get(self, who: int) -> msg.Stats | None:
         for key, payload in self.raw.pop(who, ()):

@@ -186,7 +186,9 @@ class World:
             return
         self.received += 1
         if tag == "stats":
-            self.stats.add(key, payload)
+            reporter = self.stats.add(key, payload)
+            if reporter is not None:  # the agent puts it until told it is here (mid-run too: its law failed)
+                self.report_taken(reporter)
             return
         try:
             m = msg.decode(payload)
@@ -323,13 +325,18 @@ class World:
         """Where the prey is ``dt`` after now, fleeing the agents at ``snap``."""
         return prey_motion.step(self.scenario.prey, self.prey, dt, snap.pos.reshape(-1, self.dims))
 
-    def publish(self, key: str, message: msg.Message) -> None:
+    def publish(self, key: str, message: msg.Message, again: bool = False) -> None:
         """A tick is the clock every agent follows, and the final one is how they learn the run is
         over: ticks go ahead of data (a higher priority) and wait for room on a congested link rather
-        than being dropped there."""
-        qos = TICK_QOS if isinstance(message, msg.Tick) else {}
+        than being dropped there. ``again``: a final tick repeated for the agents that have not reported
+        (each of which is leaving: a repeat waits for no room, or it would stall the routers)."""
+        qos = TICK_QOS if isinstance(message, msg.Tick) and not again else {"express": True}
         self.session.put(key, msg.encode(message), encoding=msg.ENCODING, **qos)
         self.sent += 1
+
+    def report_taken(self, agent: int) -> None:
+        """Say that agent's final report is here: its cue to leave (it puts the report until then)."""
+        self.session.put(self.keys.report_taken(agent), b"", express=True)
 
     # --- the clocks -----------------------------------------------------------------------------------
 

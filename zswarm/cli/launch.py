@@ -103,7 +103,8 @@ def build_parser(prog: str = "zswarm run") -> Parser:
                         "head, auto, local (this machine as one node) or local:K (K nodes here); a router and a "
                         "share of the agents on every node, the world and the recording here (docs/cluster.md)")
     p.add_argument("--cluster-insecure-ok", action="store_true",
-                   help="with --cluster ADDRESS: do not warn that its head has token authentication off")
+                   help="with --cluster ADDRESS: run on a head that has token authentication off, which is refused "
+                        "otherwise; the summary then says \"ray_auth\": \"off\"")
     p.add_argument("--placement", default="space", choices=("space", "round-robin"),
                    help="with --cluster: agents that start near each other share a node (space, default) or "
                         "ids are dealt in turn (round-robin)")

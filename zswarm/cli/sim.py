@@ -48,7 +48,7 @@ def add_sim_arguments(parser: argparse.ArgumentParser) -> None:
 def run_sim(args: argparse.Namespace) -> int:
     from zswarm.net.runspec import faults_from_args, safety_mode
     from zswarm.record.live import viewer_from_args
-    from zswarm.sim.simulator import simulate
+    from zswarm.sim.simulator import cost_note, simulate
 
     from zswarm.args import UsageError
     from zswarm.control.step import control_step
@@ -58,8 +58,11 @@ def run_sim(args: argparse.Namespace) -> int:
         raise UsageError(f"{args.record} exists; give another path or --force")
     agents = {"n_agents": args.agents} if args.agents is not None else {}
     scenario = get_scenario(args.scenario, {**parse_assignments(args.assignments), **agents})
+    note = cost_note(scenario, args.duration if args.duration is not None else scenario.duration)  # or refused
     scenario.check_placement()  # before the design check, which takes seconds at large N
     control_step([scenario], [args.potential], args.safety or "off", probe=True)  # a bad law or filter: one line
+    if note:
+        print(note, file=sys.stderr, flush=True)
     explain = " ".join(["zswarm design --scenario", args.scenario, *(f"--set {a}" for a in args.assignments)])
     design, line = judged(scenario.params, scenario.dt, explain, args.require_design)
     if line is not None:

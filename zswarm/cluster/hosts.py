@@ -17,7 +17,7 @@ from typing import Any, Callable, Sequence
 
 from zswarm.cluster.node import NodeActor
 from zswarm.cluster.ray_cluster import import_ray
-from zswarm.launch.plan import id_ranges
+from zswarm.args import id_ranges
 from zswarm.host.procs import Child, ForkedProc
 
 POLL_S = 0.2

@@ -23,9 +23,10 @@ from zswarm.errors import UsageError
 from zswarm.launch.configs import agent_config_args
 from zswarm.launch.local_runs import announce
 from zswarm.launch.placement import place
-from zswarm.launch.plan import Plan, id_ranges
+from zswarm.args import id_ranges
+from zswarm.launch.plan import Plan
 from zswarm.launch.supervisor import Launch, _say
-from zswarm.net.security import agent_config
+from zswarm.net.security import agent_config, router_configs, router_name
 from zswarm.ports import LOOPBACK
 
 
@@ -64,12 +65,15 @@ class ClusterLaunch(Launch):
         # --secure run's certificates name (Ray may know the nodes by the machine's own address)
         local = self.cluster.address.startswith("local")
         if self.node_keys:  # the secure directory is made (Launch.run): its CA signs them
-            self.identities = NodeIdentities(plan.secure)
+            self.identities = NodeIdentities(plan.secure, routers=len(self.links))
+        mine = router_configs(plan.secure, len(self.links)) if plan.secure is not None and local else None
         for k, link in enumerate(self.links):
             join = self.endpoints[0] if self.endpoints else None
-            if self.identities is not None:
-                self.identities.make(link, ["router", *(self._identity(i) for i, n in self.where.items() if n == k)])
-                extra = ["--config", self.identities.config(link, "router")]
+            if self.identities is not None:  # each node's router its own identity, named in the access control
+                self.identities.make(link, [router_name(k), *(self._identity(i) for i, n in self.where.items() if n == k)])
+                extra = ["--config", self.identities.config(link, router_name(k))]
+            elif mine is not None:
+                extra = ["--config", str(mine[k])]
             try:
                 self.endpoints.append(link.call("start_router", LOOPBACK if local else link.info["address"], join,
                                                 extra, "tls" if plan.secure is not None else "tcp"))

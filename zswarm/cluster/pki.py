@@ -16,16 +16,17 @@ from pathlib import Path
 from zswarm.cluster.hosts import NodeLink
 from zswarm.errors import UsageError
 from zswarm.net.certs import sign
-from zswarm.net.security import router_acl
+from zswarm.net.security import router_acl, router_name, with_routers
 
 
 class NodeIdentities:
     """The identities each node holds, made on demand (one round trip per batch)."""
 
-    def __init__(self, secure: Path) -> None:
+    def __init__(self, secure: Path, routers: int = 1) -> None:
         self.secure = Path(secure)
         self.ca_pem = (self.secure / "ca.pem").read_text()
-        self.acl = router_acl(self.secure)
+        # every node's router its own identity (router, router-1, ...), each named in the access control
+        self.acl = with_routers(router_acl(self.secure), [router_name(k) for k in range(routers)])
         self.folders: dict[str, str] = {}  # node label -> its keys folder, there
         self.held: dict[str, set[str]] = {}  # node label -> the names it has certificates for
 

@@ -63,14 +63,14 @@ def import_ray() -> Any:
 @dataclass
 class RayCluster:
     """The driver's connection; ``local`` holds the nodes started here (stopped by :meth:`close`);
-    ``auth``: "token" when the cluster wants a token (one made for a cluster started here), None when
-    anyone who reaches its head may run code on it."""
+    ``auth``: "token" when the cluster wants a token (one made for a cluster started here), "off" when
+    anyone who reaches its head may run code on it (run only with ``--cluster-insecure-ok``)."""
 
     address: str
     run_dir: Path | None  # a cluster started here: its folder (RAY_TMPDIR, HOME)
     local: Any = None
     nodes: list[dict] = field(default_factory=list)
-    auth: str | None = None
+    auth: str = "token"
 
     def alive_nodes(self) -> list[dict]:
         """Ray's record of each live node: NodeID, NodeManagerAddress, Resources (CPU)."""
@@ -178,6 +178,27 @@ def auto_address() -> str:
 
 
 AUTH_VARS = ("RAY_AUTH_MODE", "RAY_AUTH_TOKEN", "RAY_AUTH_TOKEN_PATH")
+#: The Ray release whose internals the token check reads (Ray has no public call that asks a head
+#: whether it wants a token): ``ray._raylet.GcsClient`` and ``AuthenticationTokenLoader``. Another
+#: release is refused before the check runs, with both versions in the line; pyproject pins the same.
+RAY_RELEASE = "2.60"
+
+
+def check_ray_release() -> None:
+    """UsageError (one line) unless the installed Ray is :data:`RAY_RELEASE`: the token check would
+    read internals another release may have moved, and must not pass by accident."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        have = version("ray")
+    except PackageNotFoundError:
+        raise UsageError('--cluster needs Ray: pip install -e ".[cluster]"') from None
+    if ".".join(have.split(".")[:2]) != RAY_RELEASE:
+        raise UsageError(f"this is Ray {have}; zswarm's check of a head's token authentication reads Ray "
+                         f"{RAY_RELEASE}'s internals (ray._raylet.GcsClient, AuthenticationTokenLoader): install "
+                         f"ray=={RAY_RELEASE}.* (pip install -e \".[cluster]\")")
+
+
 #: Asks the head's GCS for one key, as a Ray node does when it joins, as a driver without a token; when
 #: the head refuses that and the driver holds a token (handed over as ``ZSWARM_PROBE_RAY_AUTH_*``), asks
 #: again in token mode, in the same interpreter (one import of Ray). Prints a line per ask: "ok", "auth"
@@ -186,7 +207,11 @@ AUTH_VARS = ("RAY_AUTH_MODE", "RAY_AUTH_TOKEN", "RAY_AUTH_TOKEN_PATH")
 _PROBE = """
 import os
 held = {{k[13:]: os.environ.pop(k) for k in list(os.environ) if k.startswith("ZSWARM_PROBE_")}}
-from ray._raylet import GcsClient
+try:
+    from ray._raylet import GcsClient, AuthenticationTokenLoader, Config
+except ImportError as exc:
+    print("internals " + str(exc)[:160], flush=True)
+    raise SystemExit(0)
 
 def ask():
     try:
@@ -198,8 +223,6 @@ def ask():
 answer = ask()
 print(answer, flush=True)
 if answer == "auth" and held:
-    from ray._raylet import AuthenticationTokenLoader, Config
-
     os.environ.update(held)  # token mode, with this driver's token: Ray reads both again
     Config.initialize("")
     AuthenticationTokenLoader.instance().reset_cache()
@@ -221,16 +244,22 @@ def _probe(address: str, token: dict[str, str]) -> list[str]:
     return out.stdout.strip().splitlines() or ["auth"]  # Ray aborted: token mode without a usable token
 
 
-def head_auth(address: str) -> str | None:
-    """Whether the head at ``address`` wants a token ("token") or lets anyone in (None), and, when it
+def head_auth(address: str) -> str:
+    """Whether the head at ``address`` wants a token ("token") or lets anyone in ("off"), and, when it
     wants one, that this driver holds the right one (``RAY_AUTH_TOKEN``, ``RAY_AUTH_TOKEN_PATH`` or
     ``~/.ray/auth_token``, as Ray reads it): UsageError in one line, within seconds, otherwise. Ray's
     own driver fails at once without a token but only after about 20 s with a wrong one."""
     has = any(os.environ.get(k) for k in AUTH_VARS[1:]) or (Path.home() / ".ray" / "auth_token").is_file()
     token = {k: os.environ[k] for k in AUTH_VARS[1:] if os.environ.get(k)} | {"RAY_AUTH_MODE": "token"} if has else {}
+    check_ray_release()
     answers = _probe(address, token)
+    if answers[0].startswith("internals"):
+        from importlib.metadata import version
+
+        raise UsageError(f"Ray {version('ray')} has moved what the token check reads ({answers[0][10:]}): install "
+                         f"ray=={RAY_RELEASE}.*")
     if answers[0] == "ok":
-        return None
+        return "off"
     if answers[0] != "auth":
         raise UsageError(f"cannot reach the Ray cluster at {address}: {answers[0][6:]} (is its head running?)")
     if has and answers[-1] == "ok":
@@ -246,24 +275,24 @@ def connect(address: str, cores: int, insecure_ok: bool = False) -> RayCluster:
     """Start or join the cluster at ``address`` (:func:`parse_cluster`); ``cores``: this machine's, shared
     by the nodes of ``local:K``. UsageError (one line) when it cannot be reached or will not let this
     driver in. A cluster started here wants a token made for the run (``RAY_AUTH_MODE=token``, the token
-    in the environment of every Ray process it starts, never in a file); joining one that wants none
-    is said in one line (``insecure_ok``: not)."""
+    in the environment of every Ray process it starts, never in a file); one that wants none is refused
+    in one line unless ``insecure_ok``."""
     own = LOOPBACK
     auth = "token"
     if not address.startswith("local"):
         address, own = reachable(address)
         auth = head_auth(address)
-        if auth is None and not insecure_ok:
-            print(f"warning: the Ray cluster at {address} has token authentication off: anyone who can reach its "
-                  "head can run code on every node (docs/cluster.md sets it up; --cluster-insecure-ok silences "
-                  "this)", file=sys.stderr, flush=True)
+        if auth == "off" and not insecure_ok:
+            raise UsageError(f"the Ray cluster at {address} has token authentication off: anyone who can reach its "
+                             "head can run code on every node; start it with a token (docs/cluster.md), or give "
+                             "--cluster-insecure-ok to run on it anyway (the summary says \"ray_auth\": \"off\")")
     else:
         import secrets
 
         os.environ.update(RAY_AUTH_MODE="token", RAY_AUTH_TOKEN=secrets.token_hex(32))
         os.environ.pop("RAY_AUTH_TOKEN_PATH", None)
     ray = import_ray()
-    if auth is not None:  # Ray reads the mode and caches the token when it is imported: read them again
+    if auth == "token":  # Ray reads the mode and caches the token when it is imported: read them again
         from ray._raylet import AuthenticationTokenLoader, Config
 
         Config.initialize("")

@@ -45,10 +45,12 @@ class LocalHost:
         host = f"[{self.bind}]" if ":" in self.bind else self.bind
         return f"{proto}/{host}:{free_port(self.bind)}"
 
-    def start_routers(self, endpoints: Sequence[str], join: str | None = None, extra: Sequence[str] = ()) -> list[str]:
+    def start_routers(self, endpoints: Sequence[str], join: str | None = None, extra: Sequence[str] = (),
+                      each: Sequence[Sequence[str]] | None = None) -> list[str]:
         """Routers on ``endpoints``, meshed (the first joins ``join``, each other the first), once each
-        accepts connections; RuntimeError if one does not."""
-        start_mesh(self.kids, endpoints, join, extra)
+        accepts connections (``extra``: every router's arguments, ``each``: each one's own); RuntimeError
+        if one does not."""
+        start_mesh(self.kids, endpoints, join, extra, each)
         return list(endpoints)
 
     def start_router(self, proto: str = "tcp", extra: Sequence[str] = (), join: str | None = None) -> str:

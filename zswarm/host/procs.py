@@ -228,12 +228,15 @@ def local_host(host: str) -> str:
     return LOOPBACK if host in ("0.0.0.0", "::") else host
 
 
-def start_mesh(kids: Children, endpoints: Sequence[str], join: str | None = None, extra: Sequence[str] = ()) -> None:
+def start_mesh(kids: Children, endpoints: Sequence[str], join: str | None = None, extra: Sequence[str] = (),
+               each: Sequence[Sequence[str]] | None = None) -> None:
     """Routers listening on ``endpoints`` (``proto/HOST:PORT``), meshed: the first joins ``join`` (another
     machine's router, if any), every other joins the first (``zswarm run --routers K``). ``extra``: more
-    router arguments (``--config``). Returns once each accepts connections; RuntimeError if one does not."""
+    router arguments for every router (``--config``), ``each``: for each router its own (its identity,
+    under ``--secure``). Returns once each accepts connections; RuntimeError if one does not."""
     for k, endpoint in enumerate(endpoints):
-        _spawn_router(kids, "router" if k == 0 else f"router-{k}", endpoint, endpoints[0] if k > 0 else join, extra)
+        _spawn_router(kids, "router" if k == 0 else f"router-{k}", endpoint, endpoints[0] if k > 0 else join,
+                      [*extra, *(each[k] if each else ())])
 
 
 def _spawn_router(kids: Children, name: str, endpoint: str, join: str | None, extra: Sequence[str],

@@ -41,6 +41,37 @@ def schedule(kill: tuple[int, float] | None = None, restart_after: float | None 
     return sorted(events, key=lambda e: e.at)
 
 
+def check(kill: tuple[int, float] | None, restart_after: float | None, world_outage: tuple[float, float] | None,
+          world_crash: tuple[float, float | None] | None, migrate_every: float | None, agents: int, roles,
+          run_s: float, wall_s: float, cluster: bool = False) -> None:
+    """Refuse, in one line, a fault the run cannot stage: more agents killed than this machine runs, a
+    time after the run's end (``wall_s`` wall seconds: ``run_s`` of the run's clock), a restart of
+    nothing (over a ``cluster``, ``--restart-after`` also restarts a lost node's agents), a world fault
+    where no world runs. Raises :class:`UsageError`."""
+    from zswarm.errors import UsageError
+
+    end = f"the run lasts {wall_s:g} s, --duration {run_s:g} at --time-scale {run_s / wall_s:g}"
+    if kill is not None:
+        if "agents" not in roles or kill[0] > agents:
+            raise UsageError(f"--kill {kill[0]}@{kill[1]:g}: this machine runs {agents if 'agents' in roles else 0} "
+                             f"agents (give K <= {agents})")
+        if kill[1] >= wall_s:
+            raise UsageError(f"--kill {kill[0]}@{kill[1]:g}: {kill[1]:g} s is after the run's end: {end}")
+    if restart_after is not None:
+        if kill is None and not cluster:
+            raise UsageError("--restart-after restarts the agents --kill killed: give --kill K@T too")
+        if kill is not None and kill[1] + restart_after >= wall_s:
+            raise UsageError(f"--restart-after {restart_after:g}: the restart falls after the run's end: {end}")
+    for flag, fault in (("--world-outage", world_outage), ("--world-crash", world_crash)):
+        if fault is not None:
+            if "world" not in roles:
+                raise UsageError(f"{flag} stages a world fault: give this machine the world role")
+            if fault[0] >= wall_s:
+                raise UsageError(f"{flag} {fault[0]:g}: {fault[0]:g} s is after the run's end: {end}")
+    if migrate_every is not None and migrate_every >= run_s:
+        raise UsageError(f"--migrate-every {migrate_every:g}: no move falls within the run: {end} (give S < {run_s:g})")
+
+
 def parse_kill(text: str) -> tuple[int, float]:
     try:
         k, t = text.split("@")

@@ -18,6 +18,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Sequence
 
 from zswarm.control.step import control_step
+from zswarm.launch import chaos
+from zswarm.args import id_ranges
 from zswarm.errors import UsageError
 from zswarm.files import check_run_files
 from zswarm.paper.params import parse_assignments
@@ -117,6 +119,9 @@ def plan_from_args(args: argparse.Namespace, cores: int | None = None, memory_mi
     if args.restart_after is not None and not args.restart_after >= 0:
         raise UsageError(f"--restart-after must be >= 0 (got {args.restart_after})")
     check_migration(args, spec)
+    run_s = spec.steps * spec.scenario.dt
+    chaos.check(args.kill, args.restart_after, args.world_outage, args.world_crash, args.migrate_every, len(ids),
+                args.role, run_s, run_s / spec.time_scale, cluster=args.cluster is not None)
     tracks = tracks_folder(args.tracks)
     viewer = viewer_from_args(args) if "world" in args.role else Viewer()
     if (viewer.spawn or viewer.serve) and args.world_crash is not None and args.world_crash[1] is not None:
@@ -210,18 +215,6 @@ def robots_note(robots: RobotsFile, path: Path, ids: Sequence[int]) -> str:
     if driving and simulated:
         line += f"; agents {id_ranges(simulated)} keep a simulated body"
     return line
-
-
-def id_ranges(ids: Sequence[int]) -> str:
-    """0-5, 8, 10-12."""
-    parts, start = [], None
-    for k, i in enumerate(ids):
-        if start is None:
-            start = i
-        if k + 1 == len(ids) or ids[k + 1] != i + 1:
-            parts.append(str(start) if start == i else f"{start}-{i}")
-            start = None
-    return ", ".join(parts)
 
 
 def check_robots(path: Path, spec: RunSpec) -> RobotsFile:
@@ -355,6 +348,15 @@ def check_secure_dir(directory: Path, ids: Sequence[int]) -> None:
 
     if directory.exists() and not directory.is_dir():
         raise UsageError(f"--secure {directory} is not a directory")
+    if not is_secure_dir(directory):  # zswarm makes it: it must be able to
+        try:
+            directory.mkdir(parents=True, exist_ok=True)
+            probe = directory / ".zswarm-probe"
+            probe.write_bytes(b"")
+            probe.unlink()
+        except OSError as exc:
+            raise UsageError(f"--secure {directory}: cannot write the keys there ({exc.strerror or exc}); give a "
+                             "directory of yours") from None
     if directory.is_dir() and any(directory.iterdir()) and not is_secure_dir(directory):
         raise UsageError(f"--secure {directory} has no router/world/agent .json5 configs; "
                          f"make them with: zswarm certs {directory}")

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from zswarm.laws.bound import EXIT_LAW_FAILED
-from zswarm.errors import Failure, UsageError
+from zswarm.errors import UsageError
 from zswarm.launch.chaos import Event, schedule
 from zswarm.launch.configs import agent_config_args, role_configs
 from zswarm.launch.ending import finish_recording
@@ -26,8 +26,9 @@ from zswarm.host.local import Host, LocalHost
 from zswarm.ports import LOOPBACK
 from zswarm.launch.migration import Migration
 from zswarm.launch.placement import place
+from zswarm.args import id_ranges
 from zswarm.launch.plan import Plan
-from zswarm.net.config import CONNECT_TIMEOUT, endpoint_host_port
+from zswarm.net.config import CONNECT_TIMEOUT, endpoint_host_port, unreachable
 from zswarm.launch.world_lines import DONE, forward_lines
 from zswarm.launch.world_watch import WorldWatch
 from zswarm.host.procs import (
@@ -143,13 +144,15 @@ class Launch:
         started by hand without one, the other machine's router reached."""
         plan = self.plan
         self.endpoints = [self.endpoint]
+        if plan.connect is not None:  # the other machine's router (to use, or to join) answers, or one line
+            self._reach_router(plan.connect)
         if "router" not in plan.roles:  # a machine started by hand: its router is another machine's
-            self._reach_router()
             return
         proto = self.endpoint.split("/", 1)[0]
         self.endpoints += [self.local.endpoint(proto) for _ in range(plan.routers - 1)]
         try:
-            self.local.start_routers(self.endpoints, plan.connect, self.configs.get("router", []))
+            self.local.start_routers(self.endpoints, plan.connect, self.configs.get("router", []),
+                                     self.configs.get("routers"))
         except RuntimeError as exc:
             raise UsageError(str(exc)) from None
         self.announced = announce(self.spec.run, self.endpoint)  # zswarm monitor --run finds it here
@@ -292,6 +295,11 @@ class Launch:
             self._note_crashes()
             if self.world is not None and not self.world.alive() and not self.world_down:
                 break
+            if self._all_crashed():
+                self._agents_verdict("; stopping the run")
+                self.kids.stop_all()
+                self._finish_recording()
+                return 1
             if self.world is None and "agents" in self.plan.roles and not any(
                     c.alive() for c in self.kids.named("agent")):
                 return self._agents_verdict()
@@ -309,17 +317,15 @@ class Launch:
             return 0  # the run ended where it was asked to (--world-crash T)
         return 0 if code == 0 else (2 if code == 2 else 1)
 
-    def _agents_verdict(self) -> int:
-        """The exit status of a machine that runs agents and no world: 1, said in the last line, when any
-        of its agents exited with an error (none could reach the router, an id had no spawn position...)."""
+    def _agents_verdict(self, then: str = "") -> int:
+        """The exit status once this machine's agents have all exited: 1, said in the last line, when any
+        exited with an error (their laws failed, none could reach the router, an id had no spawn position...)."""
         failed = sorted(self._agent_errors())
         if not failed:
             return 0
-        from zswarm.launch.plan import id_ranges
-
         total = len(self.kids.named("agent"))
         _say(f"{'every one' if len(failed) == total else f'{len(failed)} of {total}'} of this machine's agents "
-             f"exited with an error (agents {id_ranges(failed)}; their lines above say why)")
+             f"exited with an error (agents {id_ranges(failed)}; their lines above say why){then}")
         return 1
 
     def _note_crashes(self) -> None:
@@ -328,8 +334,17 @@ class Launch:
             if (code not in (None, 0) and c.name.startswith("agent") and c.name not in self.crashed
                     and c.name not in self.expected_exits):
                 self.crashed.add(c.name)
-                why = " (its law failed: the line above says why)" if code == EXIT_LAW_FAILED else ""
-                _say(f"{c.name} exited with code {code}{why}; the others carry on")
+                others = any(o.alive() for o in self.kids.named("agent"))
+                if code != EXIT_LAW_FAILED:  # a failed law says so in its agent's own line
+                    _say(f"{c.name} exited with code {code}{'; the others carry on' if others else ''}")
+
+    def _all_crashed(self) -> bool:
+        """Every agent of this machine exited with an error nobody asked for, and none is to restart."""
+        agents = self.kids.named("agent")
+        return (bool(agents) and "agents" in self.plan.roles and not any(c.alive() for c in agents)
+                and not any(e.action == "restart_agents" for e in self.pending)
+                and all(c.name in self.crashed for c in agents if c.name not in self.expected_exits)
+                and any(c.name in self.crashed for c in agents))
 
     def _stage(self, event: Event, t: float) -> None:
         """Carry out one scheduled event (world events only where this machine runs the world)."""
@@ -370,14 +385,13 @@ class Launch:
         """The routers of this run that died (a run stops when one does: its agents are cut off)."""
         return [c.name for c in self.kids.named("router") if not c.alive()]
 
-    def _reach_router(self) -> None:
+    def _reach_router(self, endpoint: str) -> None:
         """The router of ``--connect`` answers within the connect timeout, or the run stops here with one
-        line (exit 1), before a world or an agent starts (each would say so in a line of its own)."""
-        host, port = endpoint_host_port(self.endpoint)
+        line (exit 2), before anything starts (each child would say so in a line of its own)."""
+        host, port = endpoint_host_port(endpoint)
         wait = self.plan.connect_timeout if self.plan.connect_timeout is not None else CONNECT_TIMEOUT
         if not wait_for_port(local_host(host), port, wait):
-            raise Failure(f"cannot reach the router at {self.endpoint} within {wait:g} s: is it running, and its port "
-                          "open to this machine? (--connect, --connect-timeout)")
+            raise UsageError(unreachable(endpoint, wait))
 
     def _finish_recording(self) -> None:
         """Every run ends with a recording and a summary (:func:`zswarm.launch.ending.finish_recording`)."""
@@ -396,7 +410,11 @@ class Launch:
         agent_router = {str(i): self.router_of(i) for i in self.plan.ids} if "agents" in self.plan.roles else {}
         exits = self._agent_errors()
         secure = self.plan.secure is not None
-        return {"routers": self.endpoints, "agent_router": agent_router, "crashed_agents": sorted(exits),
+        how = {i: "killed (--kill)" for i in self.killed}  # however each crashed: one key lists them all
+        how.update({i: "its law failed" if code == EXIT_LAW_FAILED else f"exited with code {code}"
+                    for i, code in exits.items()})
+        return {"routers": self.endpoints, "agent_router": agent_router, "crashed_agents": sorted(how),
+                "crashes": {str(i): how[i] for i in sorted(how)},
                 "law_failures": sorted(i for i, code in exits.items() if code == EXIT_LAW_FAILED),
                 "security": {"tls": secure, "acl": secure, "ray_auth": self.ray_auth}, **self._migration_summary()}
 

@@ -47,7 +47,7 @@ class LawFailed(Failure):
     @classmethod
     def of(cls, name: str, exc: BaseException, when: str) -> LawFailed:
         what = str(exc) if isinstance(exc, LawError) else f"law {name} raised {type(exc).__name__}: {exc}{raised_at(exc)}"
-        return cls(f"{what} {when}")
+        return cls(f"{what} {when}".rstrip())
 
 
 def function_law(fn: Callable[[Observation], Any], name: str) -> type[SwarmLaw]:

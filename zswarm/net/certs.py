@@ -68,6 +68,18 @@ def _write_key(path: Path, pem: bytes) -> None:
     path.chmod(0o600)
 
 
+def private_dir(directory: Path) -> Path:
+    """``directory``, made if missing, readable by its owner alone, with a ``.gitignore`` that keeps its
+    keys out of any repository it sits in (``git add .`` adds none of them)."""
+    directory = Path(directory)
+    directory.mkdir(mode=0o700, parents=True, exist_ok=True)
+    directory.chmod(0o700)
+    ignore = directory / ".gitignore"
+    if not ignore.exists():
+        ignore.write_text("# private keys and certificates: never to be committed\n*\n")
+    return directory
+
+
 def _validity(days: int) -> tuple[dt.datetime, dt.datetime]:
     now = dt.datetime.now(dt.timezone.utc)
     return now - dt.timedelta(minutes=5), now + dt.timedelta(days=days)
@@ -103,8 +115,7 @@ def make_certs(directory: Path, names: tuple[str, ...] = ROLES, hosts: tuple[str
     against them when ``verify_name_on_connect`` is on) and is both a TLS server and client.
     """
     x509, hashes, serialization, ec, _, oid = _crypto()
-    directory = Path(directory)
-    directory.mkdir(parents=True, exist_ok=True)
+    directory = private_dir(directory)
     valid_from, valid_to = _validity(days)
     ca_key = ec.generate_private_key(ec.SECP256R1())
     ca_name = x509.Name([x509.NameAttribute(oid.COMMON_NAME, "zswarm-ca")])
@@ -135,9 +146,7 @@ def make_keys(directory: Path, names: Sequence[str]) -> dict[str, str]:
     wherever the CA is. This is how a node of a cluster gets its identities without a private key
     crossing the network."""
     _, _, serialization, ec, _, _ = _crypto()
-    directory = Path(directory)
-    directory.mkdir(mode=0o700, parents=True, exist_ok=True)
-    directory.chmod(0o700)
+    directory = private_dir(directory)
     out = {}
     for name in names:
         path = CertPaths(directory, name).key
@@ -160,6 +169,14 @@ def require_ca_key(directory: Path) -> Path:
                          "signed by the CA there (give a new directory for zswarm to make, or yours with its "
                          "CA's key)")
     return directory
+
+
+def cert_hosts(path: Path) -> tuple[str, ...]:
+    """The hosts (subject alternative names) a certificate is valid for."""
+    x509, _, _, _, _, _ = _crypto()
+    cert = x509.load_pem_x509_certificate(Path(path).read_bytes())
+    sans = cert.extensions.get_extension_for_class(x509.SubjectAlternativeName).value
+    return tuple(str(v) for v in [*sans.get_values_for_type(x509.DNSName), *sans.get_values_for_type(x509.IPAddress)])
 
 
 def sign(ca_directory: Path, public_keys: dict[str, str], hosts: tuple[str, ...], days: int = 30) -> dict[str, str]:

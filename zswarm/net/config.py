@@ -140,6 +140,29 @@ LEAN_RUNTIME = ("(app: (worker_threads: 1), acc: (handover: app), tx: (handover:
                 "rx: (handover: app), net: (handover: app))")
 
 
+def unreachable(endpoint: str, waited: float) -> str:
+    """The one line every command says when the router it was told to reach does not answer (exit 2)."""
+    return (f"cannot reach the router at {endpoint} within {waited:g} s: is it running, and its port open to this "
+            "machine? (--connect, --connect-timeout)")
+
+
+def connected(session: zenoh.Session) -> bool:
+    """The session has a router or a peer to speak to (a router that died: none, at once)."""
+    return any(True for _ in session.info.routers_zid()) or any(True for _ in session.info.peers_zid())
+
+
+def _answers(endpoint: str) -> bool:
+    """Something accepts a TCP connection on ``endpoint``'s port (a router that runs, or something else)."""
+    import socket
+
+    try:
+        host, port = endpoint_host_port(endpoint)
+        with socket.create_connection((LOOPBACK if host in ("0.0.0.0", "::") else host, port), timeout=0.5):
+            return True
+    except (OSError, UsageError):
+        return False
+
+
 def open_session(conf: zenoh.Config, what: str = "zenoh", retry_for: float = 0.0,
                  runtime: str | None = LEAN_RUNTIME) -> zenoh.Session:
     """Open a session, retrying for ``retry_for`` seconds (a router that is still starting); then an
@@ -161,9 +184,13 @@ def open_session(conf: zenoh.Config, what: str = "zenoh", retry_for: float = 0.0
                 raise UsageError(f"{what}: cannot listen: {first} (the port is taken or the address is not "
                                  f"local: pick another --listen)") from None
             if time.monotonic() >= deadline:
+                connect = json.loads(conf.get_json("connect/endpoints") or "[]")
+                if connect and not any(_answers(e) for e in connect):
+                    raise UsageError(f"{what}: {unreachable(', '.join(connect), retry_for)}") from None
                 waited = f" after {retry_for:g} s" if retry_for > 0 else ""
-                raise UsageError(f"{what}: cannot open a zenoh session{waited}: {first} (is the router running "
-                                 f"and reachable? check --connect/--listen)") from None
+                raise UsageError(f"{what}: cannot open a zenoh session{waited}: {first} (something answers on the "
+                                 "port: is it a Zenoh router, with this run's certificates? check --connect, "
+                                 "--secure)") from None
             time.sleep(0.25)
 
 

@@ -137,6 +137,14 @@ class Keys:
     def world_started(self) -> str:
         return f"{self.root}/world/started"
 
+    def report_taken(self, agent: int) -> str:
+        """Where the world says it holds ``agent``'s final report (the agent's cue to leave)."""
+        return f"{self.root}/world/taken/{agent}"
+
+    @property
+    def all_reports_taken(self) -> str:
+        return f"{self.root}/world/taken/*"
+
     def handoff(self, agent: int) -> str:
         """Where the process running ``agent`` answers with its state, to one that takes it over."""
         return f"{self.root}/handoff/{agent}"

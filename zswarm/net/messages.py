@@ -367,6 +367,17 @@ def _bins(counts: dict) -> dict[int, int]:
     return {int(k): int(v) for k, v in counts.items() if isinstance(k, int) and 0 <= k < MAX_HIST_BINS}
 
 
+def is_final_report(data: bytes) -> bool:
+    """Whether ``data`` is an agent's final report (stats with ``final`` set), read without validating
+    the rest (7 us, not decode's 60: the world looks at every stats message as it arrives). False for
+    anything that is not one, malformed included."""
+    try:
+        obj = msgpack.unpackb(data, raw=False, strict_map_key=False)
+    except Exception:  # noqa: BLE001 - anything malformed is not a final report
+        return False
+    return isinstance(obj, dict) and obj.get("k") == "stats" and obj.get("f") is True
+
+
 def decode(data: bytes) -> Message:
     """Parse and validate one message; raises :class:`DecodeError` for anything unacceptable."""
     if len(data) > MAX_PAYLOAD:

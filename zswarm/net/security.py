@@ -8,14 +8,16 @@ router's access control gives rights by the certificate's common name:
 role      may send (router ingress)
 ========  ==========================================================================================
 agent     poses ``zswarm/*/pose/**`` (put, queryable, reply), ``zswarm/*/stats/*``,
-          liveliness ``zswarm/*/alive/*``
+          liveliness ``zswarm/*/alive/*``, its state to a process that takes it over ``zswarm/*/handoff/*``
 agent-I   (made with ``agents=N``, instead of the shared ``agent``) the same, but only for keys
           that end in its own id I: an agent cannot speak for another
-world     ``zswarm/*/prey``, ``zswarm/*/tick``, ``zswarm/*/control`` (put), and answers
-          ``zswarm/*/obstacles`` (queryable, reply)
+world     ``zswarm/*/prey``, ``zswarm/*/tick``, ``zswarm/*/control``, ``zswarm/*/world/taken/*`` (put), and answers
+          ``zswarm/*/obstacles`` and ``zswarm/*/world/positions`` (queryable, reply)
 both      subscribe, query and watch liveliness anywhere under ``zswarm/**``, and receive from it
-router    (another router of the mesh, ``--routers K``, holding the ``router`` certificate) forward
-          anything under ``zswarm/**``: what it forwards its own access control let in
+router    (a router of the mesh, ``--routers K`` or a cluster's node k, each with its own identity:
+router-k  ``router`` for the first, ``router-k`` for the others) forward anything under ``zswarm/**``:
+          what it forwards its own access control let in. The access control lists the run's routers
+          by name: one left out of the list (edit its ``routers`` subject) is shut out of the mesh
 anyone    nothing: the default is deny, so a session with another name (``guest``) is connected
           but cannot publish, subscribe, query or answer
 ========  ==========================================================================================
@@ -25,6 +27,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Sequence
 
 from zswarm.net.certs import ROLES, CertPaths, make_certs
 from zswarm.net.keys import Keys
@@ -38,6 +41,24 @@ RECEIVE = ["put", "delete", "query", "reply", "declare_subscriber", "declare_que
 
 
 AGENT_SEND = ["put", "declare_queryable", "reply", "liveliness_token"]
+
+
+def router_name(k: int) -> str:
+    """The certificate common name of a run's k-th router (a cluster's k-th node's): the first is ``router``."""
+    return "router" if k == 0 else f"router-{k}"
+
+
+def is_router(name: str) -> bool:
+    return name == "router" or name.startswith("router-")
+
+
+def with_routers(acl: dict, names: Sequence[str]) -> dict:
+    """``acl`` with the routers it lets forward named exactly ``names``."""
+    acl = json.loads(json.dumps(acl))
+    for subject in acl["subjects"]:
+        if subject["id"] == "routers":
+            subject["cert_common_names"] = list(names)
+    return acl
 
 
 def agent_name(i: int) -> str:
@@ -59,7 +80,8 @@ def access_control(agents: int = 0) -> dict:
          "key_exprs": ["zswarm/**"]},
         {"id": "world-send", "permission": "allow", "flows": ["ingress"],
          "messages": ["put", "declare_queryable", "reply"],
-         "key_exprs": [ANY_RUN.prey, ANY_RUN.tick, ANY_RUN.control, ANY_RUN.obstacles]},
+         "key_exprs": [ANY_RUN.prey, ANY_RUN.tick, ANY_RUN.control, ANY_RUN.obstacles, ANY_RUN.all_reports_taken,
+                       ANY_RUN.positions]},
         {"id": "world-started", "permission": "allow", "flows": ["ingress"], "messages": ["liveliness_token"],
          "key_exprs": [ANY_RUN.world_started]},
     ]
@@ -71,7 +93,8 @@ def access_control(agents: int = 0) -> dict:
                 {"rules": ["router-forward"], "subjects": ["routers"]}]
     if agents == 0:
         rules.append({"id": "agent-send", "permission": "allow", "flows": ["ingress"], "messages": AGENT_SEND,
-                      "key_exprs": [ANY_RUN.all_poses, ANY_RUN.all_stats, ANY_RUN.all_alive, ANY_RUN.all_members]})
+                      "key_exprs": [ANY_RUN.all_poses, ANY_RUN.all_stats, ANY_RUN.all_alive, ANY_RUN.all_members,
+                                    ANY_RUN.handoff("*")]})
         subjects.append({"id": "agents", "cert_common_names": ["agent"]})
         policies.append({"rules": ["agent-send"], "subjects": ["agents"]})
         readers = ["agents", "world"]
@@ -82,7 +105,7 @@ def access_control(agents: int = 0) -> dict:
             rules.append({"id": f"{name}-send", "permission": "allow", "flows": ["ingress"], "messages": AGENT_SEND,
                           "key_exprs": [ANY_RUN.any_cell_pose(i), ANY_RUN_3D.any_cell_pose(i), ANY_RUN.stats(i),
                                         ANY_RUN.alive(i), ANY_RUN.any_cell_member(i),
-                                        ANY_RUN_3D.any_cell_member(i)]})
+                                        ANY_RUN_3D.any_cell_member(i), ANY_RUN.handoff(i)]})
             subjects.append({"id": name, "cert_common_names": [name]})
             policies.append({"rules": [f"{name}-send"], "subjects": [name]})
             readers.append(name)
@@ -103,7 +126,7 @@ def tls(paths: CertPaths, listen: bool) -> dict:
 
 def role_config(paths: CertPaths, endpoint: str, agents: int = 0) -> dict:
     """A complete Zenoh configuration: the router listens on ``endpoint``, every other role connects."""
-    router = paths.name == "router"
+    router = is_router(paths.name)
     conf: dict = {"mode": "router" if router else "client",
                   "scouting": {"multicast": {"enabled": False}},
                   "transport": {"link": {"tls": tls(paths, listen=router)}}}
@@ -145,10 +168,45 @@ def install_identities(directory: Path, ca_pem: str, certs: dict[str, str], acl:
         paths = CertPaths(directory, name)
         paths.cert.write_text(pem)
         conf = role_config(paths, "tls/localhost:7447")
-        if name == "router":
+        if is_router(name):
             conf["access_control"] = acl
         out[name] = directory / f"{name}.json5"
         out[name].write_text(json.dumps(conf, indent=2) + "\n")
+    return out
+
+
+def router_configs(directory: Path, count: int) -> list[Path]:
+    """The configs of a run's ``count`` routers from a secure directory, each router its own identity
+    (:func:`router_name`): those missing are made there, signed by its CA for the hosts its first
+    router's certificate names; every one's access control lists exactly these routers."""
+    from zswarm.errors import UsageError
+    from zswarm.net.certs import cert_hosts, make_keys, sign
+
+    directory = Path(directory)
+    names = [router_name(k) for k in range(count)]
+    if count == 1:
+        return [directory / "router.json5"]
+    missing = [n for n in names if not (directory / f"{n}.json5").is_file()]
+    if missing and not (directory / "ca.key").is_file():
+        raise UsageError(f"--secure {directory} has no {missing[0]}.json5, and no ca.key to make it: each router of "
+                         f"--routers {count} has its own identity (router, router-1, ...); give a directory zswarm made")
+    if missing:
+        certs = sign(directory, make_keys(directory, missing), hosts=cert_hosts(directory / "router.pem"))
+        for name, pem in certs.items():
+            CertPaths(directory, name).cert.write_text(pem)
+    base = json.loads((directory / "router.json5").read_text())  # the first router's, as made or edited
+    out = []
+    for name in names:
+        conf = json.loads(json.dumps(base))
+        tls = conf["transport"]["link"]["tls"]
+        paths = CertPaths(directory, name)
+        tls.update(connect_private_key=str(paths.key.resolve()), listen_private_key=str(paths.key.resolve()),
+                   connect_certificate=str(paths.cert.resolve()), listen_certificate=str(paths.cert.resolve()))
+        if "access_control" in base:
+            conf["access_control"] = with_routers(base["access_control"], names)
+        path = directory / f"{name}.json5"
+        path.write_text(json.dumps(conf, indent=2) + "\n")
+        out.append(path)
     return out
 
 
