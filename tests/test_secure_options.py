@@ -1,0 +1,71 @@
+"""Every run option works under ``--secure`` as it does without: each case runs the same command both
+ways, side by side, and compares what the two summaries say. (Under ``--secure`` a migrating run once
+moved nobody and said nothing: the access control did not let a moved agent hand over its state.)"""
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import ROOT
+from swarm_procs import load_summary
+
+CASES = {
+    # agents moved between three routers as the swarm moves
+    "migrate": ["--routers", "3", "--agents", "10", "--duration", "14", "--time-scale", "2", "--migrate-every", "2"],
+    # agents killed and restarted, a world killed and restarted, a lossy, late channel, unicycles
+    "faults": ["--agents", "6", "--duration", "12", "--kill", "2@4", "--restart-after", "2", "--world-crash", "8:1",
+               "--latency", "50ms", "--dropout", "0.1", "--set", "body=unicycle"],
+    # the lockstep clock in 3-D: the same trajectory to the last digit either way
+    "lockstep-3d": ["--scenario", "moving-prey-3d", "--agents", "5", "--clock", "lockstep", "--duration", "6"],
+}
+
+
+def both_ways(tmp: Path, args: list[str]) -> dict[str, tuple[int, str, dict, Path]]:
+    """The same run without and with ``--secure`` (a fresh folder: its certificates made for the run), at
+    once: the exit code, the last lines, the summary and the trajectory of each."""
+    runs = {}
+    for way, extra in (("plain", []), ("secure", ["--secure", str(tmp / "pki")])):
+        record = tmp / f"{way}.rrd"
+        runs[way] = (record, subprocess.Popen(
+            [sys.executable, str(ROOT / "launch.py"), *args, *extra, "--run", f"both-{way}", "--seed", "3",
+             "--record", str(record), "--trajectory", str(tmp / f"{way}.npz"), "--quiet"],
+            cwd=tmp, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True))
+    out = {}
+    try:
+        for way, (record, proc) in runs.items():
+            text = proc.communicate(timeout=240)[0]
+            out[way] = (proc.returncode, text[-3000:], load_summary(record.with_suffix(".json")),
+                        tmp / f"{way}.npz")
+    finally:
+        for _, proc in runs.values():
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+    return out
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_an_option_works_under_secure_as_it_does_without(case, tmp_path):
+    runs = both_ways(tmp_path, CASES[case])
+    for way, (code, text, s, _) in runs.items():
+        assert code == 0, (way, text)
+        assert s["collisions"] == 0 and s["obstacle_collisions"] == 0, (way, s["collisions"])
+        assert s["agents_without_final_report"] == [], (way, s["agents_without_final_report"], text)
+        assert s["agents_final_reports"] == s["agents_reporting"] == s["n_agents"], (way, text)
+    plain, secure = runs["plain"][2], runs["secure"][2]
+    assert plain["security"]["tls"] is False and secure["security"] == {**secure["security"], "tls": True, "acl": True}
+    assert secure["crashed_agents"] == plain["crashed_agents"] and secure["crashes"] == plain["crashes"]
+    assert secure["requested_faults"] == plain["requested_faults"]
+    if case == "migrate":
+        assert plain["migration"]["moves"] > 0 and secure["migration"]["moves"] > 0, (plain["migration"],
+                                                                                     secure["migration"])
+    if case == "faults":
+        assert plain["crashed_agents"] and plain["world_segments"] == secure["world_segments"] == 2
+    if case == "lockstep-3d":
+        a, b = (np.load(runs[way][3]) for way in ("plain", "secure"))
+        assert a["positions"].shape[-1] == 3 and a["positions"].shape == b["positions"].shape
+        assert np.abs(a["positions"] - b["positions"]).max() < 1e-9
+        assert plain["capture_time"] == secure["capture_time"]
