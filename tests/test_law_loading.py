@@ -23,6 +23,7 @@ LAWS = {
              "    return obs.v_max * to / max(float(np.linalg.norm(to)), 1e-9)\n",
     "broken.py": "import numpy as np\n\ndef rush(obs)\n    return obs.target\n",
     "raises.py": "raise RuntimeError('no robots today')\n",
+    "law.txt": "def rush(obs):\n    return obs.target\n",
     "shapes.py": "import math\n\ndef two(obs, extra):\n    return (0.0, 0.0)\n\ndef short(obs):\n    return (1.0,)\n\n"
                  "def nan(obs):\n    return (math.nan, 0.0)\n\ndef inf(obs):\n    return (0.0, math.inf)\n\n"
                  "def text(obs):\n    return 'fast'\n\ndef boom(obs):\n    return 1 / 0\n\nNOT_A_LAW = 3\n",
@@ -42,7 +43,9 @@ def law_dir(tmp_path):
     ("ok.py:missing", "'missing' is not defined there (it defines: rush)"),
     ("nowhere.py:rush", "no file"),
     ("shapes.py:two", "a law function takes one argument"),
-    ("shapes.py:NOT_A_LAW", "not a function"),
+    ("shapes.py:NOT_A_LAW", "it names a value of type int, not a function"),
+    ("law.txt:rush", "a law file is Python source whose name ends in .py (got law.txt)"),
+    ("ok.py", "name the law in the file too: --law ok.py:NAME"),
     ("shapes.py:short", "shape (1,) in a 2-D run"),
     ("shapes.py:nan", "not finite"),
     ("shapes.py:inf", "not finite"),
@@ -150,6 +153,12 @@ def test_design_and_tune_say_what_they_cover_for_another_law(tmp_path, capsys) -
     assert "declares no ranges for its parameters, so there is nothing to tune" in capsys.readouterr().err
     assert main(["sim", "--law", "boids", "--duration", "1", "--require-design"]) == 2
     assert "no analytical guidelines" in capsys.readouterr().err
+    # the note says what keeps the agents apart in this run: the filter, or nothing when it is off
+    for safety, says in (("barrier", "the safety filter is the guarantee"),
+                         ("off", "with --safety off nothing keeps them apart")):
+        assert main(["sim", "--law", "boids", "--duration", "0.1", "--safety", safety]) == 0
+        note = next(line for line in capsys.readouterr().err.splitlines() if "no analytical guidelines" in line)
+        assert says in note and ("guarantee" in note) == (safety == "barrier"), note
 
 
 def test_tune_searches_a_laws_own_ranges_behind_the_filter(tmp_path, capsys) -> None:

@@ -241,7 +241,11 @@ def test_secure_swarm_never_sees_an_intruder(per_agent, tmp_path):
     assert abs(s["vs_reference"]["final_centroid_goal_distance"]) < 1.0, s["vs_reference"]
 
 
-def test_certs_command_writes_usable_configs_and_refuses_to_overwrite(tmp_path, cli):
+def test_certs_command_writes_usable_configs_and_reuses_its_ca(tmp_path, cli):
+    """``zswarm certs DIR`` twice: the second keeps the CA (an earlier copy of a certificate stays valid)
+    and every key; ``--force`` makes a new CA; a CA without its key is one line, exit 2."""
+    from cryptography import x509
+
     d = tmp_path / "pki"
     made = cli("-m", "zswarm", "certs", str(d), "--router", "tls/localhost:9", "--extra", "guest")
     assert made.returncode == 0, made.stderr
@@ -251,8 +255,17 @@ def test_certs_command_writes_usable_configs_and_refuses_to_overwrite(tmp_path, 
         assert Path(tls["connect_certificate"]).is_file() and tls["enable_mtls"] is True
         assert ("access_control" in conf) == (name == "router")
     assert json.loads((d / "world.json5").read_text())["connect"]["endpoints"] == ["tls/localhost:9"]
-    again = cli("-m", "zswarm", "certs", str(d))
-    assert again.returncode == 2 and "already has a CA" in again.stderr and "Traceback" not in again.stderr
+    ca, keys = (d / "ca.pem").read_bytes(), {p.name: p.read_bytes() for p in d.glob("*.key")}
+    again = cli("-m", "zswarm", "certs", str(d), "--router", "tls/localhost:9")
+    assert again.returncode == 0 and "reusing the CA" in again.stdout, again.stderr
+    assert (d / "ca.pem").read_bytes() == ca and {p.name: p.read_bytes() for p in d.glob("*.key")} == keys
+    issuer = x509.load_pem_x509_certificate(ca).subject
+    assert x509.load_pem_x509_certificate((d / "world.pem").read_bytes()).issuer == issuer
+    forced = cli("-m", "zswarm", "certs", str(d), "--force")
+    assert forced.returncode == 0 and (d / "ca.pem").read_bytes() != ca, forced.stderr
+    (d / "ca.key").unlink()
+    keyless = cli("-m", "zswarm", "certs", str(d))
+    assert keyless.returncode == 2 and "not its key" in keyless.stderr and "Traceback" not in keyless.stderr
     bad = cli("-m", "zswarm", "certs", str(tmp_path / "x"), "--router", "tcp/localhost:9")
     assert bad.returncode == 2 and "must be a tls/HOST:PORT" in bad.stderr
 

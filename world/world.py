@@ -145,7 +145,7 @@ class World:
             self.design = given
             return
         def judge() -> None:
-            self.design = verdict(self.scenario.params, self.scenario.dt)
+            self.design = verdict(self.scenario.params, self.scenario.dt, self.spec.safety)
         self.design_judge = threading.Thread(target=judge, name="design", daemon=True)
         self.design_judge.start()
 
@@ -450,7 +450,7 @@ class World:
         """The verdict :meth:`judge_design` reached (judged here if it was not asked, or failed)."""
         if self.design_judge is not None:
             self.design_judge.join()
-        return self.design if self.design is not None else verdict(self.scenario.params, self.scenario.dt)
+        return self.design if self.design is not None else verdict(self.scenario.params, self.scenario.dt, self.spec.safety)
 
     def finish(self) -> dict[str, Any]:
         """The run's summary: outcome (the observer's), transport (the agents' stats) and the world's

@@ -26,16 +26,23 @@ def add_arguments(certs: argparse.ArgumentParser) -> None:
                        help="also give agents 0..N-1 an identity each (agent-I), allowed only their own keys; "
                             "the router's access control then holds N rules (default 0: one shared identity)")
     certs.add_argument("--days", type=positive_int, default=30, help="validity (default 30)")
-    certs.add_argument("--force", action="store_true", help="overwrite an existing CA in DIR")
+    certs.add_argument("--force", action="store_true",
+                       help="make a new CA even where DIR has one (by default its CA is reused and signs the new certificates)")
 
 
 def run(args: argparse.Namespace) -> int:
     from zswarm.net.certs import ROLES
     from zswarm.net.security import write_secure_dir
 
-    if (args.directory / "ca.pem").exists() and not args.force:
-        raise UsageError(f"{args.directory} already has a CA; use --force to replace it (every role then "
-                         f"needs the new files)")
+    ca = [args.directory / "ca.pem", args.directory / "ca.key"]
+    if args.force:
+        for path in ca:
+            path.unlink(missing_ok=True)
+    elif ca[0].exists() and not ca[1].is_file():
+        raise UsageError(f"{args.directory} has a CA certificate but not its key (ca.key), so it cannot sign: "
+                         "copy ca.key there, or give --force to make a new CA (every role then needs the new files)")
+    elif ca[0].exists():
+        print(f"reusing the CA in {args.directory} (--force makes a new one)")
     if not args.router.startswith("tls/"):
         raise UsageError(f"--router {args.router!r} must be a tls/HOST:PORT endpoint")
     if args.agents < 0:

@@ -64,7 +64,8 @@ def run_sim(args: argparse.Namespace) -> int:
     if note:
         print(note, file=sys.stderr, flush=True)
     explain = " ".join(["zswarm design --scenario", args.scenario, *(f"--set {a}" for a in args.assignments)])
-    design, line = judged(scenario.params, scenario.dt, explain, args.require_design)
+    design, line = judged(scenario.params, scenario.dt, explain, args.require_design,
+                          safety_mode(scenario, args.safety))
     if line is not None:
         print(line, file=sys.stderr, flush=True)
     faults = faults_from_args(args)

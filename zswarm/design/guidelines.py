@@ -283,10 +283,17 @@ def has_guidelines(law: str) -> bool:
         return False  # a law that does not load has none (a run of it is refused anyway)
 
 
-def coverage(params: Params) -> tuple[Params | None, str | None]:
+def _guarantee(safety: str | None) -> str:
+    """What keeps agents the guidelines do not cover apart, under the run's filter mode (None: not known)."""
+    if safety == "off":
+        return "with --safety off nothing keeps them apart (--safety barrier would)"
+    return "the safety filter is the guarantee (--safety barrier)"
+
+
+def coverage(params: Params, safety: str | None = None) -> tuple[Params | None, str | None]:
     """Which agents the guidelines judge, and a line that says what they cover: every agent (the set
     itself, no line); the agents of a mixed swarm whose law has them, among themselves (the set at
-    their N); or none (None, the line)."""
+    their N); or none (None, the line). ``safety``: the run's filter mode, which the line names."""
     groups = groups_of(params.mix.groups)
     rest = params.swarm.n_agents - sum(count for count, _, _ in groups)
     laws = [(count, law, body or params.body.body) for count, law, body in groups]
@@ -299,19 +306,19 @@ def coverage(params: Params) -> tuple[Params | None, str | None]:
     if not guided:
         who = f"law {params.law.law}" if len(laws) == 1 else f"laws {others}"
         return None, (f"{who}: there are no analytical guidelines for it (Propositions 1-5 and the swarm checks are "
-                      "the paper's law's, apf); the safety filter is the guarantee (--safety barrier)")
+                      f"the paper's law's, apf); {_guarantee(safety)}")
     names = ", ".join(sorted({law for _, law in guided}))
     return params.with_values({"n_agents": n, "groups": ""}), (
         f"the guidelines cover the {n} agents that run {names}, among themselves; the other agents ({others}) have "
-        "none, and the safety filter is the guarantee between every two agents (--safety barrier)")
+        f"none; {_guarantee(safety)}")
 
 
-def verdict(params: Params, dt: float | None = None) -> dict[str, Any]:
+def verdict(params: Params, dt: float | None = None, safety: str | None = None) -> dict[str, Any]:
     """What a run records of its own design (``"design"`` in its summary): the verdict for the set it
     runs (its N, sensing radius and interaction), the failing checks, and the paper's own verdict, with
     what they cover in a mixed swarm (``covers``); where the guidelines cover no agent, ``ok`` None and
     the line of :func:`coverage`."""
-    guided, note = coverage(params)
+    guided, note = coverage(params, safety)
     if guided is None:
         return {"ok": None, "law": params.law.law, "note": note, "failures": [], "paper_failures": [],
                 "interaction": None, "n_agents": params.swarm.n_agents}
@@ -321,13 +328,14 @@ def verdict(params: Params, dt: float | None = None) -> dict[str, Any]:
             **({"covers": note} if note else {})}
 
 
-def judged(params: Params, dt: float | None, explain: str, required: bool) -> tuple[dict[str, Any], str | None]:
+def judged(params: Params, dt: float | None, explain: str, required: bool,
+           safety: str | None = None) -> tuple[dict[str, Any], str | None]:
     """A run's own check before it starts: its verdict, and the line to print (``note: ...`` for a law
     the guidelines do not cover, ``warning: ...`` for a failing set; None when it passes); with
     ``required`` (``--require-design``) either is a :class:`UsageError` instead."""
     from zswarm.errors import UsageError
 
-    result = verdict(params, dt)
+    result = verdict(params, dt, safety)
     if result["ok"] is None:
         line = result["note"]
     elif not result["ok"]:

@@ -336,10 +336,9 @@ def judge_design(spec: RunSpec, required: bool) -> dict:
     starts."""
     from zswarm.design.guidelines import judged
 
-    result, line = judged(spec.scenario.params, spec.scenario.dt, design_command(spec), required)
+    result, line = judged(spec.scenario.params, spec.scenario.dt, design_command(spec), required, spec.safety)
     if line is not None:
-        off = result["ok"] is None and spec.safety != "barrier"
-        print(line + ("; it is off in this run" if off else ""), file=sys.stderr, flush=True)
+        print(line, file=sys.stderr, flush=True)
     return result
 
 

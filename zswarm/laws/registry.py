@@ -68,6 +68,12 @@ def resolve(name: str) -> tuple[type[SwarmLaw], str]:
         except BaseException as exc:  # noqa: BLE001 - a user's file may raise anything while it imports
             raise _import_failed(name, exc) from None
         return _as_law(_attr(module, attr, name), name), f"file {path}"
+    looks_like_file = target if sep else name
+    if (looks_like_file.endswith(".py") or "/" in looks_like_file
+            or (Path(looks_like_file).suffix and Path(looks_like_file).is_file())):
+        if not sep:
+            raise UsageError(f"law {name}: name the law in the file too: --law {name}:NAME")
+        raise UsageError(f"law {name}: a law file is Python source whose name ends in .py (got {target})")
     if sep and target and all(part.isidentifier() for part in target.split(".")):
         try:
             module = importlib.import_module(target)
@@ -98,7 +104,8 @@ def _as_law(obj: Any, name: str) -> type[SwarmLaw]:
             obj.name = name
         return obj
     if not callable(obj):
-        raise UsageError(f"law {name} is a {type(obj).__name__}, not a function law(obs) -> velocity")
+        raise UsageError(f"law {name}: it names a value of type {type(obj).__name__}, not a function "
+                         "law(obs) -> velocity or a SwarmLaw class")
     try:
         sig = inspect.signature(obj)
         sig.bind(None)

@@ -111,11 +111,17 @@ def make_certs(directory: Path, names: tuple[str, ...] = ROLES, hosts: tuple[str
                days: int = 30) -> dict[str, CertPaths]:
     """Write ``ca.pem``/``ca.key`` and ``NAME.pem``/``NAME.key`` for every name into ``directory``.
 
-    Every leaf carries ``hosts`` as subject alternative names (the router's address is checked
-    against them when ``verify_name_on_connect`` is on) and is both a TLS server and client.
+    A CA already there (both its files) is kept and signs the new certificates, so that copies of
+    its earlier ones stay valid; a name's key already there is kept too. Every leaf carries ``hosts``
+    as subject alternative names (the router's address is checked against them when
+    ``verify_name_on_connect`` is on) and is both a TLS server and client.
     """
     x509, hashes, serialization, ec, _, oid = _crypto()
     directory = private_dir(directory)
+    if (directory / "ca.pem").is_file() and (directory / "ca.key").is_file():
+        ca = x509.load_pem_x509_certificate((directory / "ca.pem").read_bytes())
+        ca_key = serialization.load_pem_private_key((directory / "ca.key").read_bytes(), password=None)
+        return _leaves(directory, names, ca, ca_key, hosts, days)
     valid_from, valid_to = _validity(days)
     ca_key = ec.generate_private_key(ec.SECP256R1())
     ca_name = x509.Name([x509.NameAttribute(oid.COMMON_NAME, "zswarm-ca")])
@@ -130,10 +136,17 @@ def make_certs(directory: Path, names: tuple[str, ...] = ROLES, hosts: tuple[str
           .sign(ca_key, hashes.SHA256()))
     (directory / "ca.pem").write_bytes(_pem(serialization, cert=ca))
     _write_key(directory / "ca.key", _pem(serialization, key=ca_key))
+    return _leaves(directory, names, ca, ca_key, hosts, days)
+
+
+def _leaves(directory: Path, names: Sequence[str], ca, ca_key, hosts: tuple[str, ...], days: int) -> dict[str, CertPaths]:
+    """``NAME.pem`` signed by the CA for every name, over its key (made where there is none)."""
+    _, _, serialization, ec, _, _ = _crypto()
     out = {}
     for name in names:
-        key = ec.generate_private_key(ec.SECP256R1())
         paths = CertPaths(directory, name)
+        key = (serialization.load_pem_private_key(paths.key.read_bytes(), password=None) if paths.key.is_file()
+               else ec.generate_private_key(ec.SECP256R1()))
         paths.cert.write_bytes(_pem(serialization, cert=_leaf(name, key.public_key(), ca, ca_key, hosts, days)))
         _write_key(paths.key, _pem(serialization, key=key))
         out[name] = paths
