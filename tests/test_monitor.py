@@ -56,17 +56,29 @@ def test_monitor_matches_the_runs_summary_and_payloads_name_their_encoding(tmp_p
     try:
         wait_for_port(port)
         seen, tokens = _stock_subscriber(endpoint, run, time.monotonic() + 20)
+        # the live view with no --duration: it ends with the run, in one line
+        live = subprocess.Popen([sys.executable, "-m", "zswarm", "monitor", "--run", run, "--connect", endpoint],
+                                cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                                start_new_session=True)
         # no --connect: a run of this machine is found by its name
         mon = run_cli("-m", "zswarm", "monitor", "--run", run, "--duration", "4", "--json", timeout=60)
         unknown = run_cli("-m", "zswarm", "monitor", "--run", "not-running-here", timeout=60)
         nobody = run_cli("-m", "zswarm", "monitor", "--run", "nobody-here", "--connect", endpoint, "--wait", "1",
                          timeout=60)
         _, err = swarm.communicate(timeout=90)
+        swarm_ended = time.monotonic()
         assert swarm.returncode == 0, err[-2000:]
+        view, view_err = live.communicate(timeout=30)
+        live_ended = time.monotonic()
     finally:
-        if swarm.poll() is None:
-            os.killpg(swarm.pid, signal.SIGKILL)
-            swarm.wait()
+        for proc in (swarm, live):
+            if proc.poll() is None:
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()
+    assert live.returncode == 0, view_err
+    assert live_ended - swarm_ended < 3.0  # it ended with the run, not after it
+    assert view.strip().splitlines()[-1] == "zswarm monitor: the run ended: 10 agents stopped with it", view[-500:]
+    assert "CRASHED" not in view and "crashed" not in view
     assert {"pose", "prey", "stats"} <= seen.keys(), seen
     assert tokens == {i: 1 for i in range(10)}, tokens  # each agent in one cell, by its member token
     assert seen.pop("pose") == {POSE_ENCODING}, seen  # a fixed record

@@ -2,8 +2,8 @@
 
 Like ``ros2 topic hz`` and ``ros2 topic echo`` together for a whole run: agents alive, each agent's
 pose rate, the pose latency and data age the agents measure, messages rejected by reason, late ticks
-and the prey, refreshed in place (``rich``) until Ctrl-C or ``--duration``. ``--json`` prints one JSON
-object per refresh instead, for scripts. It joins the run with the standard Zenoh arguments
+and the prey, refreshed in place (``rich``) until the run ends (then one line says how, exit 0), Ctrl-C
+or ``--duration``. ``--json`` prints one JSON object per refresh instead, for scripts. It joins the run with the standard Zenoh arguments
 (``--connect``, ``--config`` for TLS), subscribes only, and never disturbs the swarm.
 """
 
@@ -21,8 +21,9 @@ from zswarm.errors import UsageError
 from zswarm.net.keys import Keys, check_run_id
 
 DESCRIPTION = ("Watch a running swarm live: agents alive, pose rate per agent, latency and data age (p50/p99), "
-               "rejected messages by reason, late ticks and the prey. Join with --connect tcp/ROUTER:PORT (or "
-               "--config for TLS); Ctrl-C to stop. Exit 2 when no agent of the run is heard within --wait.")
+               "rejected messages by reason, late ticks and the prey, until the run ends (exit 0, one line that says how). "
+               "Join with --connect tcp/ROUTER:PORT (or --config for TLS); Ctrl-C to stop. Exit 2 when no agent "
+               "of the run is heard within --wait.")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -112,24 +113,32 @@ def run(args: argparse.Namespace) -> int:
             _loop_json(watch, args, start, lambda: stop)
         else:
             _loop_live(watch, args, start, lambda: stop)
+        if watch.over(time.time()):
+            print(f"zswarm monitor: {watch.ending(time.time())}", file=sys.stderr if args.json else sys.stdout,
+                  flush=True)
     finally:
         watch.stop(session)
     return 0
 
 
-def _ended(args, start: float, stopped) -> bool:
-    return stopped() or (args.duration is not None and time.monotonic() - start >= args.duration)
+def _ended(args, start: float, stopped, watch) -> bool:
+    return (stopped() or (args.duration is not None and time.monotonic() - start >= args.duration)
+            or watch.over(time.time()))
 
 
-def _sleep(period: float, stopped) -> None:
+def _sleep(period: float, stopped, watch) -> None:
+    """Up to ``period``; the watch takes in what arrives meanwhile, so that the run's end cuts it short."""
     end = time.monotonic() + period
     while time.monotonic() < end and not stopped():
         time.sleep(0.05)
+        watch.poll()
+        if watch.over(time.time()):
+            return
 
 
 def _loop_json(watch, args, start: float, stopped) -> None:
-    while not _ended(args, start, stopped):
-        _sleep(args.every, stopped)
+    while not _ended(args, start, stopped, watch):
+        _sleep(args.every, stopped, watch)
         watch.poll()
         print(json.dumps(watch.snapshot().to_dict()), flush=True)
 
@@ -139,8 +148,11 @@ def _loop_live(watch, args, start: float, stopped) -> None:
     from rich.live import Live
 
     watch.poll()
-    with Live(table(watch.snapshot(), args.run_id), console=Console(file=sys.stdout), auto_refresh=False) as live:
-        while not _ended(args, start, stopped):
-            _sleep(args.every, stopped)
+    console = Console(file=sys.stdout)
+    with Live(table(watch.snapshot(), args.run_id), console=console, auto_refresh=False) as live:
+        while not _ended(args, start, stopped, watch):
+            _sleep(args.every, stopped, watch)
             watch.poll()
             live.update(table(watch.snapshot(), args.run_id), refresh=True)
+    if not console.is_terminal:  # a terminal's view ends its last line itself
+        console.line()

@@ -25,6 +25,9 @@ WINDOW = 2.0  # seconds over which pose rates are counted
 #: before it calls the departure a crash (the report and the token come on different channels, in
 #: either order).
 CRASH_GRACE_S = 1.0
+#: How long after the world's final tick a watcher waits for the run's agents to stop before it says
+#: how the run ended anyway.
+END_SETTLE_S = 3.0
 
 
 def how_gone(final_report: bool, waited_s: float, settle: bool = False) -> str:
@@ -82,6 +85,7 @@ class RunWatch:
     gone_at: dict[int, float] = field(default_factory=dict)  # id -> when its token went (it has not returned)
     gone_after_end: set[int] = field(default_factory=set)
     ended: bool = False  # the world announced the final tick
+    ended_at: float | None = None  # when this watch heard it (its own clock)
 
     def start(self, session) -> None:
         self.started = time.time()
@@ -124,7 +128,8 @@ class RunWatch:
         elif tag == "stats" and isinstance(message, msg.Stats):
             self.stats[message.id] = message
         elif tag == "tick" and isinstance(message, msg.Tick):
-            self.ended = self.ended or message.final
+            if message.final and not self.ended:
+                self.ended, self.ended_at = True, received
         elif tag == "prey" and isinstance(message, msg.Prey):
             self.prey = message.position
             self.prey_times.append(received)
@@ -154,6 +159,22 @@ class RunWatch:
                         rejected={k: v for k, v in sorted(rejected.items()) if v},
                         late_ticks=late, ticks=ticks, prey=self.prey, prey_rate=len(self.prey_times) / window,
                         agents_reporting=len(self.stats), gone=self.gone(now))
+
+    def over(self, now: float, settle_s: float = END_SETTLE_S) -> bool:
+        """The run has ended (the world's final tick) and its agents have stopped, or ``settle_s`` passed."""
+        return self.ended and (not self.alive or now - self.ended_at >= settle_s)
+
+    def ending(self, now: float) -> str:
+        """One line: how the run ended, as heard here."""
+        gone = self.gone(now)
+        ended = sorted(i for i, how in gone.items() if how in ("run ended", "left"))
+        crashed = sorted(i for i, how in gone.items() if how == "crashed")
+        line = f"the run ended: {len(ended)} agents stopped with it"
+        if crashed:
+            line += f", {len(crashed)} had crashed before ({', '.join(map(str, crashed))})"
+        if self.alive:
+            line += f", {len(self.alive)} still heard {now - self.ended_at:.0f} s after its end ({', '.join(map(str, sorted(self.alive)))})"
+        return line
 
     def gone(self, now: float) -> dict[int, str]:
         """Each agent whose token went and has not come back: *run ended* (after the final tick), *left*
