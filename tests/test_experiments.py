@@ -65,6 +65,10 @@ def test_sweep_simulated_resumes_without_touching_finished_cells(tmp_path):
     assert kept.stat().st_mtime_ns == mtime and (cells[1] / "sim.json").exists()
     table = (out / "results.md").read_text().splitlines()
     assert len([line for line in table if line.startswith("| simulated")]) == 2
+    column = table[0].split("|").index(" min clearance ")
+    clearances = [line.split("|")[column].strip() for line in table if line.startswith("| simulated")]
+    assert all(c == "none sensed" or float(c) > 0 for c in clearances), clearances  # never a bare "-"
+    assert any(line.startswith("min clearance: the closest any agent came") for line in table)
     assert (out / "results.csv").exists() and (out / "sweep.rrd").stat().st_size > 0
     assert (out / "sweep.png").stat().st_size > 10_000  # the figure, drawn
 

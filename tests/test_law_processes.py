@@ -90,7 +90,7 @@ def rush(obs):"""))
     assert "agent 0: law " in res.stderr and "raised RuntimeError: brittle law gave up (brittle.py:" in res.stderr
     assert "Traceback" not in res.stderr
     assert res.stderr.count("agent 0: law ") == 1 and "agent-0 exited" not in res.stderr  # one line, the agent's
-    assert "open run (no --secure): it believes any peer" in res.stdout  # said at the start of an open run
+    assert "open run: any program that reaches its router can join it" in res.stdout  # said as an open run starts
     summary = load_summary(tmp_path / "b.json")
     assert summary["law_failures"] == summary["crashed_agents"] == [0]
     assert summary["crashes"] == {"0": "its law failed"}

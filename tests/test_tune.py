@@ -169,3 +169,17 @@ def test_a_tune_that_does_not_beat_the_start_keeps_the_start_and_says_so(tmp_pat
     params = json.loads(design.stdout)["params"]
     for name, value in result["start"]["values"].items():
         assert params[name] == pytest.approx(value, rel=1e-12)  # best.toml is the start, not the loser
+
+
+def test_the_progress_line_accounts_for_every_candidate_and_says_what_best_is(capsys):
+    """Every checked candidate is simulated, failed the design checks, or passed once the budget was
+    spent; "best" is a mean capture time in seconds, and a line at the start says so."""
+    from zswarm.cli.tune_print import Bar
+    from zswarm.tune.search import Progress
+
+    bar = Bar(quiet=False, seeds=2, miss_s=18.0)
+    bar(dataclasses.replace(Progress(budget=8), evaluated=8, checked=30, rejected=16, generation=5, best=18.0))
+    head, line = capsys.readouterr().err.strip().splitlines()
+    assert "mean capture time over 2 tuning seeds" in head and "counts 18 s (duration + --miss-penalty)" in head
+    assert "8/8 simulated" in line and "30 checked: 16 failed the design checks, 6 passed but the budget was spent" in line
+    assert "best 18.00 s" in line

@@ -116,7 +116,7 @@ def run(args: argparse.Namespace) -> int:
 
     plan, space, task, faults = _plan(args)
     command = "zswarm tune " + " ".join(sys.argv[2:] if sys.argv[1:2] == ["tune"] else sys.argv[1:])
-    bar = Bar(quiet=args.json)
+    bar = Bar(quiet=args.json, seeds=len(task.seeds), miss_s=task.duration + task.miss_penalty)
     try:
         s = search_phase(plan, space, task, faults, args, bar, command)
     finally:

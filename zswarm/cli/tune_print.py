@@ -13,8 +13,11 @@ from zswarm.tune.pipeline import Plan, _fmt, faults_text
 class Bar:
     """One progress line on stderr, redrawn in place on a terminal (a line per generation otherwise)."""
 
-    def __init__(self, quiet: bool) -> None:
+    def __init__(self, quiet: bool, seeds: int = 0, miss_s: float | None = None) -> None:
         self.quiet, self.tty = quiet, sys.stderr.isatty()
+        if not quiet and miss_s is not None:  # what "best" is, said once
+            print(f"objective: the mean capture time over {seeds} tuning seeds, lower is better; a seed whose swarm "
+                  f"never catches the prey counts {miss_s:g} s (duration + --miss-penalty)", file=sys.stderr, flush=True)
 
     def __call__(self, p) -> None:
         if self.quiet:
@@ -22,9 +25,11 @@ class Bar:
         width = 24
         filled = int(width * min(p.evaluated / p.budget, 1.0))
         eta = "ETA " + _clock(p.eta) if p.eta is not None else "ETA -"
-        best = f"best {p.best:.2f}" if p.best is not None else "best -"
+        best = f"best {p.best:.2f} s" if p.best is not None else "best -"
+        over = p.checked - p.rejected - p.evaluated  # passed the checks once the budget was spent
         line = (f"[{'#' * filled}{'.' * (width - filled)}] {p.evaluated}/{p.budget} simulated  gen {p.generation}  "
-                f"{p.checked} checked ({p.rejected} rejected)  {best}  {eta}")
+                f"{p.checked} checked: {p.rejected} failed the design checks"
+                + (f", {over} passed but the budget was spent" if over else "") + f"  {best}  {eta}")
         print(("\r" + line) if self.tty else line, end="" if self.tty else "\n", file=sys.stderr, flush=True)
 
     def done(self) -> None:

@@ -319,9 +319,8 @@ def auto_time_scale(args: argparse.Namespace, cores: int) -> str | None:
 
 
 #: What a run without --secure says at its start (zswarm.net.poses.Contest says what is left to an attacker).
-OPEN_RUN = ("open run (no --secure): it believes any peer that reaches its routers; a forged pose under an "
-            "agent's id is let go within 0.5 s of the agent's own (docs/running.md), but only "
-            "--secure keeps strangers out")
+OPEN_RUN = ("open run: any program that reaches its router can join it; --secure DIR lets in only the run's own "
+            "processes (docs/running.md, Secure runs)")
 
 
 def design_command(spec: RunSpec) -> str:

@@ -138,9 +138,16 @@ def write_tables(rows: list[dict[str, Any]], out: Path) -> None:
         ct = "-" if r["capture_time_mean"] is None else f"{r['capture_time_mean']:.1f} ± {r['capture_time_std']:.1f}"
         lines.append(f"| {r['source']} | {r['latency_ms']:g} | {r['dropout']:g} | {r['safety']} | {r['runs']} | "
                      f"{r['capture_rate'] * 100:.0f} % | {ct} | {_fmt(r['collisions_mean'])} | "
-                     f"{_fmt(r['min_obstacle_clearance'])} | {r['max_components']} | "
+                     f"{_clearance(r['min_obstacle_clearance'])} | {r['max_components']} | "
                      f"{_fmt(r['observed_dropout_mean'])} | {_fmt(r['observed_latency_ms_mean'])} |")
+    lines += ["", "min clearance: the closest any agent came to an obstacle's edge (m); \"none sensed\": no agent came "
+              "within its sensing radius of one."]
     (out / "results.md").write_text("\n".join(lines) + "\n")
+
+
+def _clearance(v: float | None) -> str:
+    """An obstacle clearance, or what its absence means: no agent ever sensed an obstacle."""
+    return "none sensed" if v is None else _fmt(v)
 
 
 def write_curves(cells: list[Cell], args: argparse.Namespace, out: Path, jitter: float) -> None:
