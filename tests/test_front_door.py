@@ -150,6 +150,25 @@ def test_no_page_docstring_or_comment_narrates_the_order_of_the_work():
     assert not narrating("not this session's own publications")  # a Zenoh session is no narration
 
 
+#: A first-person word, a commit hash, a path out of the repository.
+FIRST_PERSON = re.compile(r"\b(I|I'm|I've|me|my|we|We|our|Our)\b(?![-=])")
+COMMIT = re.compile(r"\b(?=[0-9a-f]*[a-f])(?=[0-9a-f]*[0-9])[0-9a-f]{7,40}\b")
+
+
+def test_the_docs_speak_to_users_with_no_first_person_no_commit_and_no_link_outside():
+    found = {}
+    for f in [ROOT / "README.md", ROOT / "CHANGELOG.md", *sorted((ROOT / "docs").rglob("*.md"))]:
+        text = f.read_text()
+        # code spans (one may wrap onto the next line) name ids such as agent-I, not people
+        prose = re.sub(r"`[^`\n]*(\n[^`\n]*)?`", lambda m: "\n" * m.group(0).count("\n"), text)
+        for n, (line, said) in enumerate(zip(text.splitlines(), prose.splitlines()), 1):
+            if FIRST_PERSON.search(said) or COMMIT.search(said) or "../shared" in line:
+                found.setdefault(str(f.relative_to(ROOT)), []).append(n)
+    assert found == {}, found
+    assert FIRST_PERSON.search("I did not trace it") and COMMIT.search("at commit 1908a61,")  # it can fail
+    assert not FIRST_PERSON.search("agents 0..I-1") and not COMMIT.search("12345678 poses")
+
+
 def test_the_small_cuts_a_new_user_hit_stay_mended():
     """Each a line of the issue that found them: "8 agents on 1 nodes"; *.mcap files (zswarm export)
     not ignored by git; Rerun's analytics on without a word in the README."""
