@@ -203,7 +203,7 @@ def test_killing_one_agent_leaves_the_others_running_and_is_recorded(tmp_path):
         agents = [start_agent(kids, endpoint, "kill", "moving-prey", i, "--set", "n_agents=5")
                   for i in range(5)]
         monitor = kids.spawn("monitor", ["-m", "zswarm", "monitor", "--run", "kill", "--connect", endpoint, "--json",
-                                         "--every", "0.25", "--duration", "30"], stdout=subprocess.PIPE)
+                                         "--every", "0.25", "--stop-after", "30"], stdout=subprocess.PIPE)
         with Watch(endpoint, "kill") as watch:
             watch.reach_step(20)  # 1 s into the run
             agents[2].proc.send_signal(signal.SIGKILL)

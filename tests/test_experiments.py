@@ -52,7 +52,7 @@ def test_kill_restart_and_world_outage(tmp_path):
 
 def test_sweep_simulated_resumes_without_touching_finished_cells(tmp_path):
     out = tmp_path / "sw"
-    args = ("sweep", "--scenario", "moving-prey", "--latency", "0,100ms", "--dropout", "0.2", "--repeats", "1",
+    args = ("sweep", "--scenario", "moving-prey", "--latency", "0,100ms", "--dropout", "0.2", "--seeds", "1",
             "--duration", "5", "--out", str(out), "--sim-only")
     assert launch(*args, cwd=tmp_path).returncode == 0
     cells = sorted((out / "cells").iterdir())
@@ -76,7 +76,7 @@ def test_sweep_simulated_resumes_without_touching_finished_cells(tmp_path):
 def test_interrupted_distributed_sweep_resumes(tmp_path):
     out = tmp_path / "sw"
     args = [sys.executable, str(ROOT / "launch.py"), "sweep", "--scenario", "moving-prey", "--latency", "0",
-            "--dropout", "0,0.3", "--repeats", "1", "--agents", "3", "--duration", "3", "--out", str(out)]
+            "--dropout", "0,0.3", "--seeds", "1", "--agents", "3", "--duration", "3", "--out", str(out)]
     proc = subprocess.Popen(args, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     first = out / "cells" / "lat0ms_drop0_rep0_barrier" / "run.json"
     second = out / "cells" / "lat0ms_drop0.3_rep0_barrier" / "run.rrd"
@@ -100,7 +100,7 @@ def test_a_sweep_puts_the_safety_filter_beside_the_law_alone(tmp_path):
 
     out = tmp_path / "sw"
     res = launch("sweep", "--scenario", "goal-near-obstacle", "--latency", "0,300ms", "--dropout", "0.3",
-                 "--repeats", "1", "--duration", "8", "--out", str(out), "--sim-only", "--safety", "off,barrier",
+                 "--seeds", "1", "--duration", "8", "--out", str(out), "--sim-only", "--safety", "off,barrier",
                  cwd=tmp_path)
     assert res.returncode == 0, res.stderr
     rows = list(csv.DictReader(open(out / "results.csv")))

@@ -51,7 +51,11 @@ def test_delay_stays_within_the_jitter_and_distance_loss_grows_with_distance():
 
 
 def test_durations_parse():
-    assert parse_duration("100ms") == 0.1 and parse_duration("0.25s") == 0.25 and parse_duration("20") == 0.02
+    assert parse_duration("100ms") == 0.1 and parse_duration("0.25s") == 0.25 and parse_duration("0") == 0.0
+    with pytest.raises(ValueError, match="needs a unit: 20ms or 20s"):
+        parse_duration("20")  # a bare delay could be either unit
+    with pytest.raises(ValueError, match="needs a unit"):
+        parse_duration_list("0,50")
     assert parse_duration_list("0,50,100,200ms") == [0.0, 0.05, 0.1, 0.2]
     assert parse_duration_list("0,1s") == [0.0, 1.0]
     with pytest.raises(ValueError):

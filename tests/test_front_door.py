@@ -110,8 +110,8 @@ def test_the_readme_shows_every_task_and_its_links_lead_somewhere():
 @pytest.mark.parametrize("command", ["sim", "run", "sweep", "tune", "monitor", "robot-sim", "bench net", "bench world",
                                      "bench laws", "bench placement", "bench soak"])
 def test_every_duration_flag_takes_units_and_a_bare_number_is_seconds(command):
-    """One meaning per flag: ``--duration 90``, ``90s`` and ``1.5min`` are the same on every command
-    (fault delays are the one exception, documented: a bare ``--latency 100`` is milliseconds)."""
+    """One meaning per flag: ``--duration 90``, ``90s`` and ``1.5min`` are the same simulated time on
+    every command, ``--stop-after`` the same wall-clock time; a fault delay takes no bare number but 0."""
     from zswarm.cli import launch, sweep
     from zswarm.cli.main import build_parser
     from zswarm.swarm.faults import parse_duration
@@ -120,13 +120,14 @@ def test_every_duration_flag_takes_units_and_a_bare_number_is_seconds(command):
     parser = {"run": launch.build_parser(), "sweep": sweep.build_parser()}.get(command)
     prefix = [] if parser is not None else command.split()
     parser = parser or build_parser()
-    got = {parser.parse_args([*prefix, *required.get(command, []), "--duration", text]).duration
+    flag = "--stop-after" if command in ("monitor", "robot-sim", "bench soak") else "--duration"
+    got = {getattr(parser.parse_args([*prefix, *required.get(command, []), flag, text]), flag[2:].replace("-", "_"))
            for text in ("90", "90s", "1.5min", "90000ms")}
     assert got == {90.0}
     with pytest.raises(SystemExit):
-        parser.parse_args([*prefix, *required.get(command, []), "--duration", "90q"])
-    assert parse_duration("100") == parse_duration("100ms") == parse_duration("0.1s") == 0.1
-    assert "a bare number is ms" in launch.build_parser().format_help().replace("\n", " ").replace("  ", " ")
+        parser.parse_args([*prefix, *required.get(command, []), flag, "90q"])
+    assert parse_duration("100ms") == parse_duration("0.1s") == 0.1 and parse_duration("0") == 0.0
+    assert "a unit is required but for 0" in launch.build_parser().format_help().replace("\n", " ").replace("  ", " ")
 
 
 #: Phrases that narrate the order of the work; CHANGELOG.md is where that history belongs.

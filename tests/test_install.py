@@ -43,7 +43,7 @@ def test_a_wheel_installed_elsewhere_runs_a_swarm_and_a_sweep(tmp_path):
     assert summary["agents_reporting"] == 3 and summary["steps"] == 100 and "reference" in summary
 
     sweep = subprocess.run([*zswarm, "sweep", "--scenario", "moving-prey", "--latency", "0", "--dropout", "0",
-                            "--repeats", "1", "--agents", "3", "--duration", "3", "--out", "sw"],
+                            "--seeds", "1", "--agents", "3", "--duration", "3", "--out", "sw"],
                            capture_output=True, text=True, env=env, cwd=work, timeout=300)
     assert sweep.returncode == 0, sweep.stderr[-2000:]
     cell = work / "sw" / "cells" / "lat0ms_drop0_rep0_barrier"

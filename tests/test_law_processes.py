@@ -147,7 +147,7 @@ def test_a_users_law_runs_in_a_sweep_and_collides_only_without_the_filter(tmp_pa
     law.write_text(RUSH)
     out = tmp_path / "sweep"
     assert sweep(["--scenario", "moving-prey", "--law", f"{law}:rush", "--latency", "0,100ms", "--dropout", "0",
-                  "--safety", "off,barrier", "--repeats", "1", "--duration", "5", "--sim-only", "--out", str(out)]) == 0
+                  "--safety", "off,barrier", "--seeds", "1", "--duration", "5", "--sim-only", "--out", str(out)]) == 0
     cells = {p.parent.name: json.loads(p.read_text()) for p in (out / "cells").glob("*/sim.json")}
     assert len(cells) == 4 and all(c["law"]["name"] == f"{law}:rush" for c in cells.values())
     off = [c for c in cells.values() if c["safety"] == "off"]

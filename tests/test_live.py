@@ -75,7 +75,7 @@ def test_a_simulation_streams_live_and_keeps_its_file(viewer_server, tmp_path):
     url, saved, server = viewer_server
     local = tmp_path / "sim.rrd"
     res = run_cli("-m", "zswarm", "sim", "--scenario", "moving-prey", "--duration", "4", "--record", str(local),
-                  "--connect", url, "--json", cwd=tmp_path, fresh=True)  # its stream ends as the interpreter does
+                  "--viewer", url, "--json", cwd=tmp_path, fresh=True)  # its stream ends as the interpreter does
     assert res.returncode == 0, res.stderr
     _stop(server)
     assert _same_run(local, saved) == 81
@@ -85,7 +85,7 @@ def test_a_simulation_streams_live_and_keeps_its_file(viewer_server, tmp_path):
 def test_a_distributed_run_streams_live_and_keeps_its_file(viewer_server, tmp_path):
     url, saved, server = viewer_server
     local = tmp_path / "run.rrd"
-    res = run_cli(str(ROOT / "launch.py"), "--agents", "4", "--duration", "4", "--record", str(local), "--connect",
+    res = run_cli(str(ROOT / "launch.py"), "--agents", "4", "--duration", "4", "--record", str(local), "--viewer",
                   url, "--quiet", "--run", "live-test", timeout=120, cwd=tmp_path)
     assert res.returncode == 0, res.stderr[-2000:]
     _stop(server)

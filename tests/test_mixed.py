@@ -67,7 +67,7 @@ def test_a_sweep_of_a_mixed_swarm_reports_each_group(tmp_path):
 
     out = tmp_path / "sweep"
     assert sweep(["--scenario", "moving-prey", "--set", "groups=4:boids/unicycle", "--latency", "0,100ms",
-                  "--dropout", "0", "--repeats", "1", "--duration", "8", "--sim-only", "--out", str(out)]) == 0
+                  "--dropout", "0", "--seeds", "1", "--duration", "8", "--sim-only", "--out", str(out)]) == 0
     cells = [json.loads(p.read_text()) for p in (out / "cells").glob("*/sim.json")]
     assert len(cells) == 2 and all(c["collisions"] == 0 and c["simulator"] == "batched" for c in cells)
     assert all([g["law"] for g in c["groups"]] == ["boids", "apf"] for c in cells)

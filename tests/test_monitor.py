@@ -61,7 +61,7 @@ def test_monitor_matches_the_runs_summary_and_payloads_name_their_encoding(tmp_p
                                 cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
                                 start_new_session=True)
         # no --connect: a run of this machine is found by its name
-        mon = run_cli("-m", "zswarm", "monitor", "--run", run, "--duration", "4", "--json", timeout=60)
+        mon = run_cli("-m", "zswarm", "monitor", "--run", run, "--stop-after", "4", "--json", timeout=60)
         unknown = run_cli("-m", "zswarm", "monitor", "--run", "not-running-here", timeout=60)
         nobody = run_cli("-m", "zswarm", "monitor", "--run", "nobody-here", "--connect", endpoint, "--wait", "1",
                          timeout=60)

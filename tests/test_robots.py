@@ -147,7 +147,7 @@ def test_robot_sim_speaks_the_wire_and_stops_when_commands_stop(tmp_path, route_
     with processes() as kids:
         endpoint = start_router(kids)
         sim = kids.spawn("robot-sim", ["-m", "zswarm", "robot-sim", "--robots", str(path), "--set", f"n_agents={N}",
-                                       "--connect", endpoint, "--duration", "30", "--idle-exit", "1.5"],
+                                       "--connect", endpoint, "--stop-after", "30", "--idle-exit", "1.5"],
                          stdout=subprocess.PIPE)
         with open_session(zenoh_config("client", [endpoint]), "t", retry_for=30.0) as session:
             sub = session.declare_subscriber(route.key("/robot1/odom", ODOMETRY), lambda s: samples.append(

@@ -88,7 +88,7 @@ def test_faults_a_crash_a_2d_stranger_and_the_monitor_in_3d(tmp_path):
                                        "--record", str(record), "--quiet"],
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
         monitor = kids.spawn("monitor", ["-m", "zswarm", "monitor", "--run", run, "--connect", endpoint,
-                                         "--json", "--every", "0.5", "--duration", "60"], stdout=subprocess.PIPE)
+                                         "--json", "--every", "0.5", "--stop-after", "60"], stdout=subprocess.PIPE)
         with Watch(endpoint, run) as watch:
             watch.reach_step(10, timeout=90)
         spec, rest = split_spec(run, "moving-prey", "--set", "n_agents=6")

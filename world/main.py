@@ -58,8 +58,8 @@ def build_parser() -> Parser:
     parser.add_argument("--design", metavar="JSON", type=design_verdict,
                         help="the run's design verdict as its launcher judged it (zswarm run and launch.py pass "
                              "it on, the same check done once); without it the world judges the set itself")
-    add_viewer_args(parser, zenoh_connect="connect")
-    add_zenoh_args(parser, viewer=True)
+    add_viewer_args(parser)
+    add_zenoh_args(parser)
     return parser
 
 

@@ -64,8 +64,18 @@ class LawName(argparse.Action):
     """``--law NAME``: ``law=NAME`` after a params file's law, whatever the order (the law's own
     ``--set law.X`` are kept wherever they stand)."""
 
+    meaning = "a law's name"
+
     def __call__(self, parser, namespace, values, option_string=None) -> None:
         setattr(namespace, self.dest, list(getattr(namespace, self.dest) or []) + [f"law={values}"])
+
+
+def law_name(text: str) -> str:
+    """``--law NAME`` where a command takes the law's name alone (``zswarm laws`` lists them)."""
+    return text
+
+
+law_name.meaning = LawName.meaning  # type: ignore[attr-defined]
 
 
 def read_params_file(path: str) -> list[str]:
@@ -115,22 +125,47 @@ def is_viewer_url(text: str) -> bool:
     return text.startswith(("rerun+http://", "rerun+https://", "rerun://"))
 
 
-class ConnectAction(argparse.Action):
-    """``--connect [URL]`` after Rerun's conventions, in a program that may also speak Zenoh: a Rerun URL
-    (or no value) asks for a live viewer (``viewer_connect``); anything else (``tcp/...``, ``tls/...``) is
-    a Zenoh endpoint, appended to (or stored in) ``zenoh_dest`` as before. ``zenoh_dest=None``: viewer only."""
+class ZenohEndpoint(argparse.Action):
+    """``--connect ENDPOINT`` / ``--listen ENDPOINT``: a Zenoh endpoint (``tcp/...``, ``tls/...``) in every
+    command, appended (repeatable) or stored. A Rerun viewer URL is refused with the flag that takes it."""
 
-    def __init__(self, option_strings, dest, zenoh_dest: str | None = None, append: bool = True, **kw) -> None:
-        self.zenoh_dest, self.append = zenoh_dest, append
-        super().__init__(option_strings, dest, nargs="?", const=None, **kw)
+    meaning = "a Zenoh endpoint"
+
+    def __init__(self, option_strings, dest, append: bool = True, **kw) -> None:
+        self.append = append
+        super().__init__(option_strings, dest, **kw)
 
     def __call__(self, parser, namespace, value, option_string=None) -> None:
-        if value is None or is_viewer_url(value) or self.zenoh_dest is None:
-            namespace.viewer_connect = value or DEFAULT_VIEWER_URL
-        elif self.append:
-            setattr(namespace, self.zenoh_dest, [*(getattr(namespace, self.zenoh_dest, None) or []), value])
-        else:
-            setattr(namespace, self.zenoh_dest, value)
+        if is_viewer_url(value):
+            parser.error(f"{option_string} takes a Zenoh endpoint (tcp/HOST:PORT); to stream to a Rerun viewer "
+                         f"give --viewer {value}")
+        setattr(namespace, self.dest, [*(getattr(namespace, self.dest, None) or []), value] if self.append else value)
+
+
+def viewer_url(text: str) -> str:
+    """``--viewer [URL]``: a Rerun viewer's URL (``rerun+http://HOST:9876/proxy``)."""
+    if not is_viewer_url(text):
+        raise argparse.ArgumentTypeError(f"expected a Rerun viewer URL like {DEFAULT_VIEWER_URL}, got {text!r}")
+    return text
+
+
+viewer_url.meaning = "a Rerun viewer URL"  # type: ignore[attr-defined]
+
+
+class Renamed(argparse.Action):
+    """An old spelling, refused in one line that names the new one (kept out of ``--help``)."""
+
+    def __init__(self, option_strings, dest, hint: str, **kw) -> None:
+        self.hint = hint
+        super().__init__(option_strings, argparse.SUPPRESS, nargs="?", help=argparse.SUPPRESS, **kw)
+
+    def __call__(self, parser, namespace, value, option_string=None) -> None:
+        parser.error(f"{option_string} is no longer a flag of this command: {self.hint}")
+
+
+def renamed(parser: argparse.ArgumentParser, old: str, hint: str) -> None:
+    """Refuse ``old`` on ``parser`` with ``hint`` (e.g. "give --seeds N")."""
+    parser.add_argument(old, action=Renamed, hint=hint)
 
 
 MAX_SEED = 2**63
@@ -189,8 +224,8 @@ def counted(n: int, noun: str) -> str:
 
 def seconds(text: str) -> float:
     """A duration flag's value in seconds: a bare number is seconds; ``500ms``, ``30s``, ``2min`` and
-    ``1h`` say their unit. (Fault delays, ``--latency`` and ``--jitter``, are the one exception: a bare
-    number there is milliseconds, as their help says.)"""
+    ``1h`` say their unit. (Fault delays, ``--latency`` and ``--jitter``, take no bare number but 0:
+    they are given in ms or s, and say which.)"""
     value = duration_seconds(text)
     if value is None:
         raise argparse.ArgumentTypeError(f"expected a duration like 30, 30s, 500ms or 2min, got {text!r}")
@@ -205,6 +240,90 @@ def positive_seconds(text: str) -> float:
     if value <= 0:
         raise argparse.ArgumentTypeError(f"expected a duration > 0, got {text!r}")
     return value
+
+
+def sim_seconds(text: str) -> float:
+    """``--duration``: simulated time, in seconds (:func:`positive_seconds`); the wall clock's flags are
+    named otherwise (``--stop-after``)."""
+    return positive_seconds(text)
+
+
+def wall_seconds(text: str) -> float:
+    """``--stop-after``: wall-clock time, in seconds (:func:`positive_seconds`)."""
+    return positive_seconds(text)
+
+
+def safety_modes(text: str) -> tuple[str, ...]:
+    """``--safety``: the safety filter's modes, ``off`` and ``barrier``, as a comma-separated list (one
+    where a command runs one, :func:`safety_mode_arg`)."""
+    from zswarm.control.safety import MODES
+
+    modes = tuple(dict.fromkeys(m.strip() for m in str(text).split(",") if m.strip()))
+    if not modes or any(m not in MODES for m in modes):
+        raise argparse.ArgumentTypeError(f"expected {' or '.join(MODES)}, or a comma-separated list of them, got {text!r}")
+    return modes
+
+
+def safety_mode_arg(text: str) -> str:
+    """``--safety`` where a command runs one mode: the same form, one item (a sweep compares several)."""
+    modes = safety_modes(text)
+    if len(modes) > 1:
+        raise argparse.ArgumentTypeError(f"this command runs one filter mode, got {text!r}; zswarm sweep --safety "
+                                         f"{','.join(modes)} runs each")
+    return modes[0]
+
+
+safety_modes.meaning = safety_mode_arg.meaning = "safety filter modes"  # type: ignore[attr-defined]
+def agent_count(text: str) -> int:
+    """``--agents N``: a number of agents, >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of agents, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a number of agents >= 1, got {text!r}")
+    return value
+
+
+def agent_counts(text: str) -> list[int]:
+    """``--agents N1,N2,...`` where a command measures several swarm sizes."""
+    return [agent_count(x) for x in str(text).split(",") if x.strip()] or [agent_count(text)]
+
+
+def loss_probability(text: str) -> float:
+    """``--dropout P``: the probability that a message is lost, in [0, 1)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a loss probability in [0, 1), got {text!r}") from None
+    if not 0.0 <= value < 1.0:
+        raise argparse.ArgumentTypeError(f"expected a loss probability in [0, 1), got {text!r}")
+    return value
+
+
+def loss_probabilities(text: str) -> list[float]:
+    """``--dropout P1,P2,...`` where a command sweeps several."""
+    return [loss_probability(x) for x in str(text).split(",") if x.strip()] or [loss_probability(text)]
+
+
+def router_count(text: str) -> int:
+    """``--routers K``: a number of routers, 1 to :data:`MAX_ROUTERS`."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if not 1 <= value <= MAX_ROUTERS:
+        raise argparse.ArgumentTypeError(f"expected a number of routers from 1 to {MAX_ROUTERS}, got {text!r}")
+    return value
+
+
+#: The most routers one run meshes.
+MAX_ROUTERS = 64
+router_count.meaning = "a number of routers"  # type: ignore[attr-defined]
+agent_count.meaning = agent_counts.meaning = "numbers of agents"  # type: ignore[attr-defined]
+loss_probability.meaning = loss_probabilities.meaning = "loss probabilities"  # type: ignore[attr-defined]
+sim_seconds.meaning = "simulated seconds"  # type: ignore[attr-defined]
+wall_seconds.meaning = "wall-clock seconds"  # type: ignore[attr-defined]
 
 
 def positive_int(text: str) -> int:

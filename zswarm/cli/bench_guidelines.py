@@ -17,17 +17,16 @@ import time
 from pathlib import Path
 from typing import Any
 
-from zswarm.args import UsageError, positive_float, positive_int, seed_arg
+from zswarm.args import UsageError, agent_counts, positive_float, positive_int, seed_arg
 from zswarm.bench.guidelines import cases, run_study, table
 
 DESCRIPTION = __doc__.split("\n\n")[1]
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    ints = lambda t: [positive_int(x) for x in t.split(",")]  # noqa: E731
     p.add_argument("--scenarios", type=lambda t: t.split(","), default=["moving-prey", "large-swarm"],
                    help="comma-separated scenarios (default moving-prey,large-swarm)")
-    p.add_argument("--agents", type=ints, default=[10, 30, 100, 300], help="N values (default 10,30,100,300)")
+    p.add_argument("--agents", type=agent_counts, default=[10, 30, 100, 300], help="N values (default 10,30,100,300)")
     p.add_argument("--sets", type=positive_int, default=24, help="random sets per scenario and N (default 24)")
     p.add_argument("--seeds", type=positive_int, default=2, help="runs per set (default 2)")
     p.add_argument("--spread", type=positive_float, default=3.0,

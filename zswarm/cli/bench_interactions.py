@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from zswarm.args import positive_float, positive_int
+from zswarm.args import agent_counts, positive_float, positive_int
 
 DESCRIPTION = __doc__.split("\n\n")[1]
 DEFAULT = ("paper", "mean", "cutoff", "gate", "nearest", "mean+cutoff", "mean+gate", "mean+gate+cutoff")
@@ -33,7 +33,7 @@ def add_study_arguments(p: argparse.ArgumentParser, seeds_help: str, set_example
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scenario", default="large-swarm", help="a registered scenario (default large-swarm)")
-    p.add_argument("--agents", type=lambda t: [positive_int(x) for x in t.split(",")], default=[100],
+    p.add_argument("--agents", type=agent_counts, default=[100],
                    help="N values (default 100)")
     p.add_argument("--interactions", type=lambda t: t.split(","), default=list(DEFAULT),
                    help=f"comma-separated (default {','.join(DEFAULT)})")

@@ -7,7 +7,7 @@ import json
 import time
 from pathlib import Path
 
-from zswarm.args import UsageError, positive_int, positive_seconds
+from zswarm.args import UsageError, agent_count, loss_probability, safety_modes, sim_seconds
 from zswarm.cli.bench_interactions import add_study_arguments
 
 DESCRIPTION = ("Every law (or those of --laws) on the same scenario, seeds and faults in the reference simulator, "
@@ -17,12 +17,13 @@ DESCRIPTION = ("Every law (or those of --laws) on the same scenario, seeds and f
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scenario", default="moving-prey", help="a registered scenario or .toml (default moving-prey)")
-    p.add_argument("--agents", type=positive_int, default=None, help="N (default: the scenario's)")
+    p.add_argument("--agents", type=agent_count, default=None, help="N (default: the scenario's)")
     p.add_argument("--laws", default=None, help="comma-separated law names (default: every law zswarm laws lists)")
     p.add_argument("--latency", default="0,200ms", help="one-way latencies, comma-separated (default 0,200ms)")
-    p.add_argument("--duration", type=positive_seconds, default=None, help="simulated seconds (default: the scenario's)")
-    p.add_argument("--dropout", type=float, default=0.0, help="loss probability of every run (default 0)")
-    p.add_argument("--safety", default="off,barrier", help="filter modes, comma-separated (default off,barrier)")
+    p.add_argument("--duration", type=sim_seconds, default=None, help="simulated seconds (default: the scenario's)")
+    p.add_argument("--dropout", type=loss_probability, default=0.0, help="loss probability of every run (default 0)")
+    p.add_argument("--safety", type=safety_modes, default=("off", "barrier"), metavar="MODES",
+                   help="filter modes, comma-separated (default off,barrier)")
     p.add_argument("--figure", type=Path, default=None, metavar="FILE.png", help="write the figure here")
     p.add_argument("--force", action="store_true", help="overwrite --figure")
     add_study_arguments(p, "runs per row, seeds 0..K-1", "law.w_sep=2")
@@ -36,7 +37,6 @@ def run(args: argparse.Namespace) -> int:
     from zswarm.laws.registry import bind, known
     from zswarm.swarm.faults import FaultModel, parse_duration_list
     from zswarm.paper.params import parse_assignments
-    from zswarm.control.safety import parse_mode
     from zswarm.swarm.scenarios import get_scenario
     from zswarm.provenance import machine
 
@@ -44,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
     laws = [x.strip() for x in args.laws.split(",") if x.strip()] if args.laws else known()
     try:
         latencies = parse_duration_list(args.latency)
-        modes = list(dict.fromkeys(parse_mode(m.strip()) for m in args.safety.split(",") if m.strip()))
+        modes = list(args.safety)
         FaultModel(dropout=args.dropout)
     except ValueError as exc:
         raise UsageError(str(exc)) from None

@@ -14,7 +14,7 @@ import argparse
 import json
 from pathlib import Path
 
-from zswarm.args import positive_int, positive_seconds
+from zswarm.args import agent_counts, law_name, positive_int, router_count, safety_mode_arg, sim_seconds
 from zswarm.bench.figures import figure
 from zswarm.bench.net import measure, record_curves
 from zswarm.files import check_writable
@@ -24,11 +24,11 @@ DESCRIPTION = __doc__.split("\n\n")[1]
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--agents", type=lambda t: [positive_int(x) for x in t.split(",")],
+    p.add_argument("--agents", type=agent_counts,
                    default=[10], help="N, or a comma-separated list (default 10)")
-    p.add_argument("--duration", type=positive_seconds, default=15.0,
+    p.add_argument("--duration", type=sim_seconds, default=15.0,
                    help="simulated = wall seconds per run (default 15)")
-    p.add_argument("--routers", type=positive_int, default=1, metavar="K",
+    p.add_argument("--routers", type=router_count, default=1, metavar="K",
                    help="K meshed routers, agent i on router i mod K (default 1)")
     p.add_argument("--floor", action="store_true",
                    help="also run N bare Zenoh processes with the same traffic and report the agents' CPU "
@@ -37,9 +37,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="measure each N K times in turn (swarm, floors, swarm, ...) and report medians (default 1)")
     p.add_argument("--record", type=Path, default=None, metavar="FILE.rrd",
                    help="also write the curves (cost and latency against N) as a Rerun recording")
-    p.add_argument("--safety", choices=("off", "barrier"), default="barrier",
+    p.add_argument("--safety", type=safety_mode_arg, default="barrier", metavar="off|barrier",
                    help="the agents' safety filter (default barrier, as runs): compare both for its cost")
-    p.add_argument("--law", default="apf", help="the agents' control law (default apf; zswarm laws lists them)")
+    p.add_argument("--law", type=law_name, default="apf", help="the agents' control law (default apf; zswarm laws lists them)")
     p.add_argument("--json", action="store_true")
 
 

@@ -13,7 +13,7 @@ import argparse
 import json
 import time
 
-from zswarm.args import positive_seconds
+from zswarm.args import agent_count, positive_seconds, seed_arg, sim_seconds
 from zswarm.errors import UsageError
 
 DESCRIPTION = __doc__.split("\n\n")[1]
@@ -21,11 +21,11 @@ DESCRIPTION = __doc__.split("\n\n")[1]
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scenario", default="large-swarm", help="registered scenario (default large-swarm)")
-    p.add_argument("--agents", type=int, default=1000, help="N (default 1000)")
+    p.add_argument("--agents", type=agent_count, default=1000, help="N (default 1000)")
     p.add_argument("--nodes", type=int, default=10, help="K nodes, equal capacities (default 10)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=seed_arg, default=0)
     p.add_argument("--samples", type=int, default=50, help="instants of the run counted (default 50)")
-    p.add_argument("--duration", type=positive_seconds, default=None, help="simulated seconds (default the scenario's)")
+    p.add_argument("--duration", type=sim_seconds, default=None, help="simulated seconds (default the scenario's)")
     p.add_argument("--migrate-every", type=positive_seconds, default=10.0, metavar="S",
                    help="also count space placement with the agents moved every S seconds, as zswarm run "
                         "--migrate-every S moves them (default 10)")

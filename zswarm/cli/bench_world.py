@@ -11,18 +11,19 @@ from __future__ import annotations
 import argparse
 import json
 
-from zswarm.args import positive_float, positive_int, positive_seconds
+from zswarm.net.runspec import time_scale_number
+from zswarm.args import agent_counts, positive_int, sim_seconds
 from zswarm.bench.figures import figure
 
 DESCRIPTION = __doc__.split("\n\n")[1]
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--agents", type=lambda t: [positive_int(x) for x in t.split(",")], default=[100],
+    p.add_argument("--agents", type=agent_counts, default=[100],
                    help="N, or a comma-separated list (default 100)")
-    p.add_argument("--duration", type=positive_seconds, default=15.0, help="simulated seconds per run (default 15)")
+    p.add_argument("--duration", type=sim_seconds, default=15.0, help="simulated seconds per run (default 15)")
     p.add_argument("--scenario", default="large-swarm", help="the run's scenario (default large-swarm)")
-    p.add_argument("--time-scale", type=positive_float, default=1.0,
+    p.add_argument("--time-scale", type=time_scale_number, default=1.0,
                    help="simulated seconds per wall second (default 1: the scenario's own rate)")
     p.add_argument("--crowds", type=positive_int, default=2,
                    help="processes that carry the agents' traffic (default 2)")

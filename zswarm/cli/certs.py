@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from zswarm.args import UsageError, positive_int
+from zswarm.args import UsageError, agent_count, positive_int
 from zswarm.ports import LOOPBACK
 
 DESCRIPTION = ("Write ca.pem, NAME.pem/.key and NAME.json5 (a full Zenoh config with mutual TLS; the router's "
@@ -22,7 +22,7 @@ def add_arguments(certs: argparse.ArgumentParser) -> None:
                        help="names and addresses the router is reached by (certificate SANs)")
     certs.add_argument("--extra", default="", metavar="NAME,..",
                        help="more certificates with no rights (e.g. guest) for testing")
-    certs.add_argument("--agents", type=int, default=0, metavar="N",
+    certs.add_argument("--agents", type=agent_count, default=0, metavar="N",
                        help="also give agents 0..N-1 an identity each (agent-I), allowed only their own keys; "
                             "the router's access control then holds N rules (default 0: one shared identity)")
     certs.add_argument("--days", type=positive_int, default=30, help="validity (default 30)")

@@ -18,7 +18,7 @@ import argparse
 from pathlib import Path
 from typing import Sequence
 
-from zswarm.args import ConnectAction, DEFAULT_VIEWER_URL, Parser, positive_seconds, run_main, seconds
+from zswarm.args import Parser, ZenohEndpoint, agent_count, positive_seconds, router_count, run_main, seconds
 from zswarm.launch.chaos import parse_crash, parse_kill, parse_outage
 from zswarm.net.runspec import add_run_args
 from zswarm.record.live import add_viewer_args
@@ -51,7 +51,7 @@ def build_parser(prog: str = "zswarm run") -> Parser:
     p = Parser(prog=prog, description="Start a zswarm run: router, world and agents.")
     add_run_args(p, run_help="run id: namespaces every key (default: run-SEED-TIME)")
     p.set_defaults(time_scale="auto")
-    p.add_argument("--agents", type=int, default=None,
+    p.add_argument("--agents", type=agent_count, default=None,
                    help="number of agents N (default: the scenario's; same as --set n_agents=N)")
     p.add_argument("--record", type=Path, default=None,
                    help="recording (default run.rrd, or run-2.rrd, run-3.rrd, ... when an earlier run's is there)")
@@ -64,17 +64,16 @@ def build_parser(prog: str = "zswarm run") -> Parser:
                         "judged from them at one instant, exactly (summary: tracks)")
     p.add_argument("--role", type=parse_roles, default=list(ROLES),
                    help="what this machine runs: router,world,agents (default all three)")
-    p.add_argument("--connect", action=ConnectAction, zenoh_dest="connect", append=False, default=None,
-                   metavar="ENDPOINT|URL",
-                   help="router to join when this machine runs no router, e.g. tcp/10.0.0.1:7447; or a Rerun "
-                        f"viewer URL (default {DEFAULT_VIEWER_URL} with no value) to watch the run live")
-    add_viewer_args(p, zenoh_connect="connect")
-    p.add_argument("--listen", default=None, metavar="ENDPOINT",
+    p.add_argument("--connect", action=ZenohEndpoint, append=False, default=None, metavar="ENDPOINT",
+                   help="the Zenoh router to join when this machine runs no router, e.g. tcp/10.0.0.1:7447 (a "
+                        "Rerun viewer is --viewer)")
+    add_viewer_args(p)
+    p.add_argument("--listen", action=ZenohEndpoint, append=False, default=None, metavar="ENDPOINT",
                    help="router endpoint (default tcp/127.0.0.1:FREE_PORT)")
     p.add_argument("--connect-timeout", type=seconds, default=None, metavar="S",
                    help="how long the world and the agents retry a router that does not answer before they give "
                         "up (default 15 s; machines started by hand must start within it)")
-    p.add_argument("--routers", type=int, default=1, metavar="K",
+    p.add_argument("--routers", type=router_count, default=1, metavar="K",
                    help="run K routers meshed together (the 2nd..Kth join the first) and spread the agents "
                         "over them, agent i on router i mod K (default 1). With --role router and --connect, "
                         "this machine's router joins the router at --connect")
@@ -108,7 +107,7 @@ def build_parser(prog: str = "zswarm run") -> Parser:
     p.add_argument("--placement", default="space", choices=("space", "round-robin"),
                    help="with --cluster: agents that start near each other share a node (space, default) or "
                         "ids are dealt in turn (round-robin)")
-    p.add_argument("--migrate-every", type=seconds, default=None, metavar="S",
+    p.add_argument("--migrate-every", type=positive_seconds, default=None, metavar="S",
                    help="free clock, with --routers K or --cluster: every S seconds of the run, split the swarm "
                         "anew by space and move each agent whose router (node) changes there, make-before-break "
                         "(docs/cluster.md)")

@@ -3,7 +3,7 @@
 Like ``ros2 topic hz`` and ``ros2 topic echo`` together for a whole run: agents alive, each agent's
 pose rate, the pose latency and data age the agents measure, messages rejected by reason, late ticks
 and the prey, refreshed in place (``rich``) until the run ends (then one line says how, exit 0), Ctrl-C
-or ``--duration``. ``--json`` prints one JSON object per refresh instead, for scripts. It joins the run with the standard Zenoh arguments
+or ``--stop-after``. ``--json`` prints one JSON object per refresh instead, for scripts. It joins the run with the standard Zenoh arguments
 (``--connect``, ``--config`` for TLS), subscribes only, and never disturbs the swarm.
 """
 
@@ -16,7 +16,7 @@ import signal
 import sys
 import time
 
-from zswarm.args import positive_seconds
+from zswarm.args import positive_seconds, renamed, wall_seconds
 from zswarm.errors import UsageError
 from zswarm.net.keys import Keys, check_run_id
 
@@ -33,7 +33,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="the run id (zswarm run prints it; its --run); a run of this machine is found by "
                              "it, one elsewhere needs --connect")
     parser.add_argument("--every", type=positive_seconds, default=1.0, metavar="S", help="refresh period (default 1 s)")
-    parser.add_argument("--duration", type=positive_seconds, default=None, metavar="S", help="stop after S seconds")
+    parser.add_argument("--stop-after", type=wall_seconds, default=None, metavar="S",
+                        help="stop after S seconds of the wall clock (default: when the run ends)")
+    renamed(parser, "--duration", "the monitor runs on the wall clock: give --stop-after S")
     parser.add_argument("--wait", type=float, default=10.0, metavar="S",
                         help="give up (exit 2) if no agent of the run is heard within S seconds (default 10)")
     parser.add_argument("--json", action="store_true", help="one JSON object per refresh instead of the table")
@@ -122,7 +124,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _ended(args, start: float, stopped, watch) -> bool:
-    return (stopped() or (args.duration is not None and time.monotonic() - start >= args.duration)
+    return (stopped() or (args.stop_after is not None and time.monotonic() - start >= args.stop_after)
             or watch.over(time.time()))
 
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from zswarm.args import UsageError, add_param_args, positive_seconds, seed_arg
+from zswarm.args import UsageError, add_param_args, seed_arg, renamed, wall_seconds
 from zswarm.stopping import stop_on_signals
 
 DESCRIPTION = ("Stand-in ROS 2 robots for rehearsing a deployment: differential-drive robots at the scenario's "
@@ -26,8 +26,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--rate", type=float, default=50.0, help="odometry and dynamics rate in Hz (default 50)")
     parser.add_argument("--cmd-timeout", type=float, default=0.25,
                         help="stop a robot whose commands stopped this many seconds ago (default 0.25)")
-    parser.add_argument("--duration", type=positive_seconds, default=None, help="stop after this many seconds (default: "
-                        "until the run ends, see --idle-exit, or Ctrl-C)")
+    parser.add_argument("--stop-after", type=wall_seconds, default=None, metavar="S",
+                        help="stop after S seconds of the wall clock (default: until the run ends, see --idle-exit, "
+                             "or Ctrl-C)")
+    renamed(parser, "--duration", "robot-sim runs on the wall clock: give --stop-after S")
     parser.add_argument("--idle-exit", type=float, default=5.0, metavar="S",
                         help="stop once the robots were commanded and then no command came for S seconds: "
                              "the run that drove them has ended (default 5; 0: never)")
@@ -66,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"robot-sim: {len(robots)} robots on {route.route} ({route.distro}, domain {route.domain_id}), "
           f"odometry at {args.rate:g} Hz, stopping {args.cmd_timeout:g} s after the last command", flush=True)
     try:
-        why = robot_sim.run(session, route, robots, args.rate, stop, args.duration, args.idle_exit or None)
+        why = robot_sim.run(session, route, robots, args.rate, stop, args.stop_after, args.idle_exit or None)
     finally:
         session.close()
     print(f"robot-sim: {why}", flush=True)

@@ -8,7 +8,7 @@ import sys
 import time
 from pathlib import Path
 
-from zswarm.args import add_law_arg, add_param_args, positive_int, positive_seconds, seed_arg
+from zswarm.args import add_law_arg, add_param_args, agent_count, loss_probability, positive_int, seed_arg, sim_seconds
 from zswarm.paper.params import parse_assignments
 from zswarm.paper.potentials import COMBINATIONS
 from zswarm.swarm.scenarios import SCENARIOS, get_scenario
@@ -23,8 +23,8 @@ def add_sim_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--potential", choices=COMBINATIONS, default=None,
                         help="obstacle-goal combination: additive (eq 12) or multiplicative (eq 14); "
                              "default: the scenario's")
-    parser.add_argument("--duration", type=positive_seconds, default=None, help="simulated time, e.g. 30 or 30s")
-    parser.add_argument("--agents", type=positive_int, default=None, metavar="N",
+    parser.add_argument("--duration", type=sim_seconds, default=None, help="simulated time, e.g. 30 or 30s")
+    parser.add_argument("--agents", type=agent_count, default=None, metavar="N",
                         help="N agents (the same as --set n_agents=N, and zswarm run's --agents)")
     parser.add_argument("--record", type=Path, metavar="FILE.rrd", help="write a Rerun recording")
     parser.add_argument("--force", action="store_true", help="overwrite an existing --record file")
@@ -35,7 +35,7 @@ def add_sim_arguments(parser: argparse.ArgumentParser) -> None:
                         help="draw who senses whom in the recording's map (auto: for N <= 100)")
     from zswarm.record.live import add_viewer_args
 
-    add_viewer_args(parser)
+    add_viewer_args(parser, zenoh=False)
     parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     parser.add_argument("--require-design", action="store_true",
                         help="refuse to start (exit 2) when the set this run would use fails zswarm design")
@@ -143,7 +143,7 @@ def add_bench_sim_arguments(parser: argparse.ArgumentParser) -> None:
                              "B runs one by one")
     parser.add_argument("--scenario", default="moving-prey", help="with --batch (default moving-prey)")
     parser.add_argument("--latency", default="100ms", help="with --batch: the faulty runs' delay (default 100ms)")
-    parser.add_argument("--dropout", type=float, default=0.3,
+    parser.add_argument("--dropout", type=loss_probability, default=0.3,
                         help="with --batch: the faulty runs' loss probability (default 0.3)")
     parser.add_argument("--json", action="store_true")
 

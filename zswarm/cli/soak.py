@@ -7,7 +7,7 @@ import argparse
 import json
 from typing import Any
 
-from zswarm.args import positive_int, positive_seconds, seed_arg
+from zswarm.args import agent_count, loss_probability, renamed, seed_arg, wall_seconds
 from zswarm.bench.figures import figure
 from zswarm.bench.soak import FLAT_MB_PER_MIN, run_soak
 
@@ -17,9 +17,11 @@ DESCRIPTION = ("N agents on bench-field with seeded loss for several minutes; sa
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--agents", type=positive_int, default=30, help="N (default 30)")
-    p.add_argument("--dropout", type=float, default=0.2, help="loss probability per message (default 0.2)")
-    p.add_argument("--duration", type=positive_seconds, default=300.0, help="wall time, e.g. 300 or 5min (default 300 s)")
+    p.add_argument("--agents", type=agent_count, default=30, help="N (default 30)")
+    p.add_argument("--dropout", type=loss_probability, default=0.2, help="loss probability per message (default 0.2)")
+    p.add_argument("--stop-after", type=wall_seconds, default=300.0, metavar="S",
+                   help="wall-clock time, e.g. 300 or 5min (default 300 s)")
+    renamed(p, "--duration", "the soak's length is wall-clock time: give --stop-after S")
     p.add_argument("--seed", type=seed_arg, default=0)
     p.add_argument("--json", action="store_true")
 
@@ -27,7 +29,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from zswarm.provenance import machine
 
-    r = run_soak(args.agents, args.dropout, args.duration, seed=args.seed)
+    r = run_soak(args.agents, args.dropout, args.stop_after, seed=args.seed)
     r["machine"] = machine()
     if args.json:
         print(json.dumps(r))

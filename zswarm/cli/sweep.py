@@ -1,4 +1,4 @@
-"""``zswarm sweep`` (``python launch.py sweep``): run a grid of latency x dropout x repeats, distributed and simulated.
+"""``zswarm sweep`` (``python launch.py sweep``): run a grid of latency x dropout x seeds, distributed and simulated.
 
 Each cell keeps its own directory (``DIR/cells/<cell>/``): the distributed run's ``run.rrd`` and
 ``run.json`` and the reference simulator's ``sim.json`` under the same faults and seed. A cell whose
@@ -16,7 +16,8 @@ import time
 from pathlib import Path
 from typing import Sequence
 
-from zswarm.args import Parser, UsageError, add_law_arg, add_param_args, positive_seconds, seed_arg
+from zswarm.args import (Parser, UsageError, add_law_arg, add_param_args, agent_count, loss_probabilities,
+                         positive_int, renamed, safety_modes, seed_arg, sim_seconds)
 from zswarm.files import out_dir, write_json
 from zswarm.launch.sweep import Cell, aggregate, cell_spec, run_cell_distributed, simulate_cells, write_curves, write_tables
 from zswarm.swarm.faults import FaultModel, parse_duration_list
@@ -27,18 +28,20 @@ def build_parser(prog: str = "zswarm sweep") -> Parser:
                    "(default static-goal)")
     p.add_argument("--latency", default="0,50,100,200ms",
                    help="one-way latencies, a comma-separated list (default 0,50,100,200ms)")
-    p.add_argument("--dropout", default="0,0.2,0.5",
+    p.add_argument("--dropout", type=loss_probabilities, default=[0.0, 0.2, 0.5],
                    help="loss probabilities, a comma-separated list (default 0,0.2,0.5)")
     p.add_argument("--jitter", default="0", help="jitter of every cell, e.g. 10ms (default 0)")
     p.add_argument("--burst", type=float, default=0.0,
                    help="mean loss-burst length of every cell (default 0: independent)")
-    p.add_argument("--safety", default="barrier", metavar="MODES",
+    p.add_argument("--safety", type=safety_modes, default=("barrier",), metavar="MODES",
                    help="safety filter modes, a comma-separated list of off and barrier: both side by side with "
                         "off,barrier (default barrier)")
-    p.add_argument("--repeats", type=int, default=3, help="runs per cell, seeds seed..seed+repeats-1 (default 3)")
+    p.add_argument("--seeds", type=positive_int, default=3, metavar="K",
+                   help="runs per cell, with seeds seed..seed+K-1 (default 3)")
+    renamed(p, "--repeats", "runs per setting are --seeds K in every command")
     p.add_argument("--seed", type=seed_arg, default=0, help="repeat r uses seed + r (default 0)")
-    p.add_argument("--agents", type=int, default=None, help="N (default: the scenario's)")
-    p.add_argument("--duration", type=positive_seconds, default=None, help="simulated seconds (default: the scenario's)")
+    p.add_argument("--agents", type=agent_count, default=None, help="N (default: the scenario's)")
+    p.add_argument("--duration", type=sim_seconds, default=None, help="simulated seconds (default: the scenario's)")
     add_param_args(p)
     add_law_arg(p)
     p.add_argument("--out", type=Path, required=True, help="output directory (reused to resume)")
@@ -47,19 +50,18 @@ def build_parser(prog: str = "zswarm sweep") -> Parser:
 
 
 def parse_lists(args: argparse.Namespace) -> tuple[list[float], list[float], list[str]]:
-    from zswarm.control.safety import parse_mode
 
     try:
-        modes = list(dict.fromkeys(parse_mode(m) for m in args.safety.split(",") if m.strip()))
+        modes = list(args.safety)
         lat = parse_duration_list(args.latency)
-        drop = [float(x) for x in args.dropout.split(",") if x.strip()]
+        drop = list(args.dropout)
         for d in drop:
             FaultModel(dropout=d)
         FaultModel(burst=args.burst)
     except ValueError as exc:
         raise UsageError(str(exc)) from None
-    if not lat or not drop or not modes or args.repeats < 1:
-        raise UsageError("give at least one latency, one dropout, one --safety mode and --repeats >= 1")
+    if not lat or not drop or not modes or args.seeds < 1:
+        raise UsageError("give at least one latency, one dropout, one --safety mode and --seeds >= 1")
     return lat, drop, modes
 
 
@@ -82,7 +84,7 @@ def main(argv: Sequence[str] | None, prog: str = "zswarm sweep") -> int:
     if args.out.exists() and not args.out.is_dir():
         raise UsageError(f"--out {args.out} is a file; give a directory (a new one, or a sweep's to resume it)")
     out_dir(args.out)
-    cells = [Cell(la, d, r, m) for m in modes for la in lat for d in drop for r in range(args.repeats)]
+    cells = [Cell(la, d, r, m) for m in modes for la in lat for d in drop for r in range(args.seeds)]
     todo = [c for c in cells if not (args.out / "cells" / c.name / "sim.json").exists()
             or (not args.sim_only and not (args.out / "cells" / c.name / "run.json").exists())]
     print(f"sweep: {len(cells)} cells, {len(cells) - len(todo)} already finished", flush=True)

@@ -14,7 +14,7 @@ import json
 import sys
 from pathlib import Path
 
-from zswarm.args import add_law_arg, add_param_args, non_negative, positive_float, positive_int, positive_seconds, seed_arg
+from zswarm.args import add_law_arg, add_param_args, non_negative, positive_float, positive_int, seed_arg, sim_seconds
 from zswarm.errors import UsageError
 from zswarm.files import write_json
 from zswarm.paper.params import parse_assignments
@@ -68,7 +68,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"do not require this design check (repeatable; one of {', '.join(CHECKS)})")
     parser.add_argument("--miss-penalty", type=non_negative, default=30.0, metavar="SECONDS",
                         help="added to the duration for a run that never catches the prey (default 30)")
-    parser.add_argument("--duration", type=positive_seconds, default=None, help="simulated seconds per run "
+    parser.add_argument("--duration", type=sim_seconds, default=None, help="simulated seconds per run "
                         "(default: the scenario's)")
     parser.add_argument("--potential", choices=COMBINATIONS, default=None,
                         help="obstacle-goal combination (default: the scenario's)")

@@ -15,13 +15,16 @@ class Bar:
 
     def __init__(self, quiet: bool, seeds: int = 0, miss_s: float | None = None) -> None:
         self.quiet, self.tty = quiet, sys.stderr.isatty()
-        if not quiet and miss_s is not None:  # what "best" is, said once
-            print(f"objective: the mean capture time over {seeds} tuning seeds, lower is better; a seed whose swarm "
-                  f"never catches the prey counts {miss_s:g} s (duration + --miss-penalty)", file=sys.stderr, flush=True)
+        self.head = None if miss_s is None else (  # what "best" is, said once the search is under way
+            f"objective: the mean capture time over {seeds} tuning seeds, lower is better; a seed whose swarm never "
+            f"catches the prey counts {miss_s:g} s (duration + --miss-penalty)")
 
     def __call__(self, p) -> None:
         if self.quiet:
             return
+        if self.head:
+            print(self.head, file=sys.stderr, flush=True)
+            self.head = None
         width = 24
         filled = int(width * min(p.evaluated / p.budget, 1.0))
         eta = "ETA " + _clock(p.eta) if p.eta is not None else "ETA -"

@@ -12,7 +12,7 @@ from typing import Iterable
 
 import zenoh
 
-from zswarm.args import DEFAULT_VIEWER_URL, ConnectAction, seconds
+from zswarm.args import ZenohEndpoint, seconds
 from zswarm.errors import UsageError
 from zswarm.ports import LOOPBACK
 
@@ -22,22 +22,15 @@ from zswarm.ports import LOOPBACK
 CONNECT_TIMEOUT = 15.0
 
 
-def add_zenoh_args(parser: argparse.ArgumentParser, default_mode: str = "client", viewer: bool = False) -> None:
-    """The standard Zenoh arguments of the zenoh-python examples. ``viewer``: ``--connect`` also takes
-    a Rerun viewer URL (``rerun+http://...``, or no value), for a program that records."""
+def add_zenoh_args(parser: argparse.ArgumentParser, default_mode: str = "client") -> None:
+    """The standard Zenoh arguments of the zenoh-python examples (``--connect`` is a Zenoh endpoint in
+    every command; a Rerun viewer is ``--viewer``)."""
     group = parser.add_argument_group("zenoh")
     group.add_argument("--mode", choices=("peer", "client", "router"), default=None,
                        help=f"zenoh session mode (default: the --config file's, else {default_mode})")
-    if viewer:
-        group.add_argument("--connect", "-e", action=ConnectAction, zenoh_dest="connect", default=[],
-                           metavar="ENDPOINT|URL",
-                           help="zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable); or a Rerun "
-                                f"viewer URL (default {DEFAULT_VIEWER_URL} with no value) to stream the recording to")
-        parser.set_defaults(viewer_connect=None)
-    else:
-        group.add_argument("--connect", "-e", action="append", default=[], metavar="ENDPOINT",
-                           help="endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable)")
-    group.add_argument("--listen", "-l", action="append", default=[], metavar="ENDPOINT",
+    group.add_argument("--connect", "-e", action=ZenohEndpoint, default=[], metavar="ENDPOINT",
+                       help="zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable)")
+    group.add_argument("--listen", "-l", action=ZenohEndpoint, default=[], metavar="ENDPOINT",
                        help="endpoint to listen on, e.g. tcp/0.0.0.0:7447 (repeatable)")
     group.add_argument("--config", "-c", type=Path, metavar="FILE",
                        help="a full zenoh configuration file (json5), e.g. one written by 'zswarm certs' "

@@ -19,10 +19,14 @@ from zswarm.stopping import stop_on_signals
 ROUTER_RUNTIME: str | None = None  # Zenoh's default pools
 
 
-def _main(argv: Sequence[str] | None) -> int:
+def build_parser() -> Parser:
     parser = Parser(prog="zswarm.net.router", description="Run a Zenoh router until SIGINT/SIGTERM.")
     add_zenoh_args(parser, default_mode="router")
-    args = parser.parse_args(argv)
+    return parser
+
+
+def _main(argv: Sequence[str] | None) -> int:
+    args = build_parser().parse_args(argv)
     if not args.listen and args.config is None:
         args.listen = [f"tcp/{LOOPBACK}:7447"]
     stop = stop_on_signals()

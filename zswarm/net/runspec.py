@@ -12,12 +12,13 @@ only place that writes a spec back into a child's command line:
 from __future__ import annotations
 
 import argparse
+import math
 import dataclasses
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any, Literal
 
-from zswarm.args import add_law_arg, add_param_args, positive_seconds, seed_arg
+from zswarm.args import add_law_arg, add_param_args, loss_probability, safety_mode_arg, seed_arg, sim_seconds
 from zswarm.errors import UsageError
 from zswarm.swarm.faults import FaultModel, parse_duration
 from zswarm.paper.neighbours import subscription_radius
@@ -138,7 +139,7 @@ def add_run_args(parser: argparse.ArgumentParser, run_help: str = f"run id: name
     group.add_argument("--time-scale", type=time_scale_arg, default=1.0,
                        help="simulated seconds per wall second in free mode (default 1: dt=0.05 s at 20 Hz; "
                             "zswarm run: auto, the pace this machine can hold)")
-    group.add_argument("--duration", type=positive_seconds, default=None,
+    group.add_argument("--duration", type=sim_seconds, default=None,
                        help="simulated time, e.g. 30 or 30s, 2min (default: the scenario's)")
     add_safety_arg(group)
     add_fault_args(parser)
@@ -154,11 +155,22 @@ def time_scale_arg(text: str) -> float | str:
         raise argparse.ArgumentTypeError(f"a number of simulated seconds per wall second, or auto (got {text!r})")
 
 
+def time_scale_number(text: str) -> float:
+    """``--time-scale`` where a command takes a number only (no ``auto``)."""
+    value = time_scale_arg(text)
+    if value == "auto" or not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a number of simulated seconds per wall second > 0, got {text!r}")
+    return value
+
+
+time_scale_arg.meaning = time_scale_number.meaning = "simulated seconds per wall second"  # type: ignore[attr-defined]
+
+
 def add_fault_args(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group("faults (applied by every receiving agent, seeded by --seed)")
-    group.add_argument("--latency", default="0", help="fixed delay of every incoming message, e.g. 100ms or 0.1s (a bare number is ms)")
-    group.add_argument("--jitter", default="0", help="uniform jitter around the delay, e.g. 20ms (a bare number is ms)")
-    group.add_argument("--dropout", type=float, default=0.0, help="loss probability in [0, 1)")
+    group.add_argument("--latency", default="0", help="fixed delay of every incoming message, e.g. 100ms or 0.1s (a unit is required but for 0)")
+    group.add_argument("--jitter", default="0", help="uniform jitter around the delay, e.g. 20ms (a unit is required but for 0)")
+    group.add_argument("--dropout", type=loss_probability, default=0.0, help="loss probability in [0, 1)")
     group.add_argument("--burst", type=float, default=0.0,
                        help="mean loss-burst length (Gilbert-Elliott); 0: independent losses")
     group.add_argument("--distance-loss", type=float, default=0.0,
@@ -166,7 +178,7 @@ def add_fault_args(parser: argparse.ArgumentParser) -> None:
 
 
 def add_safety_arg(parser) -> None:
-    parser.add_argument("--safety", choices=MODES, default=None,
+    parser.add_argument("--safety", type=safety_mode_arg, default=None, metavar="off|barrier",
                         help="barrier: every command passes the safety filter, robust to the age of each "
                              "neighbour's data (docs/safety.md); off: the law alone (default barrier; off for a "
                              "double-integrator body, which the filter cannot keep safe)")

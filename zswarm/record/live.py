@@ -1,8 +1,9 @@
 """Where a recording goes while it is written: a file, a Rerun viewer, or both at once.
 
-Rerun's conventions (``rr.script_add_args``): ``--spawn`` starts a viewer and streams to it,
-``--connect [URL]`` streams to one that is running (default ``rerun+http://127.0.0.1:9876/proxy``,
-what ``rerun`` listens on), ``--serve`` hosts a gRPC server in this process and a web viewer connected
+After Rerun's conventions (``rr.script_add_args``): ``--spawn`` starts a viewer and streams to it,
+``--viewer [URL]`` streams to one that is running (default ``rerun+http://127.0.0.1:9876/proxy``,
+what ``rerun`` listens on; Rerun's own scripts call it ``--connect``, which in zswarm is always a Zenoh
+endpoint), ``--serve`` hosts a gRPC server in this process and a web viewer connected
 to it. zswarm records to a file by default, so a viewer is asked for, never assumed; with ``--record``
 (or zswarm run's default file) the same stream goes to both (``set_sinks``).
 
@@ -18,7 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from urllib.parse import urlparse
 
-from zswarm.args import ConnectAction
+from zswarm.args import renamed, viewer_url
 from zswarm.args import DEFAULT_VIEWER_URL as DEFAULT_URL
 from zswarm.errors import UsageError
 from zswarm.ports import LOOPBACK
@@ -41,7 +42,7 @@ class Viewer:
     def to_argv(self) -> list[str]:
         """The flags that ask a child (the world) for the same viewer."""
         out = ["--spawn"] if self.spawn else []
-        out += ["--connect", self.connect] if self.connect is not None else []
+        out += ["--viewer", self.connect] if self.connect is not None else []
         return out + (["--serve"] if self.serve else [])
 
 
@@ -55,23 +56,23 @@ def check_reachable(url: str, timeout: float = 2.0) -> None:
         with socket.create_connection((host, port), timeout=timeout):
             pass
     except OSError as exc:
-        raise UsageError(f"--connect {url}: no Rerun viewer answers there ({exc.strerror or exc}); start one "
+        raise UsageError(f"--viewer {url}: no Rerun viewer answers there ({exc.strerror or exc}); start one "
                          "with 'rerun' (or 'rerun --serve-grpc'), or use --spawn") from None
 
 
-def add_viewer_args(parser: argparse.ArgumentParser, zenoh_connect: str | None = None,
-                    append: bool = True) -> None:
-    """``--spawn``, ``--serve`` and, unless the program's Zenoh ``--connect`` takes it (then pass
-    ``zenoh_connect``, and that flag is declared with :class:`ConnectAction`), ``--connect [URL]``."""
+def add_viewer_args(parser: argparse.ArgumentParser, zenoh: bool = True) -> None:
+    """``--spawn``, ``--viewer [URL]`` and ``--serve``; a program that speaks no Zenoh (``zenoh=False``)
+    refuses ``--connect`` with the hint ``--viewer``."""
     group = parser.add_argument_group("live viewing (Rerun)")
     group.add_argument("--spawn", action="store_true", help="start a Rerun viewer and stream the run to it live")
+    group.add_argument("--viewer", dest="viewer_connect", type=viewer_url, nargs="?", const=DEFAULT_URL,
+                       default=None, metavar="URL",
+                       help=f"stream live to a running Rerun viewer (default URL {DEFAULT_URL})")
     group.add_argument("--serve", action="store_true",
                        help=f"host a gRPC server (port {SERVE_PORT}) and a web viewer (http://localhost:{WEB_PORT}) "
                             "streaming the run live")
-    parser.set_defaults(viewer_connect=None)
-    if zenoh_connect is None:
-        group.add_argument("--connect", dest="viewer_connect", action=ConnectAction, zenoh_dest=None,
-                           metavar="URL", help=f"stream live to a running Rerun viewer (default URL {DEFAULT_URL})")
+    if not zenoh:
+        renamed(parser, "--connect", "this command joins no Zenoh router; stream to a Rerun viewer with --viewer [URL]")
 
 
 def viewer_from_args(args: argparse.Namespace) -> Viewer:

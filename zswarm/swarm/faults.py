@@ -27,19 +27,21 @@ PREY_SOURCE = 2**31 - 1
 OBSTACLE_SOURCE = 2**31 - 2
 
 
-def parse_duration(text: str, default_unit: str = "ms") -> float:
-    """'100ms', '0.1s' or '100' (milliseconds) -> seconds (:func:`zswarm.args.duration_seconds`, in the
-    two units a fault delay takes)."""
-    value = duration_seconds(text, default_unit, ("ms", "s"))
+def parse_duration(text: str) -> float:
+    """'100ms' or '0.1s' -> seconds (:func:`zswarm.args.duration_seconds`, in the two units a fault delay
+    takes). A bare number is refused, but 0: it could be either unit."""
+    value = duration_seconds(text, "s", ("ms", "s"))
     if value is None or value < 0:
         raise ValueError(f"expected a duration like 100ms or 0.1s (got {text!r})")
+    if value and not re.search(r"(ms|s)\s*$", str(text)):
+        raise ValueError(f"{text!r} needs a unit: {text}ms or {text}s")
     return value
 
 
 def parse_duration_list(text: str) -> list[float]:
-    """'0,50,100,200ms' -> seconds; a unit at the end applies to every bare number."""
+    """'0,50,100,200ms' -> seconds; a unit at the end applies to every bare number before it."""
     m = re.search(r"(ms|s)\s*$", text)
-    unit = m.group(1) if m else "ms"
+    unit = m.group(1) if m else ""
     return [parse_duration(part if re.search(r"(ms|s)\s*$", part) else part + unit)
             for part in text.split(",") if part.strip()]
 
