@@ -19,6 +19,7 @@ from zswarm.record.replay import load_run, recompute
 from zswarm.sim.simulator import Simulator, simulate
 
 from conftest import ROOT, run_cli
+from spool import Spool
 from swarm_procs import (
     Watch,
     interrupt_at_step,
@@ -237,7 +238,7 @@ def test_an_agents_only_machine_times_its_faults_from_the_worlds_start_heard_on_
         endpoint = start_router(kids)
         launch = kids.spawn("launch", [str(ROOT / "launch.py"), "--role", "agents", "--connect", endpoint,
                                        "--agents", "4", "--scenario", "moving-prey", "--run", run, "--duration", "6",
-                                       "--kill", "1@2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                                       "--kill", "1@2"], stdout=subprocess.PIPE, stderr=(said := Spool()))
         out = _lines_until(launch.proc.stdout, "4 agent processes", 60)  # the agents are started
         # the setup under test: the world starts 3 s after the agents, so a kill timed from the agents'
         # machine's own start would come before the world's clock, and the world would wait for an
@@ -248,7 +249,7 @@ def test_an_agents_only_machine_times_its_faults_from_the_worlds_start_heard_on_
         assert wait_exit(world, 90) == 0
         assert wait_exit(launch, 30) == 0
         out += launch.proc.stdout.read().decode()
-        err = launch.proc.stderr.read().decode()
+        err = said.text()
     assert "killed agents" in err, err
     s = load_summary(summary_path)
     assert s["startup_s"] is not None  # every agent was there when the world's clock started

@@ -13,6 +13,7 @@ import time
 import zenoh
 
 from conftest import ROOT, free_port, run_cli, wait_for_port
+from spool import Spool
 from zswarm.net.messages import ENCODING, POSE_ENCODING
 
 
@@ -51,7 +52,7 @@ def test_monitor_matches_the_runs_summary_and_payloads_name_their_encoding(tmp_p
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     swarm = subprocess.Popen([sys.executable, str(ROOT / "launch.py"), "--agents", "10", "--duration", "12",
                               "--record", str(tmp_path / "run.rrd"), "--listen", endpoint, "--run", run, "--quiet"],
-                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env,
+                             stdout=subprocess.DEVNULL, stderr=(said := Spool()), env=env,
                              start_new_session=True)
     try:
         wait_for_port(port)
@@ -65,7 +66,8 @@ def test_monitor_matches_the_runs_summary_and_payloads_name_their_encoding(tmp_p
         unknown = run_cli("-m", "zswarm", "monitor", "--run", "not-running-here", timeout=60)
         nobody = run_cli("-m", "zswarm", "monitor", "--run", "nobody-here", "--connect", endpoint, "--wait", "1",
                          timeout=60)
-        _, err = swarm.communicate(timeout=90)
+        swarm.wait(timeout=90)
+        err = said.text()
         swarm_ended = time.monotonic()
         assert swarm.returncode == 0, err[-2000:]
         view, view_err = live.communicate(timeout=30)

@@ -19,6 +19,7 @@ from zswarm.net.router import CLOSE_WAIT_S
 from zswarm.record.replay import load_run, load_segment, segments
 
 from conftest import ROOT, run_cli
+from spool import Spool
 from swarm_procs import (
     Watch,
     load_summary,
@@ -204,7 +205,7 @@ def test_router_crash_ends_the_run_with_a_valid_recording_and_summary(tmp_path):
     record = tmp_path / "rd.rrd"
     proc = subprocess.Popen([sys.executable, str(ROOT / "launch.py"), "--agents", "3", "--duration", "60",
                              "--run", "routerdie", "--listen", f"tcp/127.0.0.1:{port}", "--record", str(record),
-                             "--quiet"], cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                             "--quiet"], cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=(said := Spool()))
     try:
         with Watch(f"tcp/127.0.0.1:{port}", "routerdie") as watch:
             watch.reach_step(30)
@@ -213,7 +214,8 @@ def test_router_crash_ends_the_run_with_a_valid_recording_and_summary(tmp_path):
         for pid in routers:
             if b"zswarm.net.router" in open(f"/proc/{pid}/cmdline", "rb").read():
                 os.kill(pid, signal.SIGKILL)
-        _, err = proc.communicate(timeout=90)
+        proc.wait(timeout=90)
+        err = said.text()
     finally:
         if proc.poll() is None:
             proc.kill()

@@ -15,6 +15,7 @@ import pytest
 
 from conftest import ROOT
 from swarm_procs import Watch, load_summary, processes, rerun_verify, wait_exit
+from spool import Spool
 from zswarm.swarm.scenarios import get_scenario
 from zswarm.net.config import open_session, zenoh_config
 from zswarm.host.procs import start_router
@@ -71,14 +72,13 @@ def test_six_robots_catch_the_prey_and_fail_safely(tmp_path):
         launch = kids.spawn("launch", [str(ROOT / "launch.py"), "--role", "world,agents", "--connect", endpoint,
                                        "--run", run, "--agents", str(N), "--duration", "19", "--robots", str(path),
                                        "--no-fork", "--record", str(record), "--quiet"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+                            stdout=subprocess.DEVNULL, stderr=(said := Spool()))
         try:
             with Watch(endpoint, run) as watch:
                 try:
                     watch.reach_step(300, timeout=90)  # 15 s: the reference catches the prey at 11.2 s
                 except AssertionError as exc:  # say why: the launcher's last lines
-                    launch.proc.terminate()
-                    raise AssertionError(f"{exc}; the launcher said: {launch.proc.communicate(timeout=20)[1].decode()[-3000:]}")
+                    raise AssertionError(f"{exc}; the launcher said: {said.text()[-3000:]}") from None
                 tokens = [str(r.ok.key_expr) for r in session.liveliness().get("@ros2_lv/0/**", timeout=5.0)
                           if r.ok is not None]  # the ROS graph sees each agent's node and its cmd_vel
                 assert sum(t.endswith(f"/NN/%/%robot{i}/zswarm_agent_{i}") for t in tokens for i in range(N)) == N
@@ -99,7 +99,7 @@ def test_six_robots_catch_the_prey_and_fail_safely(tmp_path):
                 robots[4].silent = True  # robot 4's odometry stops
                 watch.until(lambda: 4 not in watch.alive, 5, "agent 4 leaving after its robot went silent")
                 assert {0, 1, 3, 5} <= watch.alive
-            assert wait_exit(launch, 60) == 0, launch.proc.stderr.read().decode()[-2000:]
+            assert wait_exit(launch, 60) == 0, said.text()[-2000:]
         finally:
             stop.set()
             driver.join(5)

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import ROOT
+from spool import Spool
 from swarm_procs import load_summary
 
 CASES = {
@@ -28,19 +29,19 @@ def both_ways(tmp: Path, args: list[str]) -> dict[str, tuple[int, str, dict, Pat
     once: the exit code, the last lines, the summary and the trajectory of each."""
     runs = {}
     for way, extra in (("plain", []), ("secure", ["--secure", str(tmp / "pki")])):
-        record = tmp / f"{way}.rrd"
-        runs[way] = (record, subprocess.Popen(
+        record, said = tmp / f"{way}.rrd", Spool()
+        runs[way] = (record, said, subprocess.Popen(
             [sys.executable, str(ROOT / "launch.py"), *args, *extra, "--run", f"both-{way}", "--seed", "3",
              "--record", str(record), "--trajectory", str(tmp / f"{way}.npz"), "--quiet"],
-            cwd=tmp, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True))
+            cwd=tmp, stdout=said, stderr=subprocess.STDOUT))
     out = {}
     try:
-        for way, (record, proc) in runs.items():
-            text = proc.communicate(timeout=240)[0]
-            out[way] = (proc.returncode, text[-3000:], load_summary(record.with_suffix(".json")),
+        for way, (record, said, proc) in runs.items():
+            proc.wait(timeout=240)
+            out[way] = (proc.returncode, said.text()[-3000:], load_summary(record.with_suffix(".json")),
                         tmp / f"{way}.npz")
     finally:
-        for _, proc in runs.values():
+        for _, _, proc in runs.values():
             if proc.poll() is None:
                 proc.kill()
                 proc.wait()

@@ -21,6 +21,7 @@ from zswarm.net.security import write_secure_dir
 
 from conftest import ROOT, run_cli
 from swarm_procs import load_summary, processes
+from spool import Spool
 
 RUN = "sec"
 
@@ -203,17 +204,28 @@ def test_an_agent_can_only_speak_for_itself(per_agent):
 def test_secure_swarm_never_sees_an_intruder(per_agent, tmp_path):
     """A full run over TLS + access control (an identity per agent) while a guest (valid
     certificate, no rights) announces agent 7 and publishes plausible poses for it, and a fake prey,
-    into every cell of the swarm."""
+    into every cell of the swarm, from the moment the swarm is under way (its 6 agents alive and the
+    world's prey heard) until after its end."""
     port = free_port()
     endpoint = f"tls/127.0.0.1:{port}"
     record = tmp_path / "secure.rrd"
     launch = subprocess.Popen([sys.executable, str(ROOT / "launch.py"), "--secure", str(per_agent), "--listen", endpoint,
                                "--run", RUN, "--agents", "6", "--duration", "12", "--record", str(record), "--quiet"],
-                              cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                              cwd=ROOT, stdout=(said := Spool()), stderr=subprocess.STDOUT)
     try:
         keys = Keys(RUN, 1.0)
         cells = [(cx, cy) for cx in range(-6, 0) for cy in range(-3, 3)]
         sent = 0
+        alive: set[int] = set()
+        prey: list[bytes] = []
+        with session(per_agent, "world", endpoint) as observer:  # rights to listen: when is the swarm up?
+            subs = [observer.liveliness().declare_subscriber(keys.all_alive, lambda s: (
+                        alive.discard if s.kind == zenoh.SampleKind.DELETE else alive.add)(Keys.agent_of(str(s.key_expr))),
+                        history=True),
+                    observer.declare_subscriber(keys.prey, lambda s: prey.append(b""))]
+            assert until(lambda: len(alive) >= 6 and prey, 90), (sorted(alive), len(prey))
+            for sub in subs:
+                sub.undeclare()
         with session(per_agent, "guest", endpoint) as guest:
             token = guest.liveliness().declare_token(keys.alive(7))
             for i in range(300):
@@ -224,7 +236,8 @@ def test_secure_swarm_never_sees_an_intruder(per_agent, tmp_path):
                 guest.put(keys.prey, msg.encode(msg.Prey(i, time.time(), -1, -4.0, 0.0)))
                 time.sleep(0.02)
             token.undeclare()
-        out, err = launch.communicate(timeout=120)
+        launch.wait(timeout=120)
+        err = said.text()
     finally:
         if launch.poll() is None:
             launch.kill()
@@ -238,7 +251,8 @@ def test_secure_swarm_never_sees_an_intruder(per_agent, tmp_path):
     assert not any(7 in h for h in heard.values()), heard
     assert s["messages_rejected"] == 0, s["rejected_by_reason"]  # nothing forged even arrived
     # and the swarm followed the world's prey as the centralized reference does
-    assert abs(s["vs_reference"]["final_centroid_goal_distance"]) < 1.0, s["vs_reference"]
+    assert abs(s["vs_reference"]["final_centroid_goal_distance"]) < 1.0, (s["vs_reference"], s["departures"],
+                                                                          s["events"][-10:] if "events" in s else None, err[-3000:])
 
 
 def test_certs_command_writes_usable_configs_and_reuses_its_ca(tmp_path, cli):

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from swarm_procs import Watch, load_summary, processes, rerun_verify, run_launch, split_spec, wait_exit
+from spool import Spool
 from viewer_shots import NO_XVFB, colored, render
 from zswarm.net import messages as msg
 from zswarm.net.config import open_session, zenoh_config
@@ -86,7 +87,7 @@ def test_faults_a_crash_a_2d_stranger_and_the_monitor_in_3d(tmp_path):
                                        "--time-scale", "2", "--listen", endpoint, "--run", run, "--dropout",
                                        "0.1", "--latency", "20ms", "--kill", "1@3", "--restart-after", "1.5",
                                        "--record", str(record), "--quiet"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+                            stdout=subprocess.DEVNULL, stderr=(spooled := Spool()))
         monitor = kids.spawn("monitor", ["-m", "zswarm", "monitor", "--run", run, "--connect", endpoint,
                                          "--json", "--every", "0.5", "--stop-after", "60"], stdout=subprocess.PIPE)
         with Watch(endpoint, run) as watch:
@@ -100,8 +101,8 @@ def test_faults_a_crash_a_2d_stranger_and_the_monitor_in_3d(tmp_path):
             for i in range(1, 11):  # a 2-D pose in the voxel key space of the 3-D run
                 session.put(keys.pose((0, 0, 0), 50), msg.encode(msg.Pose(50, i, time.time(), -1, 0.5, 0.5, 0.0, 0.0)))
                 time.sleep(0.02)
-        assert wait_exit(launch, 180) == 0, launch.proc.stderr.read().decode()
-        err = launch.proc.stderr.read().decode()
+        assert wait_exit(launch, 180) == 0, spooled.text()
+        err = spooled.text()
         monitor.proc.send_signal(2)
         snapshots = [json.loads(line) for line in monitor.proc.communicate(timeout=30)[0].splitlines()]
     assert stranger.proc.returncode == 2, said
