@@ -253,14 +253,18 @@ def wall_seconds(text: str) -> float:
     return positive_seconds(text)
 
 
+#: The safety filter's modes (``zswarm.control.safety`` takes them from here: a flag's values are known
+#: below the layer that acts on them).
+SAFETY_MODES: tuple[str, ...] = ("off", "barrier")
+
+
 def safety_modes(text: str) -> tuple[str, ...]:
     """``--safety``: the safety filter's modes, ``off`` and ``barrier``, as a comma-separated list (one
     where a command runs one, :func:`safety_mode_arg`)."""
-    from zswarm.control.safety import MODES
-
     modes = tuple(dict.fromkeys(m.strip() for m in str(text).split(",") if m.strip()))
-    if not modes or any(m not in MODES for m in modes):
-        raise argparse.ArgumentTypeError(f"expected {' or '.join(MODES)}, or a comma-separated list of them, got {text!r}")
+    if not modes or any(m not in SAFETY_MODES for m in modes):
+        raise argparse.ArgumentTypeError(f"expected {' or '.join(SAFETY_MODES)}, or a comma-separated list of them, "
+                                         f"got {text!r}")
     return modes
 
 

@@ -1,10 +1,8 @@
 """``zswarm monitor --run RUN``: a live terminal view of a running swarm, from any machine on its router.
 
-Like ``ros2 topic hz`` and ``ros2 topic echo`` together for a whole run: agents alive, each agent's
-pose rate, the pose latency and data age the agents measure, messages rejected by reason, late ticks
-and the prey, refreshed in place (``rich``) until the run ends (then one line says how, exit 0), Ctrl-C
-or ``--stop-after``. ``--json`` prints one JSON object per refresh instead, for scripts. It joins the run with the standard Zenoh arguments
-(``--connect``, ``--config`` for TLS), subscribes only, and never disturbs the swarm.
+Like ``ros2 topic hz`` and ``ros2 topic echo`` together for a whole run, refreshed in place (``rich``)
+until the run ends (one line says how, exit 0), Ctrl-C or ``--stop-after``; ``--json`` prints one
+object per refresh. It joins with the standard Zenoh arguments and only subscribes.
 """
 
 from __future__ import annotations
@@ -21,17 +19,15 @@ from zswarm.errors import UsageError
 from zswarm.net.keys import Keys, check_run_id
 
 DESCRIPTION = ("Watch a running swarm live: agents alive, pose rate per agent, latency and data age (p50/p99), "
-               "rejected messages by reason, late ticks and the prey, until the run ends (exit 0, one line that says how). "
-               "Join with --connect tcp/ROUTER:PORT (or --config for TLS); Ctrl-C to stop. Exit 2 when no agent "
-               "of the run is heard within --wait.")
+               "rejected messages, late ticks and the prey, until the run ends (exit 0, one line that says how). "
+               "Join with --connect tcp/ROUTER:PORT (or --config for TLS). Exit 2 when no agent is heard within --wait.")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from zswarm.net.config import add_zenoh_args
 
     parser.add_argument("--run", dest="run_id", required=True, metavar="RUN",
-                        help="the run id (zswarm run prints it; its --run); a run of this machine is found by "
-                             "it, one elsewhere needs --connect")
+                        help="the run id (zswarm run prints it); a run elsewhere also needs --connect")
     parser.add_argument("--every", type=positive_seconds, default=1.0, metavar="S", help="refresh period (default 1 s)")
     parser.add_argument("--stop-after", type=wall_seconds, default=None, metavar="S",
                         help="stop after S seconds of the wall clock (default: when the run ends)")
@@ -92,18 +88,13 @@ def run(args: argparse.Namespace) -> int:
         args.connect = [endpoint]
     session = open_session(config_from_args(args), what="monitor", retry_for=args.connect_timeout)
     watch = RunWatch(Keys(args.run_id, cell_size=1.0))  # the wildcards it subscribes to span every cell
-    stop = False
-
-    def on_signal(*_):
-        nonlocal stop
-        stop = True
-
-    signal.signal(signal.SIGINT, on_signal)
-    signal.signal(signal.SIGTERM, on_signal)
+    stopping: list[int] = []  # the signal that asked this view to stop, once one has
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda signum, _: stopping.append(signum))
     start = time.monotonic()
     try:
         watch.start(session)
-        while not stop:  # wait for the first agent
+        while not stopping:  # wait for the first agent
             watch.poll()
             if watch.alive or watch.poses:
                 break
@@ -112,12 +103,11 @@ def run(args: argparse.Namespace) -> int:
                                  "prints it) and that --connect reaches the run's router")
             time.sleep(0.05)
         if args.json:
-            _loop_json(watch, args, start, lambda: stop)
+            _loop_json(watch, args, start, lambda: bool(stopping))
         else:
-            _loop_live(watch, args, start, lambda: stop)
-        if watch.over(time.time()):
-            print(f"zswarm monitor: {watch.ending(time.time())}", file=sys.stderr if args.json else sys.stdout,
-                  flush=True)
+            _loop_live(watch, args, start, lambda: bool(stopping))
+        if watch.over(now := time.time()):
+            print(f"zswarm monitor: {watch.ending(now)}", file=sys.stderr if args.json else sys.stdout, flush=True)
     finally:
         watch.stop(session)
     return 0
@@ -128,20 +118,17 @@ def _ended(args, start: float, stopped, watch) -> bool:
             or watch.over(time.time()))
 
 
-def _sleep(period: float, stopped, watch) -> None:
-    """Up to ``period``; the watch takes in what arrives meanwhile, so that the run's end cuts it short."""
-    end = time.monotonic() + period
-    while time.monotonic() < end and not stopped():
+def _sleep(args, start: float, stopped, watch) -> None:
+    """Up to one refresh period, taking in what arrives: the run's end cuts it short."""
+    end = time.monotonic() + args.every
+    while time.monotonic() < end and not _ended(args, start, stopped, watch):
         time.sleep(0.05)
         watch.poll()
-        if watch.over(time.time()):
-            return
 
 
 def _loop_json(watch, args, start: float, stopped) -> None:
     while not _ended(args, start, stopped, watch):
-        _sleep(args.every, stopped, watch)
-        watch.poll()
+        _sleep(args, start, stopped, watch)
         print(json.dumps(watch.snapshot().to_dict()), flush=True)
 
 
@@ -153,8 +140,7 @@ def _loop_live(watch, args, start: float, stopped) -> None:
     console = Console(file=sys.stdout)
     with Live(table(watch.snapshot(), args.run_id), console=console, auto_refresh=False) as live:
         while not _ended(args, start, stopped, watch):
-            _sleep(args.every, stopped, watch)
-            watch.poll()
+            _sleep(args, start, stopped, watch)
             live.update(table(watch.snapshot(), args.run_id), refresh=True)
     if not console.is_terminal:  # a terminal's view ends its last line itself
         console.line()

@@ -51,7 +51,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-MODES: tuple[str, ...] = ("off", "barrier")
+from zswarm.args import SAFETY_MODES
+
+MODES: tuple[str, ...] = SAFETY_MODES
 TOL = 1e-12  # a candidate satisfies a row when a.u - b <= TOL (rounding of the exact solutions)
 STALL_SHARE = 0.1  # an agent is stalled when the filter left it under this share of the law's speed
 DETOUR = math.pi / 4  # a stalled agent tries the law's command turned this far to its right (the detour)
