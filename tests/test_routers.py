@@ -9,8 +9,10 @@ from swarm_procs import cross_router_share, our_processes, run_launch
 
 
 def test_three_meshed_routers_carry_one_swarm_that_catches_the_prey(tmp_path):
+    """At real time: faster than a loaded machine can hold, a swarm ticks late and may not catch the prey
+    in its run (it moves slower than asked), which is not what this test is about."""
     record = tmp_path / "mesh.rrd"
-    res = run_launch(tmp_path, "--routers", "3", "--agents", "6", "--duration", "24", "--time-scale", "2",
+    res = run_launch(tmp_path, "--routers", "3", "--agents", "6", "--duration", "24", "--time-scale", "1",
                      "--end-after-capture", "2", "--run", "mesh3", "--record", str(record), "--quiet", timeout=180)
     assert res.returncode == 0, res.stderr
     s = json.loads(record.with_suffix(".json").read_text())
