@@ -3,10 +3,10 @@
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
-import threading
 import time
 from pathlib import Path
 
@@ -16,11 +16,9 @@ import pytest
 from conftest import ROOT
 from swarm_procs import Watch, load_summary, processes, rerun_verify, wait_exit
 from spool import Spool
-from zswarm.swarm.scenarios import get_scenario
 from zswarm.net.config import open_session, zenoh_config
 from zswarm.host.procs import start_router
 from zswarm.record.replay import load_run
-from zswarm.ros import robot_sim
 from zswarm.ros.motion import read_pose, twist
 from zswarm.ros.robots import ODOMETRY, TWIST, load_robots
 from zswarm.ros.wire import Attachment
@@ -55,20 +53,16 @@ def test_six_robots_catch_the_prey_and_fail_safely(tmp_path):
     within 0.5 s, and a robot whose odometry goes silent takes its agent out while the rest carry on."""
     path = robots_file(tmp_path)
     fleet = load_robots(path)
-    scenario = get_scenario("moving-prey", {"n_agents": N})
-    spawn = scenario.initial_positions(np.random.default_rng(0))
-    robots = [robot_sim.SimRobot(r, fleet.route, robot_sim.start_pose(r, tuple(spawn[r.id]), scenario.prey_start))
-              for r in fleet.robots]
     record, run = tmp_path / "robots.rrd", "robots"
-    stop = threading.Event()
     with processes() as kids:
         endpoint = start_router(kids)
         session = open_session(zenoh_config("client", [endpoint]), "robots", retry_for=30.0)
-        heard: dict[int, list] = {i: [] for i in range(N)}  # each robot's odometry: (wall time, u, omega)
-        subs = [session.declare_subscriber(fleet.route.key(r.robot.odom, ODOMETRY), lambda s, i=i: heard[i].append(
-            (time.time(), *read_pose(fleet.route, ODOMETRY, s.payload.to_bytes())[3:5]))) for i, r in enumerate(robots)]
-        driver = threading.Thread(target=robot_sim.run, args=(session, fleet.route, robots, 50.0, stop), daemon=True)
-        driver.start()
+        heard: dict[int, list] = {i: [] for i in (0, 2)}  # robots 0 and 2's odometry: (wall time, u, omega)
+        subs = [session.declare_subscriber(fleet.route.key(fleet.robots[i].odom, ODOMETRY), lambda s, i=i: heard[i].append(
+            (time.time(), *read_pose(fleet.route, ODOMETRY, s.payload.to_bytes())[3:5]))) for i in heard]
+        driver = kids.spawn("robots", [str(ROOT / "tests" / "robot_driver.py"), endpoint, str(path), str(N)],
+                            stdout=subprocess.PIPE, stdin=subprocess.PIPE)
+        assert driver.proc.stdout.readline().strip() == b"ready"
         launch = kids.spawn("launch", [str(ROOT / "launch.py"), "--role", "world,agents", "--connect", endpoint,
                                        "--run", run, "--agents", str(N), "--duration", "19", "--robots", str(path),
                                        "--no-fork", "--record", str(record), "--quiet"],
@@ -92,17 +86,17 @@ def test_six_robots_catch_the_prey_and_fail_safely(tmp_path):
                     time.sleep(0.02)
                 stopped = next(t for t, u, w in heard[2] if t > killed_at and u == 0.0 and w == 0.0)
                 assert stopped - killed_at < 0.5, stopped - killed_at  # its robot stopped within 0.5 s
-                junk = session.declare_publisher(fleet.route.key(robots[1].robot.odom, ODOMETRY))
+                junk = session.declare_publisher(fleet.route.key(fleet.robots[1].odom, ODOMETRY))
                 for payload in (b"not cdr at all", b"\x00\x01\x00\x00 short"):  # foreign and truncated
                     junk.put(payload)
                 junk.undeclare()
-                robots[4].silent = True  # robot 4's odometry stops
+                driver.proc.stdin.write(b"silent 4\n")  # robot 4's odometry stops
+                driver.proc.stdin.flush()
                 watch.until(lambda: 4 not in watch.alive, 5, "agent 4 leaving after its robot went silent")
                 assert {0, 1, 3, 5} <= watch.alive
             assert wait_exit(launch, 60) == 0, said.text()[-2000:]
+            robots = json.loads(driver.proc.communicate(b"stop\n", timeout=30)[0].splitlines()[-1])
         finally:
-            stop.set()
-            driver.join(5)
             for s in subs:
                 s.undeclare()
             session.close()
@@ -111,7 +105,7 @@ def test_six_robots_catch_the_prey_and_fail_safely(tmp_path):
     assert {d["id"]: d["how"] for d in s["departures"]} == {2: "crashed", 4: "crashed"}
     assert s["stopped_at_end"] == [0, 1, 3, 5]
     assert s["rejected_by_reason"] == {"ros-header": 1, "ros-cdr": 1}  # counted and dropped by agent 1
-    assert all(r.commands > 100 and not r.rejected for r in robots)
+    assert all(r["commands"] > 100 and not r["rejected"] for r in robots), robots
     rerun_verify(record)
     frames = load_run(record).frames
     assert all(f.headings is not None and np.isfinite(f.headings).all() for f in frames[1:])  # the robots' yaw

@@ -224,7 +224,8 @@ class World:
             if self.timed is not None:
                 self.timed.leave(who)
             if self.ending:  # the run is over and the agents stop: not a departure
-                c.stopped_at_end.append(who)
+                if who not in c.stopped_at_end:  # a token seen going twice (it came back between) counts once
+                    c.stopped_at_end.append(who)
             else:
                 c.pending[who] = {**event, "seen": time.monotonic()}
                 self.settle_departures()
