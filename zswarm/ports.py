@@ -58,3 +58,17 @@ def free_port(host: str = LOOPBACK) -> int:
             return port
     raise UsageError("no free port after 200 tries" + ("" if span is None else
                      f" in ZSWARM_PORTS={span[0]}-{span[1]}: widen the range"))
+
+
+def local_host(host: str) -> str:
+    """Where to check a listening port: a wildcard address is reached on loopback."""
+    return LOOPBACK if host in ("0.0.0.0", "::") else host
+
+
+def port_in_use(host: str, port: int, timeout: float = 0.2) -> bool:
+    """Something accepts a TCP connection at ``host``:``port`` within ``timeout`` seconds."""
+    try:
+        with socket.create_connection((host, port), timeout=timeout):
+            return True
+    except OSError:
+        return False

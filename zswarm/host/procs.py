@@ -11,7 +11,6 @@ import json
 import os
 import selectors
 import signal
-import socket
 import subprocess
 import sys
 import threading
@@ -19,7 +18,8 @@ import time
 from dataclasses import dataclass, field
 from typing import IO, TYPE_CHECKING, Sequence
 
-from zswarm.ports import LOOPBACK, free_port  # noqa: F401  (free_port re-exported: the launcher, benchmarks and tests take it here)
+from zswarm.ports import LOOPBACK, free_port, local_host, port_in_use  # noqa: F401  (re-exported: the launcher,
+# benchmarks and tests take them here)
 from zswarm.process import die_with_parent, one_blas_thread
 
 if TYPE_CHECKING:
@@ -193,12 +193,6 @@ class Fleet:
         return self.kids.add(Child(name, self.procs[name]))
 
 
-def port_in_use(host: str, port: int) -> bool:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.settimeout(0.2)
-        return s.connect_ex((host, port)) == 0
-
-
 def wait_for_port(host: str, port: int, timeout: float, child: Child | None = None) -> bool:
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
@@ -221,11 +215,6 @@ def start_router(kids: Children, host: str = LOOPBACK, proto: str = "tcp", extra
 
 
 ROUTER_MODULE = "zswarm.net.router"
-
-
-def local_host(host: str) -> str:
-    """Where to check a listening port: a wildcard address is reached on loopback."""
-    return LOOPBACK if host in ("0.0.0.0", "::") else host
 
 
 def start_mesh(kids: Children, endpoints: Sequence[str], join: str | None = None, extra: Sequence[str] = (),

@@ -14,7 +14,7 @@ import zenoh
 
 from zswarm.args import ZenohEndpoint, seconds
 from zswarm.errors import UsageError
-from zswarm.ports import LOOPBACK
+from zswarm.ports import LOOPBACK, local_host, port_in_use
 
 
 #: How long a process keeps trying to reach its router at start (``--connect-timeout``), and a machine
@@ -146,14 +146,11 @@ def connected(session: zenoh.Session) -> bool:
 
 def _answers(endpoint: str) -> bool:
     """Something accepts a TCP connection on ``endpoint``'s port (a router that runs, or something else)."""
-    import socket
-
     try:
         host, port = endpoint_host_port(endpoint)
-        with socket.create_connection((LOOPBACK if host in ("0.0.0.0", "::") else host, port), timeout=0.5):
-            return True
-    except (OSError, UsageError):
+    except UsageError:
         return False
+    return port_in_use(local_host(host), port, timeout=0.5)
 
 
 def open_session(conf: zenoh.Config, what: str = "zenoh", retry_for: float = 0.0,
