@@ -20,6 +20,7 @@ from typing import IO, TYPE_CHECKING, Sequence
 
 from zswarm.ports import LOOPBACK, free_port, local_host, port_in_use  # noqa: F401  (re-exported: the launcher,
 # benchmarks and tests take them here)
+from zswarm.net.security import router_name
 from zswarm.process import die_with_parent, one_blas_thread
 
 if TYPE_CHECKING:
@@ -224,7 +225,7 @@ def start_mesh(kids: Children, endpoints: Sequence[str], join: str | None = None
     router arguments for every router (``--config``), ``each``: for each router its own (its identity,
     under ``--secure``). Returns once each accepts connections; RuntimeError if one does not."""
     for k, endpoint in enumerate(endpoints):
-        _spawn_router(kids, "router" if k == 0 else f"router-{k}", endpoint, endpoints[0] if k > 0 else join,
+        _spawn_router(kids, router_name(k), endpoint, endpoints[0] if k > 0 else join,
                       [*extra, *(each[k] if each else ())])
 
 
