@@ -10,7 +10,7 @@ import argparse
 import math
 import re
 import sys
-from typing import Callable, NoReturn, Sequence
+from typing import Any, Callable, NoReturn, Sequence
 
 from zswarm.errors import EXIT_FAILURE, EXIT_USAGE, Failure, ParamError, UsageError
 from zswarm.ports import LOOPBACK
@@ -278,6 +278,8 @@ def safety_mode_arg(text: str) -> str:
 
 
 safety_modes.meaning = safety_mode_arg.meaning = "safety filter modes"  # type: ignore[attr-defined]
+
+
 def agent_count(text: str) -> int:
     """``--agents N``: a number of agents, >= 1."""
     try:
@@ -289,11 +291,6 @@ def agent_count(text: str) -> int:
     return value
 
 
-def agent_counts(text: str) -> list[int]:
-    """``--agents N1,N2,...`` where a command measures several swarm sizes."""
-    return [agent_count(x) for x in str(text).split(",") if x.strip()] or [agent_count(text)]
-
-
 def loss_probability(text: str) -> float:
     """``--dropout P``: the probability that a message is lost, in [0, 1)."""
     try:
@@ -303,11 +300,6 @@ def loss_probability(text: str) -> float:
     if not 0.0 <= value < 1.0:
         raise argparse.ArgumentTypeError(f"expected a loss probability in [0, 1), got {text!r}")
     return value
-
-
-def loss_probabilities(text: str) -> list[float]:
-    """``--dropout P1,P2,...`` where a command sweeps several."""
-    return [loss_probability(x) for x in str(text).split(",") if x.strip()] or [loss_probability(text)]
 
 
 def router_count(text: str) -> int:
@@ -324,8 +316,23 @@ def router_count(text: str) -> int:
 #: The most routers one run meshes.
 MAX_ROUTERS = 64
 router_count.meaning = "a number of routers"  # type: ignore[attr-defined]
-agent_count.meaning = agent_counts.meaning = "numbers of agents"  # type: ignore[attr-defined]
-loss_probability.meaning = loss_probabilities.meaning = "loss probabilities"  # type: ignore[attr-defined]
+agent_count.meaning = "numbers of agents"  # type: ignore[attr-defined]
+loss_probability.meaning = "loss probabilities"  # type: ignore[attr-defined]
+
+
+def list_of(one: Callable[[str], Any]) -> Callable[[str], list]:
+    """The flag that takes a comma-separated list of what ``one`` takes (at least one item), where a
+    command runs several settings: the same meaning, so the flag keeps one name everywhere."""
+    def many(text: str) -> list:
+        return [one(x) for x in str(text).split(",") if x.strip()] or [one(text)]
+
+    many.__name__ = f"{one.__name__}_list"
+    many.meaning = one.meaning  # type: ignore[attr-defined]
+    return many
+
+
+agent_counts = list_of(agent_count)  # --agents N1,N2,... where a command measures several swarm sizes
+loss_probabilities = list_of(loss_probability)  # --dropout P1,P2,... where a command sweeps several
 sim_seconds.meaning = "simulated seconds"  # type: ignore[attr-defined]
 wall_seconds.meaning = "wall-clock seconds"  # type: ignore[attr-defined]
 
