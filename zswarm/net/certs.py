@@ -119,9 +119,7 @@ def make_certs(directory: Path, names: tuple[str, ...] = ROLES, hosts: tuple[str
     x509, hashes, serialization, ec, _, oid = _crypto()
     directory = private_dir(directory)
     if (directory / "ca.pem").is_file() and (directory / "ca.key").is_file():
-        ca = x509.load_pem_x509_certificate((directory / "ca.pem").read_bytes())
-        ca_key = serialization.load_pem_private_key((directory / "ca.key").read_bytes(), password=None)
-        return _leaves(directory, names, ca, ca_key, hosts, days)
+        return _leaves(directory, names, *_load_ca(directory), hosts, days)
     valid_from, valid_to = _validity(days)
     ca_key = ec.generate_private_key(ec.SECP256R1())
     ca_name = x509.Name([x509.NameAttribute(oid.COMMON_NAME, "zswarm-ca")])
@@ -141,16 +139,31 @@ def make_certs(directory: Path, names: tuple[str, ...] = ROLES, hosts: tuple[str
 
 def _leaves(directory: Path, names: Sequence[str], ca, ca_key, hosts: tuple[str, ...], days: int) -> dict[str, CertPaths]:
     """``NAME.pem`` signed by the CA for every name, over its key (made where there is none)."""
-    _, _, serialization, ec, _, _ = _crypto()
+    _, _, serialization, _, _, _ = _crypto()
     out = {}
     for name in names:
         paths = CertPaths(directory, name)
-        key = (serialization.load_pem_private_key(paths.key.read_bytes(), password=None) if paths.key.is_file()
-               else ec.generate_private_key(ec.SECP256R1()))
+        key = _own_key(paths.key)
         paths.cert.write_bytes(_pem(serialization, cert=_leaf(name, key.public_key(), ca, ca_key, hosts, days)))
-        _write_key(paths.key, _pem(serialization, key=key))
         out[name] = paths
     return out
+
+
+def _load_ca(directory: Path) -> tuple:
+    """The CA of ``directory``: its certificate and its private key."""
+    x509, _, serialization, _, _, _ = _crypto()
+    return (x509.load_pem_x509_certificate((directory / "ca.pem").read_bytes()),
+            serialization.load_pem_private_key((directory / "ca.key").read_bytes(), password=None))
+
+
+def _own_key(path: Path):
+    """The private key at ``path``, made there (readable by its owner alone) where there is none."""
+    _, _, serialization, ec, _, _ = _crypto()
+    if path.exists():
+        return serialization.load_pem_private_key(path.read_bytes(), password=None)
+    key = ec.generate_private_key(ec.SECP256R1())
+    _write_key(path, _pem(serialization, key=key))
+    return key
 
 
 def make_keys(directory: Path, names: Sequence[str]) -> dict[str, str]:
@@ -158,16 +171,11 @@ def make_keys(directory: Path, names: Sequence[str]) -> dict[str, str]:
     private halves stay there, the public halves (PEM) are returned, to be signed by :func:`sign`
     wherever the CA is. This is how a node of a cluster gets its identities without a private key
     crossing the network."""
-    _, _, serialization, ec, _, _ = _crypto()
+    _, _, serialization, _, _, _ = _crypto()
     directory = private_dir(directory)
     out = {}
     for name in names:
-        path = CertPaths(directory, name).key
-        if path.exists():
-            key = serialization.load_pem_private_key(path.read_bytes(), password=None)
-        else:
-            key = ec.generate_private_key(ec.SECP256R1())
-            _write_key(path, _pem(serialization, key=key))
+        key = _own_key(CertPaths(directory, name).key)
         out[name] = key.public_key().public_bytes(serialization.Encoding.PEM,
                                                   serialization.PublicFormat.SubjectPublicKeyInfo).decode()
     return out
@@ -196,10 +204,8 @@ def sign(ca_directory: Path, public_keys: dict[str, str], hosts: tuple[str, ...]
     """Certificates (PEM) for public keys made elsewhere (:func:`make_keys`), by the CA of
     ``ca_directory`` (its ``ca.pem`` and ``ca.key``), each named for its key's name and valid for
     ``hosts``."""
-    x509, _, serialization, _, _, _ = _crypto()
-    ca_dir = require_ca_key(ca_directory)
-    ca_cert = x509.load_pem_x509_certificate((ca_dir / "ca.pem").read_bytes())
-    ca_key = serialization.load_pem_private_key((ca_dir / "ca.key").read_bytes(), password=None)
+    _, _, serialization, _, _, _ = _crypto()
+    ca_cert, ca_key = _load_ca(require_ca_key(ca_directory))
     return {name: _pem(serialization, cert=_leaf(name, serialization.load_pem_public_key(pem.encode()),
                                                  ca_cert, ca_key, hosts, days)).decode()
             for name, pem in public_keys.items()}
