@@ -29,7 +29,7 @@ from zswarm.control.body import tracked_point
 from zswarm.swarm.faults import OBSTACLE_SOURCE, PREY_SOURCE
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Inbound
-from zswarm.net.poses import Entry, PoseTable, Rejections, vouched_by
+from zswarm.net.poses import Entry, PoseTable, Rejections, max_step, vouched_by
 from zswarm.net.runspec import RunSpec
 
 
@@ -80,7 +80,7 @@ class Sensing:
         p = spec.scenario.params.swarm
         self.radius, self.v_max, self.dt = p.sensing_radius, p.v_max, spec.scenario.dt
         self.subscription_radius = spec.subscription_radius
-        self.neighbours = PoseTable(3.0 * self.v_max * self.dt, spec.period)  # 3x slack on a tick's reach
+        self.neighbours = PoseTable(max_step(spec.scenario), spec.period)
         self.counters = Counters(Rejections(f"agent {agent_id}"))
         self.membership = Membership(self.keys, agent_id)  # who is there: the liveliness and member tokens
         self.last_seq: dict[int, int] = {}

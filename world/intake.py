@@ -19,7 +19,7 @@ import numpy as np
 from zswarm.swarm.timed_contacts import TimedContacts
 from zswarm.net import messages as msg
 from zswarm.net.pose_batch import ACCEPTED, REASON, PoseArrays
-from zswarm.net.poses import PoseTable, Rejections, vouched_by
+from zswarm.net.poses import PoseTable, Rejections, max_step, vouched_by
 from zswarm.net.runspec import RunSpec
 
 #: From this many agents a free-running world takes a tick's poses in at once (``--intake auto``):
@@ -65,11 +65,11 @@ class PoseIntake:
     def __init__(self, spec: RunSpec, rejected: Rejections, timed: TimedContacts | None, batched: bool) -> None:
         scenario = spec.scenario
         self.keys, self.dims, self.rejected, self.timed = spec.keys, scenario.dimensions, rejected, timed
-        max_step = 3.0 * scenario.params.swarm.v_max * scenario.dt
+        step = max_step(scenario)
         self.batched = batched and spec.clock == "free"
         # one of the two holds the poses: the arrays (batched) or the per-pose table (lockstep's steps too)
-        self.table = None if self.batched else PoseTable(max_step, spec.period)
-        self.arrays = PoseArrays(max_step, spec.period, self.dims) if self.batched else None
+        self.table = None if self.batched else PoseTable(step, spec.period)
+        self.arrays = PoseArrays(step, spec.period, self.dims) if self.batched else None
         self.record_sizes = msg.POSE_SIZES_BY_DIMS[self.dims]  # this run's records
         self.members: dict[int, set[tuple[int, ...]]] = {}  # id -> the cells holding its member token
         self.announced: dict[int, float] = {}  # id -> when its liveliness token came (World._on_liveliness)

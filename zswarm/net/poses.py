@@ -48,6 +48,16 @@ def implausible_jump(old: msg.Pose, new: msg.Pose, max_step: float, elapsed_step
     return math.hypot(new.x - old.x, new.y - old.y, new.z - old.z) > max_step * steps + 1e-9
 
 
+#: How many times one tick's reach (v_max dt) a pose may move from the last accepted before it is a jump.
+JUMP_SLACK = 3.0
+
+
+def max_step(scenario) -> float:
+    """The farthest an agent of ``scenario`` may move per tick before its pose is an impossible jump, for
+    the agent and the world alike: one tick's reach with :data:`JUMP_SLACK` slack."""
+    return JUMP_SLACK * scenario.params.swarm.v_max * scenario.dt
+
+
 #: Seconds a rival track must have sent consistently before it may take an id over (the staleness limit).
 TAKEOVER = 0.5
 #: ... and the poses it must have sent in that time (one stale duplicate is no track).
