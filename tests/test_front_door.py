@@ -96,15 +96,26 @@ def test_the_readme_shows_every_task_and_its_links_lead_somewhere():
     for task in ("design", "sim", "run", "sweep", "--law", "3d", "robot-sim", "--cluster", "--secure", "replay",
                  "tune"):
         assert any(task in " ".join(a) for a in commands()), task
-    for target in re.findall(r"\]\(([^)#]+)(?:#([^)]+))?\)", README):
-        path, anchor = target
-        if path.startswith("http"):
-            continue
-        assert (ROOT / path).exists(), path
-        if anchor:
-            headings = [re.sub(r"[^\w\- ]", "", h.strip("# ").lower()).replace(" ", "-")
-                        for h in (ROOT / path).read_text().splitlines() if h.startswith("#")]
-            assert anchor in headings, (path, anchor)
+
+
+def test_every_link_of_the_readme_and_the_docs_leads_somewhere_inside_the_repository():
+    """Every link of README.md, CHANGELOG.md and docs/ names a file of the repository (and a heading of
+    it, where it names one); none leaves the repository."""
+    bad = []
+    for page in [ROOT / "README.md", ROOT / "CHANGELOG.md", *sorted((ROOT / "docs").rglob("*.md"))]:
+        for path, anchor in re.findall(r"\]\(([^)#]*)(?:#([^)]+))?\)", page.read_text()):
+            if "://" in path:
+                bad.append(f"{page.name}: {path} leaves the repository")
+                continue
+            target = (page.parent / path).resolve() if path else page
+            if not target.exists():
+                bad.append(f"{page.name}: {path} does not exist")
+            elif anchor:
+                headings = [re.sub(r"[^\w\- ]", "", h.strip("# ").lower()).replace(" ", "-")
+                            for h in target.read_text().splitlines() if h.startswith("#")]
+                if anchor not in headings:
+                    bad.append(f"{page.name}: {path}#{anchor} names no heading")
+    assert bad == [], bad
 
 
 @pytest.mark.parametrize("command", ["sim", "run", "sweep", "tune", "monitor", "robot-sim", "bench net", "bench world",
