@@ -22,7 +22,7 @@ from agents.free import run_free, take_in, wait_for_world
 from agents.handoff import Desk, HandoffError, apply_state, encode_state, take_over
 from agents.outreach import Outreach
 from agents.sensing import Sensing
-from zswarm.args import Parser, UsageError, run_main
+from zswarm.args import Parser, UsageError, run_main, seconds
 from zswarm.laws.bound import EXIT_LAW_FAILED
 from zswarm.control.step import control_step
 from zswarm.net import messages as msg
@@ -60,10 +60,10 @@ def build_parser() -> Parser:
                              "about where it is, to enter its cells early), then it leaves (implies --movable)")
     parser.add_argument("--staleness", type=float, default=0.5,
                         help="free clock: ignore neighbour data older than this many seconds (default 0.5)")
-    parser.add_argument("--lockstep-wait", type=float, default=0.25,
+    parser.add_argument("--lockstep-wait", type=seconds, default=0.25,
                         help="lockstep: wait this long for expected poses of a step before asking the "
                              "cells for them (default 0.25 s)")
-    parser.add_argument("--start-timeout", type=float, default=60.0,
+    parser.add_argument("--start-timeout", type=seconds, default=60.0,
                         help="give up if the world has not answered for this long at start (default 60 s: "
                              "a world on a loaded machine, or started later elsewhere, may take a while)")
     parser.add_argument("--robots", type=Path, default=None, metavar="FILE.toml",
@@ -73,7 +73,7 @@ def build_parser() -> Parser:
                         help="keep every pose this agent sends and write them, when it ends, to "
                              "DIR/agent-ID-PID.npy (rows: stamp, x, y[, z]): the exact record the run's "
                              "collisions are judged from at one instant (zswarm run --tracks)")
-    parser.add_argument("--odom-timeout", type=float, default=1.0,
+    parser.add_argument("--odom-timeout", type=seconds, default=1.0,
                         help="with a robot: stop it and leave the swarm when its odometry stops this long "
                              "(default 1 s)")
     add_run_args(parser)

@@ -138,6 +138,9 @@ def test_every_duration_flag_takes_units_and_a_bare_number_is_seconds(command):
     with pytest.raises(SystemExit):
         parser.parse_args([*prefix, *required.get(command, []), flag, "90q"])
     assert parse_duration("100ms") == parse_duration("0.1s") == 0.1 and parse_duration("0") == 0.0
+    if command == "robot-sim":  # its other time flags take units too, a bare number being seconds
+        args = parser.parse_args([*prefix, *required[command], "--idle-exit", "2s", "--cmd-timeout", "250ms"])
+        assert (args.idle_exit, args.cmd_timeout) == (2.0, 0.25)
     assert "a unit is required but for 0" in launch.build_parser().format_help().replace("\n", " ").replace("  ", " ")
 
 

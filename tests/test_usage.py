@@ -145,7 +145,7 @@ CASES = [
     (["-m", "zswarm", "replay", "{dir}"], "is a directory"),
     # monitor, tune
     (["-m", "zswarm", "monitor", "--run", "x", "--connect", "foo:bar"], "must look like tcp/HOST:PORT"),
-    (["-m", "zswarm", "monitor", "--run", "x", "--wait", "-1"], "--wait must be"),
+    (["-m", "zswarm", "monitor", "--run", "x", "--wait", "-1"], "argument --wait: expected a duration >= 0"),
     (["-m", "zswarm", "monitor", "--run", "x", "--connect", "tcp/999.1.1.1:7447"], "999.1.1.1 is not an IP address"),
     (["-m", "agents", "--id", "0", "--connect", "tcp/127.0.0.1:70000"], "the port must be in 1..65535"),
     ([LAUNCH, "--record", "{old}"], "exists (an earlier run's): give --force to overwrite it, or another --record"),

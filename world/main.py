@@ -14,7 +14,7 @@ from typing import Sequence
 from world.recorder import WorldRecorder
 from world.intake import BATCH_FROM
 from world.world import World
-from zswarm.args import Parser, UsageError, id_ranges, positive_seconds, run_main
+from zswarm.args import Parser, UsageError, id_ranges, positive_seconds, run_main, seconds
 from zswarm.files import check_run_files
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Bridge, teardown
@@ -39,9 +39,9 @@ def build_parser() -> Parser:
     parser.add_argument("--summary", type=Path, metavar="FILE.json", help="write the run summary here")
     parser.add_argument("--trajectory", type=Path, metavar="FILE.npz",
                         help="also save the observed positions per step (numpy .npz)")
-    parser.add_argument("--start-timeout", type=float, default=30.0,
+    parser.add_argument("--start-timeout", type=seconds, default=30.0,
                         help="wait this long for all agents to be alive before starting (default 30 s)")
-    parser.add_argument("--step-timeout", type=float, default=5.0,
+    parser.add_argument("--step-timeout", type=seconds, default=5.0,
                         help="lockstep: longest wait for the poses of a step (default 5 s)")
     parser.add_argument("--resume", action="store_true",
                         help="this world replaces one that died: keep --record (and its segments) as it is, "

@@ -14,7 +14,7 @@ import signal
 import sys
 import time
 
-from zswarm.args import positive_seconds, renamed, wall_seconds
+from zswarm.args import positive_seconds, renamed, wall_seconds, seconds
 from zswarm.errors import UsageError
 from zswarm.net.keys import Keys, check_run_id
 
@@ -32,7 +32,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--stop-after", type=wall_seconds, default=None, metavar="S",
                         help="stop after S seconds of the wall clock (default: when the run ends)")
     renamed(parser, "--duration", "the monitor runs on the wall clock: give --stop-after S")
-    parser.add_argument("--wait", type=float, default=10.0, metavar="S",
+    parser.add_argument("--wait", type=seconds, default=10.0, metavar="S",
                         help="give up (exit 2) if no agent of the run is heard within S seconds (default 10)")
     parser.add_argument("--json", action="store_true", help="one JSON object per refresh instead of the table")
     add_zenoh_args(parser)

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from zswarm.args import UsageError, add_param_args, seed_arg, renamed, wall_seconds
+from zswarm.args import UsageError, add_param_args, seed_arg, renamed, wall_seconds, seconds
 from zswarm.stopping import stop_on_signals
 
 DESCRIPTION = ("Stand-in ROS 2 robots for rehearsing a deployment: differential-drive robots at the scenario's "
@@ -24,13 +24,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=seed_arg, default=0, help="the run's seed (its spawn; default 0)")
     add_param_args(parser)
     parser.add_argument("--rate", type=float, default=50.0, help="odometry and dynamics rate in Hz (default 50)")
-    parser.add_argument("--cmd-timeout", type=float, default=0.25,
+    parser.add_argument("--cmd-timeout", type=seconds, default=0.25,
                         help="stop a robot whose commands stopped this many seconds ago (default 0.25)")
     parser.add_argument("--stop-after", type=wall_seconds, default=None, metavar="S",
                         help="stop after S seconds of the wall clock (default: until the run ends, see --idle-exit, "
                              "or Ctrl-C)")
     renamed(parser, "--duration", "robot-sim runs on the wall clock: give --stop-after S")
-    parser.add_argument("--idle-exit", type=float, default=5.0, metavar="S",
+    parser.add_argument("--idle-exit", type=seconds, default=5.0, metavar="S",
                         help="stop once the robots were commanded and then no command came for S seconds: "
                              "the run that drove them has ended (default 5; 0: never)")
     add_zenoh_args(parser)
