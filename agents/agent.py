@@ -30,7 +30,7 @@ from zswarm.laws.bound import LawFailed
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Bridge
 from zswarm.net.injector import FaultInjector
-from zswarm.net.runspec import RunSpec
+from zswarm.net.runspec import WORLD_SILENT_S, RunSpec
 
 STATS_PERIOD = 1.0
 
@@ -57,6 +57,8 @@ class Agent:
         self.control, self.injector, self.robot, self.track = control, injector, robot, track
         self.law = control.groups[0].law
         self.law_failure: str | None = None  # the law's failure, in one line: the agent brakes and leaves
+        self.world_timeout = WORLD_SILENT_S  # it leaves once nothing came from the world for this long
+        self.world_lost = False
         self.keys = spec.keys
         self.dt = spec.scenario.dt
         self.v_max = spec.scenario.params.swarm.v_max
@@ -227,7 +229,13 @@ class Agent:
         while not self.stop.is_set():
             tick_task = asyncio.ensure_future(s.ticks.get())
             stop_task = asyncio.ensure_future(self.stop.wait())
-            done, _ = await asyncio.wait({tick_task, stop_task}, return_when=asyncio.FIRST_COMPLETED)
+            done, _ = await asyncio.wait({tick_task, stop_task}, timeout=self.world_timeout,
+                                         return_when=asyncio.FIRST_COMPLETED)
+            if not done and time.monotonic() - s.world_heard >= self.world_timeout:
+                tick_task.cancel()
+                stop_task.cancel()
+                self.world_lost = True  # no tick for that long: the world is gone
+                return
             if tick_task not in done:
                 tick_task.cancel()
                 return

@@ -30,7 +30,7 @@ from zswarm.net.bridge import Bridge, Deliver, Inbound, teardown
 from zswarm.net.config import add_zenoh_args, config_from_args, connected, open_session
 from zswarm.net.injector import FaultInjector
 from zswarm.net.rings import CELL_CAPACITY
-from zswarm.net.runspec import RunSpec, add_run_args, spec_from_args
+from zswarm.net.runspec import WORLD_SILENT_S, RunSpec, add_run_args, spec_from_args
 from zswarm.stopping import stop_on_signals
 
 #: An agent puts its final report again every FINAL_RESEND_S until the world says it holds it
@@ -73,6 +73,9 @@ def build_parser() -> Parser:
                         help="keep every pose this agent sends and write them, when it ends, to "
                              "DIR/agent-ID-PID.npy (rows: stamp, x, y[, z]): the exact record the run's "
                              "collisions are judged from at one instant (zswarm run --tracks)")
+    parser.add_argument("--world-timeout", type=seconds, default=WORLD_SILENT_S, metavar="S",
+                        help="leave the swarm (exit 1) once nothing has come from the world for S seconds: it "
+                             f"ended or died without a final tick heard here (default {WORLD_SILENT_S:g} s)")
     parser.add_argument("--odom-timeout", type=seconds, default=1.0,
                         help="with a robot: stop it and leave the swarm when its odometry stops this long "
                              "(default 1 s)")
@@ -148,6 +151,7 @@ class Process:
         self.tracks: Path | None = args.tracks
         self.agent = Agent(spec, args.id, body, sensing, Outreach(sensing, self.bridge), self.bridge, control, injector,
                            link, args.staleness, args.lockstep_wait, track=array("d") if args.tracks is not None else None)
+        self.agent.world_timeout = args.world_timeout
         self.injector = injector
         self.declared = [self.bridge.subscribe_liveliness(keys.all_alive, "alive"),
                          self.bridge.subscribe(keys.prey, "prey"), self.bridge.subscribe(keys.tick, "tick")]
@@ -310,7 +314,13 @@ async def run_lockstep_agent(spec: RunSpec, args: argparse.Namespace) -> int:
 
 def law_failed(agent: Agent) -> int:
     """0, or, after its law failed, one line on stderr (the agent's log) and :data:`EXIT_LAW_FAILED`: the
-    launcher counts it as a crash and the other agents carry on."""
+    launcher counts it as a crash and the other agents carry on; 1, in one line, when its world fell
+    silent (``--world-timeout``)."""
+    if agent.world_lost:
+        print(f"agent {agent.id}: nothing came from the world of run {agent.spec.run!r} for "
+              f"{agent.world_timeout:g} s (it ended or died, its final tick unheard here): leaving",
+              file=sys.stderr, flush=True)
+        return 1
     if agent.law_failure is None:
         return 0
     print(f"agent {agent.id}: {agent.law_failure}; it braked and left the swarm", file=sys.stderr, flush=True)

@@ -25,11 +25,10 @@ from agents.guard import choose
 from agents.membership import Membership
 from agents.obstacle_view import ObstacleView
 from agents.probe import LatencyProbe
-from zswarm.control.body import tracked_point
 from zswarm.swarm.faults import OBSTACLE_SOURCE, PREY_SOURCE
 from zswarm.net import messages as msg
 from zswarm.net.bridge import Inbound
-from zswarm.net.poses import Entry, PoseTable, Rejections, max_step, vouched_by
+from zswarm.net.poses import PoseTable, Rejections, max_step
 from zswarm.net.runspec import RunSpec
 
 
@@ -86,6 +85,7 @@ class Sensing:
         self.last_seq: dict[int, int] = {}
         self.prey: tuple[float, ...] | None = None
         self.prey_stamp: float | None = None  # when the world sent the newest prey position heard
+        self.world_heard = time.monotonic()  # when the newest prey position or tick arrived
         self.ticks: asyncio.Queue[msg.Tick] = asyncio.Queue()
         self.pose_arrived = asyncio.Event()  # lockstep waits on it; set per pose only then
         self.wake_on_pose = spec.clock == "lockstep"
@@ -146,8 +146,9 @@ class Sensing:
         if m is None:
             return
         if tag == "prey" and isinstance(m, msg.Prey):
-            self.prey, self.prey_stamp = m.position, m.stamp
+            self.prey, self.prey_stamp, self.world_heard = m.position, m.stamp, time.monotonic()
         elif tag == "tick" and isinstance(m, msg.Tick):
+            self.world_heard = time.monotonic()
             self.final_tick = self.final_tick or m.final
             self.ticks.put_nowait(m)
         elif tag == "obstacles" and isinstance(m, msg.Obstacles) and self.obstacle_view.query is not None:

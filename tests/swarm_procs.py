@@ -192,8 +192,8 @@ def run_launch(cwd: Path, *args: str, timeout: float = 180.0) -> subprocess.Comp
 
 
 class Watch:
-    """A listener on a run's keys (it publishes nothing): the world's step from its prey messages
-    and who holds a liveliness token, so a test can wait for the event it is about."""
+    """A listener on a run's keys (it publishes nothing): the world's step from its prey messages (or
+    its ticks, in lockstep) and who holds a liveliness token, so a test can wait for the event it is about."""
 
     def __init__(self, endpoint: str, run: str) -> None:
         import threading
@@ -215,7 +215,8 @@ class Watch:
             except msg.DecodeError:
                 return
             with self.changed:
-                self.step = max(self.step, m.seq if isinstance(m, msg.Prey) else self.step)
+                self.step = max(self.step, m.seq if isinstance(m, msg.Prey) else m.step if isinstance(m, msg.Tick)
+                                else self.step)
                 self.changed.notify_all()
 
         def on_alive(sample) -> None:
@@ -226,7 +227,7 @@ class Watch:
                 self.changed.notify_all()
 
         self.session = open_session(zenoh_config("client", [endpoint]), "watch", retry_for=60.0)  # router may be starting
-        self.subs = [self.session.declare_subscriber(keys.prey, on_prey),
+        self.subs = [self.session.declare_subscriber(keys.prey, on_prey), self.session.declare_subscriber(keys.tick, on_prey),
                      self.session.liveliness().declare_subscriber(keys.all_alive, on_alive, history=True)]
 
     def until(self, condition, timeout: float, what: str) -> None:

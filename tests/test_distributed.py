@@ -28,6 +28,7 @@ from swarm_procs import (
     our_processes,
     processes,
     rerun_verify,
+    split_spec,
     start_agent,
     start_world,
     wait_exit,
@@ -227,6 +228,34 @@ def test_killing_one_agent_leaves_the_others_running_and_is_recorded(tmp_path):
     assert s["agents_reporting"] == 5 and s["final_components"] >= 1
     run = load_run(record)
     assert 2 in run.frames[1].ids and run.frames[-1].ids.tolist() == [0, 1, 4]
+
+
+@pytest.mark.parametrize("clock", ["free", "lockstep"])
+def test_an_agent_whose_world_vanished_leaves_in_one_line(tmp_path, clock):
+    """A world killed outright sends no final tick: each agent leaves once nothing has come from it for
+    ``--world-timeout`` (here 2 s), with one line and exit 1, rather than braking alone for ever."""
+    from zswarm.host.procs import agent_argv
+
+    run = f"vanish{clock}"
+    with processes() as kids:
+        endpoint = start_router(kids)
+        world, _, _, _ = start_world(kids, endpoint, run, "moving-prey", tmp_path, "--set", "n_agents=2",
+                                     "--duration", "60", "--clock", clock)
+        said = [Spool(), Spool()]
+        agents = [kids.spawn(f"agent-{i}", agent_argv(split_spec(run, "moving-prey", "--set", "n_agents=2", "--clock",
+                                                                 clock)[0], i, endpoint, "--world-timeout", "2s"),
+                             stderr=said[i]) for i in range(2)]
+        with Watch(endpoint, run) as watch:
+            watch.reach_step(10)
+        world.proc.send_signal(signal.SIGKILL)
+        gone = time.monotonic()
+        assert [wait_exit(a, 30) for a in agents] == [1, 1]
+        assert time.monotonic() - gone < 15.0
+    for i, spool in enumerate(said):
+        lines = [ln for ln in spool.text().splitlines() if "nothing came from the world" in ln]
+        assert lines and lines[-1].startswith(f"agent {i}: nothing came from the world of run '{run}' for 2 s"), \
+            spool.text()[-2000:]
+        assert "Traceback" not in spool.text()
 
 
 def test_an_agents_only_machine_times_its_faults_from_the_worlds_start_heard_on_zenoh(tmp_path):

@@ -107,6 +107,7 @@ CASES = [
     ([LAUNCH, "--agents", "10", "--kill", "99@5"], "--kill 99@5: this machine runs 10 agents (give K <= 10)"),
     ([LAUNCH, "--kill", "3@100", "--duration", "5"], "100 s is after the run's end: the run lasts 5 s"),
     ([LAUNCH, "--world-crash", "100", "--duration", "5"], "--world-crash 100: 100 s is after the run's end"),
+    ([LAUNCH, "--world-outage", "2:25", "--duration", "30"], "the agents leave a world silent for 30 s"),
     ([LAUNCH, "--world-outage", "3:1", "--role", "agents", "--connect", "tcp/127.0.0.1:1"], "give this machine the world role"),
     ([LAUNCH, "--restart-after", "2"], "give --kill K@T too"),
     ([LAUNCH, "--kill", "2@3", "--restart-after", "9", "--duration", "10"], "the restart falls after the run's end"),

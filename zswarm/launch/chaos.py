@@ -11,6 +11,12 @@ import argparse
 from dataclasses import dataclass
 from typing import Literal
 
+from zswarm.net.runspec import WORLD_SILENT_S
+
+#: How long a staged world fault may keep the world away (frozen, or dead before its replacement starts):
+#: its replacement needs some seconds more to start, and the agents leave after WORLD_SILENT_S.
+WORLD_AWAY_MAX_S = WORLD_SILENT_S - 10.0
+
 Action = Literal["kill_world", "resume_world", "kill_agents", "restart_agents", "freeze_world", "thaw_world"]
 
 
@@ -68,6 +74,10 @@ def check(kill: tuple[int, float] | None, restart_after: float | None, world_out
                 raise UsageError(f"{flag} stages a world fault: give this machine the world role")
             if fault[0] >= wall_s:
                 raise UsageError(f"{flag} {fault[0]:g}: {fault[0]:g} s is after the run's end: {end}")
+            if fault[1] is not None and fault[1] > WORLD_AWAY_MAX_S:
+                raise UsageError(f"{flag} {fault[0]:g}:{fault[1]:g}: the agents leave a world silent for "
+                                 f"{WORLD_SILENT_S:g} s, so it may be away {WORLD_AWAY_MAX_S:g} s at most "
+                                 f"(give S <= {WORLD_AWAY_MAX_S:g})")
     if migrate_every is not None and migrate_every >= run_s:
         raise UsageError(f"--migrate-every {migrate_every:g}: no move falls within the run: {end} (give S < {run_s:g})")
 
