@@ -1,22 +1,10 @@
 """What a process believes about other agents' poses: one table for the agent and the world alike.
 
-Every pose that arrives passes the same acceptance rules (:meth:`PoseTable.accept`):
-
-- the key's agent id must be the pose's own (else ``schema``);
-- a pose farther from the last accepted one than ``max_step`` per elapsed step could carry an agent
-  is an impossible jump (``jump``); elapsed steps are capped by the receiver's own clock since the last
-  accepted pose was sent (taken in, if its stamp claims later), so a forged sequence number cannot buy
-  a forged pose an arbitrarily long way, and poses that arrive in a burst after a queue are not refused;
-- the newest pose wins (or one so far behind that its sender must have restarted);
-- lockstep poses (step >= 0) are also kept by step, for the last ``keep_steps`` steps;
-- whom to believe first (:class:`Contest`): poses refused as jumps that agree among themselves form a
-  rival track of the id; the rival takes the id over once it has sent consistently for
-  :data:`TAKEOVER` seconds, if the track the table holds has fallen silent that long, or if the id's
-  member token is in the cell of the rival's pose and not in the held one's. So a forged first pose for
-  an id not yet heard cannot lock the real agent out for longer than that bound plus the time its
-  member token takes to arrive (tests/test_forged_pose.py).
-
-:class:`Rejections` counts what was refused, by reason, and says so once per reason.
+:meth:`PoseTable.accept` takes a pose in when its key names its own id, it is no impossible jump from
+the last accepted one (``max_step`` per elapsed step, the steps capped by the receiver's own clock, so a
+forged sequence number buys no distance), and it is the newest (or so far behind that its sender must
+have restarted). Lockstep poses are also kept by step. Whom to believe when two senders claim an id is
+:class:`Contest`'s rule (tests/test_forged_pose.py). :class:`Rejections` counts what was refused.
 """
 
 from __future__ import annotations
@@ -85,30 +73,14 @@ class Rival:
 
 
 class Contest:
-    """Whom to believe when two senders claim one agent id (the one home of that rule, for the pose
-    table and the world's arrays alike).
+    """Whom to believe when two senders claim one agent id, for the pose table and the world's arrays.
 
-    Without ``--secure`` anyone on the network can publish a pose under any id. A first pose wins the
-    id; the real sender's poses, far from it, are refused as jumps. They form a rival track (each
-    consistent with the rival's last, by :func:`implausible_jump`). The rival takes the id over once it
-    has sent at least :data:`TAKEOVER_POSES` poses over :data:`TAKEOVER` seconds and either
-
-    - the held track has sent nothing accepted for :data:`TAKEOVER` seconds (a forger that stopped:
-      the real agent is back within the bound whatever the tokens say), or
-    - ``vouch`` says the id's member token (:meth:`zswarm.net.keys.Keys.member`, declared by the real
-      agent in the cell it is in) is in the cell of the rival's pose and not in the held one's (a forger
-      that keeps publishing in another cell), or
-    - neither or both are vouched for, and the held track began before the id's liveliness token came
-      (``announced``: when the receiver heard the agent announce itself) and the rival no sooner than
-      :data:`TAKEOVER` before it (a forger that published before the agent started, in the agent's own
-      cell; the token and the first poses may be taken in in either order).
-
-    What an attacker without ``--secure`` can still do: declare member and liveliness tokens too, and
-    then hold an id for as long as it keeps its poses and tokens up (a tie keeps the track held); start
-    publishing under an id after the agent announced itself, in the agent's cell, and win the id at a
-    receiver that heard the forger first; publish poses close to the real agent's own, which pass every
-    check; flood. ``--secure`` (access control per agent) is the guarantee; every open run says so when it
-    starts.
+    Without ``--secure`` anyone can publish a pose under any id. Poses refused as jumps that agree among
+    themselves form a rival track; it takes the id over once it has sent :data:`TAKEOVER_POSES` poses
+    over :data:`TAKEOVER` seconds and either the held track fell silent that long, or ``vouch`` puts the
+    id's member token in the rival's cell and not the held one's, or (neither or both vouched) the held
+    track began before the id's liveliness token came (``announced``) and the rival did not. What an
+    attacker without ``--secure`` can still do is listed in docs/running.md.
     """
 
     def __init__(self, max_step: float, period: float, takeover: float = TAKEOVER) -> None:
