@@ -12,7 +12,6 @@ took in come from its summary.
 from __future__ import annotations
 
 import json
-import subprocess
 import tempfile
 import time
 from pathlib import Path

@@ -89,7 +89,7 @@ class Apf(SwarmLaw):
                             law.p, law.combination, law.formation, v_max, law.neighbours)
 
     def command(self, obs: Observation) -> Any:
-        law, radius = self.law, self.context.sensing_radius
+        law = self.law
         if obs.dims == 2:
             return self.floats(obs.position.tolist(), obs.target.tolist(),
                                [(*o.centre.tolist(), o.radius) for o in obs.obstacles],

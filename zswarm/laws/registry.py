@@ -23,7 +23,7 @@ import numpy as np
 
 from zswarm.errors import ParamError, UsageError
 from zswarm.laws.bound import BoundLaw, LawError, function_law, raised_at
-from zswarm.laws.contract import Context, Neighbour, Obstacle, Observation, Observations, SwarmLaw, law_params
+from zswarm.laws.contract import Context, Neighbour, Obstacle, Observation, Observations, SwarmLaw
 from zswarm.paper.neighbours import obstacle_clearance
 
 GROUP = "zswarm.laws"
