@@ -231,11 +231,13 @@ class Agent:
             stop_task = asyncio.ensure_future(self.stop.wait())
             done, _ = await asyncio.wait({tick_task, stop_task}, timeout=self.world_timeout,
                                          return_when=asyncio.FIRST_COMPLETED)
-            if not done and time.monotonic() - s.world_heard >= self.world_timeout:
+            if not done:  # no tick for a while: the world is gone once nothing at all came for that long
                 tick_task.cancel()
                 stop_task.cancel()
-                self.world_lost = True  # no tick for that long: the world is gone
-                return
+                if time.monotonic() - s.world_heard >= self.world_timeout:
+                    self.world_lost = True
+                    return
+                continue
             if tick_task not in done:
                 tick_task.cancel()
                 return

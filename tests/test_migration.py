@@ -29,3 +29,16 @@ def test_agents_move_between_routers_as_the_swarm_moves_and_nothing_is_lost(tmp_
     assert s["messages_sent"] + s["skipped_ticks"] >= 0.97 * 12 * steps
     assert 0 < s["cross_router_share"] < 1
     assert our_processes("migrating") == []  # (not "moving": a substring of moving-prey)
+
+
+def test_a_look_the_world_does_not_answer_is_said_and_counted(tmp_path):
+    """The world frozen (``--world-outage``) while the launcher asks where its agents are: that look is
+    said in one line and counted (``looks_unanswered``), and a later look moves agents as before."""
+    res = run_launch(tmp_path, "--routers", "2", "--agents", "4", "--duration", "16", "--time-scale", "2",
+                     "--migrate-every", "2", "--world-outage", "2:3", "--run", "unanswered", "--record",
+                     str(tmp_path / "u.rrd"))
+    assert res.returncode == 0, res.stderr[-3000:]
+    s = json.loads((tmp_path / "u.json").read_text())
+    assert s["migration"]["looks_unanswered"] >= 1 and s["migration"]["epochs"] >= 1, s["migration"]
+    assert sum("the world did not say where its agents are" in ln for ln in res.stderr.splitlines()) == 1
+    assert our_processes("unanswered") == []

@@ -29,6 +29,7 @@ class Migration:
         self.epochs = 0
         self.moved: Counter[int] = Counter()  # agent -> its moves so far
         self.skipped = 0  # agents left where they were: their last move not over, or their process gone
+        self.unanswered = 0  # looks the world did not answer in time (the next look tries again)
 
     def due(self, t: float) -> bool:
         return t >= self.next_at
@@ -56,4 +57,5 @@ class Migration:
         moves = sum(self.moved.values())
         return {"every": self.every, "epochs": self.epochs, "moves": moves,
                 "moves_per_agent": moves / max(n_agents, 1), "left_moving": self.skipped,
+                "looks_unanswered": self.unanswered,
                 "moved": {str(i): n for i, n in sorted(self.moved.items())}}

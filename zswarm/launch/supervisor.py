@@ -214,6 +214,10 @@ class Launch:
             _say(f"migration skipped at t = {t:.1f} s: {exc}")
             seen = None
         if seen is None:
+            if self.migration.unanswered == 0:
+                _say(f"migration: the world did not say where its agents are at t = {t:.1f} s; each look "
+                     "tries again (the summary counts looks_unanswered)")
+            self.migration.unanswered += 1
             self.migration.next_at = t + self.migration.every
             return
         # still handing over, or its process is gone (crashed: the restart, if any, brings it back)
