@@ -254,8 +254,13 @@ def run_free_agent(spec: RunSpec, args: argparse.Namespace, robots: RobotsFile |
         if args.movable or args.takeover:
             desk = Desk(proc.session, spec.keys.handoff(args.id))
         moved = await run_free(agent, proc.injector, stopped, desk)
-        if moved:
-            desk.hand_over(encode_state(agent.body, agent.seq, agent.counters), stopped)
+        if moved and not desk.hand_over(encode_state(agent.body, agent.seq, agent.counters), stopped):
+            # the taker never said it has the state: this process reports for the agent (should the taker
+            # have it after all, its report counts more ticks and stands instead: world.report.StatsBook.get)
+            moved = False
+            if not stopped():
+                print(f"agent {args.id}: the process taking it over did not confirm it has its state; this one "
+                      "puts the agent's final report", file=sys.stderr, flush=True)
         done = True
         return law_failed(agent)
 

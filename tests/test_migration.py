@@ -3,8 +3,16 @@
 from __future__ import annotations
 
 import json
+import time
 
-from swarm_procs import our_processes, recorded_events, run_launch
+import zenoh
+from spool import Spool
+from swarm_procs import (Watch, load_summary, our_processes, processes, recorded_events, run_launch, split_spec,
+                         start_world, wait_exit)
+
+from zswarm.host.procs import agent_argv, start_router
+from zswarm.net.config import zenoh_config
+from zswarm.net.keys import Keys
 
 
 def test_agents_move_between_routers_as_the_swarm_moves_and_nothing_is_lost(tmp_path):
@@ -42,3 +50,31 @@ def test_a_look_the_world_does_not_answer_is_said_and_counted(tmp_path):
     assert s["migration"]["looks_unanswered"] >= 1 and s["migration"]["epochs"] >= 1, s["migration"]
     assert sum("the world did not say where its agents are" in ln for ln in res.stderr.splitlines()) == 1
     assert our_processes("unanswered") == []
+
+
+def test_a_handoff_the_taker_never_confirms_leaves_the_report_with_the_running_process(tmp_path):
+    """A taker that asks for agent 1's state and then never says it has it (here a bare Zenoh session,
+    as a taker process starved or killed mid-handoff would): the running process, which stopped moving
+    when it answered, puts the agent's final report itself after its linger, with one line, so the
+    world's summary still holds every agent's report."""
+    run = "unconfirmed"
+    with processes() as kids:
+        endpoint = start_router(kids)
+        world, summary, _, _ = start_world(kids, endpoint, run, "moving-prey", tmp_path, "--set", "n_agents=2",
+                                           "--duration", "12")
+        spec = split_spec(run, "moving-prey", "--set", "n_agents=2")[0]
+        said = Spool()
+        agents = [kids.spawn(f"agent-{i}", agent_argv(spec, i, endpoint, "--movable"), stderr=said if i == 1 else None)
+                  for i in range(2)]
+        with Watch(endpoint, run) as watch:
+            watch.reach_step(20)
+        with zenoh.open(zenoh_config("client", [endpoint])) as taker:
+            replies = [r for r in taker.get(Keys(run, 1.0).handoff(1), timeout=10.0) if r.ok is not None]
+            assert replies, "the running process answered with its state"
+            asked = time.monotonic()
+            assert wait_exit(agents[1], 30) == 0  # it lingered for a confirmation, then reported and left
+            assert time.monotonic() - asked >= 4.0
+        assert wait_exit(world, 60) == 0 and wait_exit(agents[0], 30) == 0
+    assert "did not confirm it has its state; this one puts the agent's final report" in said.text(), said.text()
+    s = load_summary(summary)
+    assert s["agents_final_reports"] == 2 and s["agents_without_final_report"] == [], s["agents_without_final_report"]
