@@ -234,7 +234,7 @@ class Agent:
             if not done:  # no tick for a while: the world is gone once nothing at all came for that long
                 tick_task.cancel()
                 stop_task.cancel()
-                if time.monotonic() - s.world_heard >= self.world_timeout:
+                if s.world_heard is not None and time.monotonic() - s.world_heard >= self.world_timeout:
                     self.world_lost = True
                     return
                 continue

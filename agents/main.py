@@ -74,8 +74,9 @@ def build_parser() -> Parser:
                              "DIR/agent-ID-PID.npy (rows: stamp, x, y[, z]): the exact record the run's "
                              "collisions are judged from at one instant (zswarm run --tracks)")
     parser.add_argument("--world-timeout", type=seconds, default=WORLD_SILENT_S, metavar="S",
-                        help="leave the swarm (exit 1) once nothing has come from the world for S seconds: it "
-                             f"ended or died without a final tick heard here (default {WORLD_SILENT_S:g} s)")
+                        help="leave the swarm (exit 1) once nothing has come from the world for S seconds after "
+                             "its clock started: it ended or died without a final tick heard here (default "
+                             f"{WORLD_SILENT_S:g} s)")
     parser.add_argument("--odom-timeout", type=seconds, default=1.0,
                         help="with a robot: stop it and leave the swarm when its odometry stops this long "
                              "(default 1 s)")

@@ -85,7 +85,7 @@ class Sensing:
         self.last_seq: dict[int, int] = {}
         self.prey: tuple[float, ...] | None = None
         self.prey_stamp: float | None = None  # when the world sent the newest prey position heard
-        self.world_heard = time.monotonic()  # when the newest prey position or tick arrived
+        self.world_heard: float | None = None  # when the newest prey or tick arrived (None: its clock not started)
         self.ticks: asyncio.Queue[msg.Tick] = asyncio.Queue()
         self.pose_arrived = asyncio.Event()  # lockstep waits on it; set per pose only then
         self.wake_on_pose = spec.clock == "lockstep"

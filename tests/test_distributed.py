@@ -258,6 +258,23 @@ def test_an_agent_whose_world_vanished_leaves_in_one_line(tmp_path, clock):
         assert "Traceback" not in spool.text()
 
 
+def test_an_agent_waits_out_a_world_still_waiting_for_its_agents(tmp_path):
+    """A world sends nothing until its clock starts, and waits for all its agents first (here 4 s for a
+    second one that never comes): an agent with ``--world-timeout 1s`` is not silenced by that wait, and
+    runs to the end of the run."""
+    from zswarm.host.procs import agent_argv
+
+    run = "waitout"
+    with processes() as kids:
+        endpoint = start_router(kids)
+        world, summary, _, _ = start_world(kids, endpoint, run, "moving-prey", tmp_path, "--set", "n_agents=2",
+                                           "--duration", "2", "--start-timeout", "4")
+        agent = kids.spawn("agent-0", agent_argv(split_spec(run, "moving-prey", "--set", "n_agents=2")[0], 0, endpoint,
+                                                 "--world-timeout", "1s"), stderr=(said := Spool()))
+        assert wait_exit(world, 60) == 0 and wait_exit(agent, 30) == 0, said.text()[-2000:]
+    assert load_summary(summary)["agents_final_reports"] == 1
+
+
 def test_an_agents_only_machine_times_its_faults_from_the_worlds_start_heard_on_zenoh(tmp_path):
     """A machine that runs agents and no world hears the world's start on Zenoh (its liveliness
     token): ``--kill 1@2`` fires 2 s into the world's clock, though the world starts seconds after

@@ -28,8 +28,9 @@ from zswarm.control.safety import MODES
 from zswarm.swarm.scenarios import Scenario, get_scenario
 from zswarm.net.keys import Keys, check_run_id
 
-#: An agent leaves once nothing (prey, ticks) has come from its world for this long (``--world-timeout``): the
-#: world ended or died and no final tick reached it. A world fault the launcher stages is shorter.
+#: An agent leaves once nothing (prey, ticks) has come from its world for this long after its clock started
+#: (``--world-timeout``; a world still waiting for its agents sends nothing): the world ended or died and
+#: no final tick reached it. A world fault the launcher stages is shorter.
 WORLD_SILENT_S = 30.0
 
 Clock = Literal["free", "lockstep"]
