@@ -42,7 +42,7 @@ def test_agents_move_between_routers_as_the_swarm_moves_and_nothing_is_lost(tmp_
 def test_a_look_the_world_does_not_answer_is_said_and_counted(tmp_path):
     """The world frozen (``--world-outage``) while the launcher asks where its agents are: that look is
     said in one line and counted (``looks_unanswered``), and a later look moves agents as before."""
-    res = run_launch(tmp_path, "--routers", "2", "--agents", "4", "--duration", "16", "--time-scale", "2",
+    res = run_launch(tmp_path, "--routers", "2", "--agents", "4", "--duration", "14", "--time-scale", "2",
                      "--migrate-every", "2", "--world-outage", "2:3", "--run", "unanswered", "--record",
                      str(tmp_path / "u.rrd"))
     assert res.returncode == 0, res.stderr[-3000:]
@@ -61,7 +61,7 @@ def test_a_handoff_the_taker_never_confirms_leaves_the_report_with_the_running_p
     with processes() as kids:
         endpoint = start_router(kids)
         world, summary, _, _ = start_world(kids, endpoint, run, "moving-prey", tmp_path, "--set", "n_agents=2",
-                                           "--duration", "12")
+                                           "--duration", "9")
         spec = split_spec(run, "moving-prey", "--set", "n_agents=2")[0]
         said = Spool()
         agents = [kids.spawn(f"agent-{i}", agent_argv(spec, i, endpoint, "--movable"), stderr=said if i == 1 else None)
