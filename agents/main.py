@@ -263,7 +263,7 @@ def run_free_agent(spec: RunSpec, args: argparse.Namespace, robots: RobotsFile |
                 print(f"agent {args.id}: the process taking it over did not confirm it has its state; this one "
                       "puts the agent's final report", file=sys.stderr, flush=True)
         done = True
-        return law_failed(agent)
+        return ending_code(agent)
 
     try:
         return run_loop(life())
@@ -313,12 +313,12 @@ async def run_lockstep_agent(spec: RunSpec, args: argparse.Namespace) -> int:
         agent.stop.set()
         stats_task.cancel()
         done = True
-        return law_failed(agent)
+        return ending_code(agent)
     finally:
         proc.close(final_stats=done)
 
 
-def law_failed(agent: Agent) -> int:
+def ending_code(agent: Agent) -> int:
     """0, or, after its law failed, one line on stderr (the agent's log) and :data:`EXIT_LAW_FAILED`: the
     launcher counts it as a crash and the other agents carry on; 1, in one line, when its world fell
     silent (``--world-timeout``)."""

@@ -209,7 +209,7 @@ class Watch:
         self.alive: set[int] = set()
         self.changed = threading.Condition()
 
-        def on_prey(sample) -> None:
+        def on_step(sample) -> None:  # the prey (free clock) or a tick (lockstep) names the world's step
             try:
                 m = msg.decode(sample.payload.to_bytes())
             except msg.DecodeError:
@@ -227,7 +227,7 @@ class Watch:
                 self.changed.notify_all()
 
         self.session = open_session(zenoh_config("client", [endpoint]), "watch", retry_for=60.0)  # router may be starting
-        self.subs = [self.session.declare_subscriber(keys.prey, on_prey), self.session.declare_subscriber(keys.tick, on_prey),
+        self.subs = [self.session.declare_subscriber(keys.prey, on_step), self.session.declare_subscriber(keys.tick, on_step),
                      self.session.liveliness().declare_subscriber(keys.all_alive, on_alive, history=True)]
 
     def until(self, condition, timeout: float, what: str) -> None:

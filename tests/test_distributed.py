@@ -14,7 +14,7 @@ import pytest
 
 from zswarm.design.guidelines import verdict
 from zswarm.swarm.scenarios import get_scenario
-from zswarm.host.procs import free_port, start_router
+from zswarm.host.procs import agent_argv, free_port, start_router
 from zswarm.record.replay import load_run, recompute
 from zswarm.sim.simulator import Simulator, simulate
 
@@ -234,8 +234,6 @@ def test_killing_one_agent_leaves_the_others_running_and_is_recorded(tmp_path):
 def test_an_agent_whose_world_vanished_leaves_in_one_line(tmp_path, clock):
     """A world killed outright sends no final tick: each agent leaves once nothing has come from it for
     ``--world-timeout`` (here 2 s), with one line and exit 1, rather than braking alone for ever."""
-    from zswarm.host.procs import agent_argv
-
     run = f"vanish{clock}"
     with processes() as kids:
         endpoint = start_router(kids)
@@ -262,8 +260,6 @@ def test_an_agent_waits_out_a_world_still_waiting_for_its_agents(tmp_path):
     """A world sends nothing until its clock starts, and waits for all its agents first (here 4 s for a
     second one that never comes): an agent with ``--world-timeout 1s`` is not silenced by that wait, and
     runs to the end of the run."""
-    from zswarm.host.procs import agent_argv
-
     run = "waitout"
     with processes() as kids:
         endpoint = start_router(kids)
