@@ -68,7 +68,8 @@ def test_router_restart_mid_run(tmp_path):
     complete = [k for k, f in enumerate(after) if set(f.ids.tolist()) == {0, 1, 2}]
     assert complete and after[complete[0]].t - after[0].t < 3.0  # every agent is back within 3 s
     assert len(after) - complete[0] > 40
-    assert all(set(f.ids.tolist()) == {0, 1, 2} for f in after[complete[0]:])  # and stays
+    short = [(round(f.t, 2), f.ids.tolist()) for f in after[complete[0]:] if set(f.ids.tolist()) != {0, 1, 2}]
+    assert not short, (short[:10], s["departures"], s["pose_gaps"])  # and stays
     first, last = after[complete[0]], after[-1]
     assert first.ids.tolist() == last.ids.tolist()
     assert np.all(np.linalg.norm(last.positions - first.positions, axis=1) > 0.2)  # still moving

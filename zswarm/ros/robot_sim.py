@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 import threading
 import time
 from dataclasses import dataclass, field
@@ -24,6 +25,8 @@ from zswarm.ros.wire import Attachment, Route, WireError
 from zswarm.stopping import StopSignal
 
 WHEEL_BASE = 0.16  # m, a TurtleBot 3 Burger's
+#: A pause of the robots (their process starved of CPU) longer than this is said on stderr.
+PAUSE_SAID_S = 0.5
 
 
 @dataclass
@@ -124,6 +127,9 @@ def run(session, route: Route, robots: list[SimRobot], rate: float, stop: StopSi
                     pub.put(payload, attachment=attachment)
             # starved of CPU, the robots pause rather than leap: steps made up in a burst would move an
             # agent's pose farther in one of its ticks than it can go, and its neighbours refuse that (jump)
+            late = time.monotonic() - next_tick
+            if late > PAUSE_SAID_S:  # its agents may have taken the pause for silent odometry
+                print(f"robot-sim: starved of CPU, the robots paused {late:.2f} s", file=sys.stderr, flush=True)
             next_tick = max(next_tick + period, time.monotonic())
             stop.wait(max(next_tick - time.monotonic(), 0.0))
         return "stopped"
