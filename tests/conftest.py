@@ -81,21 +81,24 @@ PROCESS_MODULES = {
     "test_distributed", "test_reliability", "test_hostile", "test_space_procs", "test_usage", "test_experiments",
     "test_robots", "test_security", "test_netns", "test_render", "test_install", "test_routers", "test_migration",
     "test_faults", "test_monitor", "test_live", "test_latency", "test_api", "test_export", "test_bench", "test_soak",
-    "test_tune", "test_study", "test_cluster", "test_joining", "test_fleet",
+    "test_tune", "test_study", "test_cluster", "test_joining", "test_fleet", "test_law_processes",
+    "test_secure_options", "test_stopping",
 }
 
 
-#: The modules that take longest, longest first: the worker-seconds each took in a suite run on 2 cores (4
-#: workers, 2026-11-28). Under ``--dist loadfile`` each module goes whole to one worker, in this order,
+#: The modules that take longest, longest first: the worker-seconds each took in a suite run alone on 2 cores
+#: (5 workers, 2026-12-05). Under ``--dist loadfile`` each module goes whole to one worker, in this order,
 #: to whichever worker is free: the long ones first, so that what is handed out last, when the workers
 #: run out of work unevenly, is short. Modules not named (a few seconds or less) keep their order, after
 #: these. A long module left out of it is handed out late and becomes the suite's tail.
 LONGEST_FIRST = (
-    "test_cluster", "test_distributed", "test_migration", "test_reliability", "test_design", "test_security", "test_usage",
-    "test_law_processes", "test_experiments", "test_netns", "test_space_procs", "test_hostile",
-    "test_robots", "test_scaling", "test_install", "test_render", "test_tune", "test_forged_pose", "test_sim",
-    "test_faults", "test_monitor", "test_routers", "test_runspec", "test_design_swarm", "test_batch", "test_study",
-    "test_live", "test_messages", "test_bench", "test_space", "test_export", "test_safety", "test_bridge",
+    "test_cluster", "test_distributed", "test_reliability", "test_design", "test_space_procs", "test_experiments",
+    "test_security", "test_migration", "test_usage", "test_secure_options", "test_scaling", "test_install",
+    "test_render", "test_netns", "test_tune", "test_hostile", "test_robots", "test_sim", "test_design_swarm",
+    "test_law_processes", "test_study", "test_batch", "test_routers", "test_faults", "test_messages", "test_monitor",
+    "test_forged_pose", "test_mixed", "test_live", "test_bridge", "test_space", "test_safety", "test_pose_batch",
+    "test_law_loading", "test_body", "test_export", "test_bench", "test_architecture", "test_bench_laws",
+    "test_control_step", "test_cells",
 )
 
 

@@ -149,6 +149,7 @@ def test_the_real_agent_is_back_in_its_neighbours_table_within_the_bound() -> No
             first.close(final_stats=False)
 
 
+@pytest.mark.procs
 def test_the_worlds_record_follows_the_real_agent_while_a_forger_publishes(tmp_path) -> None:
     """A run of 6 agents; a peer publishes agent 1 at a plausible fixed point from before it starts to
     its end. The world's record of agent 1 is the forged point for no longer than the bound."""

@@ -73,6 +73,7 @@ def test_a_sweep_of_a_mixed_swarm_reports_each_group(tmp_path):
     assert all([g["law"] for g in c["groups"]] == ["boids", "apf"] for c in cells)
 
 
+@pytest.mark.procs
 def test_lockstep_processes_run_a_mixed_swarm_as_the_reference_does(tmp_path):
     n, duration = 5, 3.0
     sets = ["--set", "groups=2:boids/unicycle", "--set", f"n_agents={n}", "--safety", "barrier"]
