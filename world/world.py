@@ -28,6 +28,7 @@ from world.intake import PoseIntake, Snapshot
 from world.obstacles import ObstacleService
 from world.recorder import Resumed, WorldRecorder
 from world.report import StatsBook, transport_summary
+from zswarm.net.config import connected
 from zswarm.laws.registry import bind
 from zswarm.design.guidelines import verdict
 from zswarm.swarm import prey as prey_motion
@@ -112,6 +113,7 @@ class World:
         self.obstacles = ObstacleService(*self.scenario.obstacle_arrays(), self.keys.obstacles, self.dims)
         self.rejected = Rejections("world", self.event)
         self.census = Census()
+        self.cut_off = False  # its session lost its router (said once)
         self.ending = False  # set when the world announces the final tick: agents going now are not departures
         self.clock = Clock()
         self.stats = StatsBook(self.keys.agent_of, self.rejected)
@@ -227,6 +229,11 @@ class World:
                 if who not in c.stopped_at_end:  # a token seen going twice (it came back between) counts once
                     c.stopped_at_end.append(who)
             else:
+                if not self.cut_off and not connected(self.session):  # the tokens went with the world's link
+                    self.cut_off = True
+                    self.event(f"world: cut off from its router at t = {self.clock.t:.2f} s: the agents' tokens "
+                               "went with the link, and their departures are the world's, not theirs")
+                    print(f"world: cut off from its router at t = {self.clock.t:.2f} s", file=sys.stderr, flush=True)
                 c.pending[who] = {**event, "seen": time.monotonic()}
                 self.settle_departures()
         else:
