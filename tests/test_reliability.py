@@ -99,6 +99,39 @@ while True:
 """
 
 
+
+def test_a_world_cut_off_from_its_router_as_the_run_ends_still_gets_every_final_report(tmp_path):
+    """The router goes 2 s before the run's end and is back a second after it: the world's final tick
+    goes nowhere and every agent's token seems to go with the world's link. The world waits for its
+    router, repeats the final tick once it is back, and holds every final report (a world that took
+    the lost link for the end of its agents named all three missing)."""
+    port = free_port()
+    endpoint = f"tcp/127.0.0.1:{port}"
+    args = ("--set", "n_agents=3")
+    with processes() as kids:
+        router = kids.spawn("router", ["-m", "zswarm.net.router", "--listen", endpoint], stdout=subprocess.DEVNULL)
+        assert wait_for_port("127.0.0.1", port, 10.0, router)
+        world, summary_path, record, _ = start_world(kids, endpoint, "cut", "moving-prey", tmp_path, *args,
+                                                     "--duration", "6")
+        for i in range(3):
+            start_agent(kids, endpoint, "cut", "moving-prey", i, *args)
+        with Watch(endpoint, "cut") as watch:
+            watch.reach_step(80)  # 4 s of 6
+        router.proc.kill()
+        router.proc.wait(timeout=10)
+        gone = time.monotonic()
+        while world.proc.poll() is None and time.monotonic() < gone + 4.0:  # the run ends meanwhile
+            time.sleep(0.05)
+        router2 = kids.spawn("router2", ["-m", "zswarm.net.router", "--listen", endpoint], stdout=subprocess.DEVNULL)
+        assert wait_for_port("127.0.0.1", port, 10.0, router2)
+        assert wait_exit(world, 60) == 0
+    s = load_summary(summary_path)
+    events = recorded_events(record)
+    assert any("cut off from its router" in e for e in events), events  # it was: the final tick went nowhere
+    assert s["agents_final_reports"] == 3 and s["agents_without_final_report"] == [], (
+        s["agents_without_final_report"], events)
+
+
 def test_a_stopped_router_stops_even_with_a_client_that_no_longer_reads():
     """Closing a router's session waits on its clients; with one that no longer reads (frozen here, a
     starved process on a loaded machine) Zenoh gave up after about 10 s with a traceback, the router

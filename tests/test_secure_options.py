@@ -40,7 +40,8 @@ def both_ways(tmp: Path, args: list[str]) -> dict[str, tuple[int, str, dict, Pat
     try:
         for way, (record, said, proc) in runs.items():
             proc.wait(timeout=240)
-            out[way] = (proc.returncode, said.text()[-3000:], load_summary(record.with_suffix(".json")),
+            summary = record.with_suffix(".json")  # none from a launch that failed: its code and lines say why
+            out[way] = (proc.returncode, said.text()[-3000:], load_summary(summary) if summary.exists() else None,
                         tmp / f"{way}.npz")
     finally:
         for _, _, proc in runs.values():

@@ -24,8 +24,8 @@ from zswarm.record.live import Viewer, add_viewer_args, viewer_from_args
 
 
 #: At the end the world waits for each agent's final report: while one that has not reported is alive (it
-#: puts its report until the world says it holds it), else FINAL_STATS_WAIT after the last came or went,
-#: FINAL_STATS_MAX in all. Every FINAL_TICK_REPEAT it asks again: the final tick, to the agents still to
+#: puts its report until the world says it holds it) or the world is cut off from its router (it comes
+#: back), else FINAL_STATS_WAIT after the last came or went, FINAL_STATS_MAX in all. Every FINAL_TICK_REPEAT it asks again: the final tick, to the agents still to
 #: report.
 FINAL_TICK_REPEAT = 0.25
 FINAL_STATS_WAIT = 3.0
@@ -111,7 +111,7 @@ async def run_world(args: argparse.Namespace, spec: RunSpec, viewer: Viewer | No
             await world.run_lockstep(spec.steps, args.progress, args.step_timeout)
         else:
             await world.run_free(bridge, spec.steps, args.progress)
-        expected = set(world.census.alive)
+        expected = world.census.alive | world.census.cut_off  # a world cut off still waits for those
         world.ending = True
         final = msg.Tick(world.clock.step + 1, time.time(), *map(float, world.prey), final=True)
         world.publish(keys.tick, final)
@@ -139,7 +139,11 @@ async def collect_final_reports(world: World, bridge: Bridge, expected: set[int]
         if still - alive - left:
             left |= still - alive
             heard_at = loop.time()
-        if (not still or loop.time() > began + FINAL_STATS_MAX or not connected(world.session)
+        if not connected(world.session):  # the agents' tokens went with the world's own link
+            if world.stop.is_set():  # stopped, the run torn down: no router is coming back
+                break
+            heard_at = loop.time()  # cut off: its client session reconnects, the agents' tokens come back
+        if (not still or loop.time() > began + FINAL_STATS_MAX
                 or (not alive and loop.time() > heard_at + FINAL_STATS_WAIT)):
             break
         if loop.time() >= again:  # an agent that missed the final tick would run on, alone, forever

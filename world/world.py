@@ -54,6 +54,7 @@ class Census:
     """Who is alive (holds a liveliness token), and when agents came and went."""
 
     alive: set[int] = field(default_factory=set)
+    cut_off: set[int] = field(default_factory=set)  # gone while the world had no router: their tokens went with it
     arrivals: list[dict[str, Any]] = field(default_factory=list)
     departures: list[dict[str, Any]] = field(default_factory=list)  # each with "how": "crashed" or "left"
     pending: dict[int, dict[str, Any]] = field(default_factory=dict)  # gone, not yet told apart
@@ -229,7 +230,9 @@ class World:
                 if who not in c.stopped_at_end:  # a token seen going twice (it came back between) counts once
                     c.stopped_at_end.append(who)
             else:
-                if not self.cut_off and not connected(self.session):  # the tokens went with the world's link
+                if not connected(self.session):  # the token went with the world's own link
+                    c.cut_off.add(who)
+                if c.cut_off and not self.cut_off:
                     self.cut_off = True
                     self.event(f"world: cut off from its router at t = {self.clock.t:.2f} s: the agents' tokens "
                                "went with the link, and their departures are the world's, not theirs")
@@ -237,6 +240,7 @@ class World:
                 c.pending[who] = {**event, "seen": time.monotonic()}
                 self.settle_departures()
         else:
+            c.cut_off.discard(who)
             if who in c.pending:  # back before its departure was told apart: tell it now
                 self.settle_departures(force=True, only=who)
             if self.clock.step > 0 and who not in c.alive:  # after the start: a restart, or a late joiner
