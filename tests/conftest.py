@@ -82,7 +82,7 @@ PROCESS_MODULES = {
     "test_robots", "test_security", "test_netns", "test_render", "test_install", "test_routers", "test_migration",
     "test_faults", "test_monitor", "test_live", "test_latency", "test_api", "test_export", "test_bench", "test_soak",
     "test_tune", "test_study", "test_cluster", "test_joining", "test_fleet", "test_law_processes",
-    "test_secure_options", "test_stopping",
+    "test_secure_options", "test_stopping", "test_asks",
 }
 
 

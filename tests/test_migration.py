@@ -26,7 +26,10 @@ def test_agents_move_between_routers_as_the_swarm_moves_and_nothing_is_lost(tmp_
     s = json.loads(record.with_suffix(".json").read_text())
     moves = s["migration"]
     assert moves["every"] == 2.0 and moves["moves"] >= 3 and moves["epochs"] <= 12, moves
-    assert s["departures"] == [] and s["messages_rejected"] == 0 and s["collisions"] == 0
+    # no two agents in one place at one instant (the world's snapshot of newest poses, sent at different
+    # times under load, once put two 0.055 apart that the judge at one instant saw 0.28 apart)
+    assert s["departures"] == [] and s["messages_rejected"] == 0 and s["collisions_at_one_time"] == 0, (
+        s["collisions_at_one_time"], s["closest_at_one_time"], s["collisions"])
     assert "exited with code" not in res.stderr
     assert s["agents_reporting"] == 12 and s["agents_final_reports"] == 12, (
         s["agents_without_final_report"], moves, recorded_events(record))

@@ -35,9 +35,10 @@ class WorldWatch:
     def positions(self, key: str, timeout: float = 2.0):
         """Where the world last saw each live agent: (t, ids, positions), or None when it did not answer
         (:class:`zswarm.net.messages.DecodeError` for an answer that does not decode)."""
+        from zswarm.net.bridge import ASK_QOS
         from zswarm.net.messages import decode_positions
 
-        for reply in self.session.get(key, timeout=timeout):
+        for reply in self.session.get(key, timeout=timeout, **ASK_QOS):
             if reply.ok is not None:
                 return decode_positions(reply.ok.payload.to_bytes())
         return None

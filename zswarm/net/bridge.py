@@ -18,6 +18,13 @@ from zswarm.net.keys import parse_parameters
 from zswarm.net.messages import encoding_of
 from zswarm.net.rings import WIDE_CAPACITY
 
+#: Every ask (``get``) and so its answers travel with congestion control ``drop``: an answer to an asker
+#: whose link is full is dropped (it asks again) rather than waited on. Zenoh's default for queries,
+#: ``block``, made the router stop forwarding everything the answering process sent until that link
+#: closed (5 s, ``wait_before_close``): a world that answered a starved agent's obstacle query went
+#: silent for 5 s and could lose its own link (docs/reliability.md).
+ASK_QOS = {"congestion_control": zenoh.CongestionControl.DROP}
+
 Inbound = tuple[str, str, bytes, bool, float]  # (tag, key, payload, is_delete, local wall time of receipt)
 Deliver = Callable[[Inbound], None]
 Batch = Callable[[list[str], list[bytes], float], None]  # (keys, payloads, when taken out of the channel)
@@ -167,7 +174,7 @@ class Bridge:
     async def get(self, selector: str, timeout: float) -> list[tuple[str, bytes]]:
         def blocking() -> list[tuple[str, bytes]]:
             out = []
-            for reply in self.session.get(selector, timeout=timeout):
+            for reply in self.session.get(selector, timeout=timeout, **ASK_QOS):
                 if reply.ok is not None:
                     out.append((str(reply.ok.key_expr), reply.ok.payload.to_bytes()))
             return out
@@ -187,7 +194,7 @@ class Bridge:
             if not self.closed and reply.ok is not None:
                 append((tag, str(reply.ok.key_expr), reply.ok.payload.to_bytes(), False, now()))
         self.session.get(selector, on_reply if done is None else zenoh.handlers.Callback(on_reply, done),
-                         timeout=timeout)
+                         timeout=timeout, **ASK_QOS)
 
     def tokens_into_inbox(self, key: str, tag: str, timeout: float) -> None:
         """Ask which liveliness tokens match ``key`` now and return at once; each one joins the inbox
