@@ -34,19 +34,27 @@ from swarm_procs import (
 )
 
 
-def test_router_restart_mid_run(tmp_path):
+def three_agents_behind_a_router(kids, tmp_path, run: str, duration: str, until_step: int) -> tuple:
+    """A router of its own, a world of ``duration`` s and 3 agents on moving-prey, watched until the
+    world's step ``until_step``: the router, its endpoint and port, the world, its summary, its recording."""
     port = free_port()
     endpoint = f"tcp/127.0.0.1:{port}"
     args = ("--set", "n_agents=3")
+    router = kids.spawn("router", ["-m", "zswarm.net.router", "--listen", endpoint], stdout=subprocess.DEVNULL)
+    assert wait_for_port("127.0.0.1", port, 10.0, router)
+    world, summary_path, record, _ = start_world(kids, endpoint, run, "moving-prey", tmp_path, *args,
+                                                 "--duration", duration)
+    for i in range(3):
+        start_agent(kids, endpoint, run, "moving-prey", i, *args)
+    with Watch(endpoint, run) as watch:
+        watch.reach_step(until_step)
+    return router, endpoint, port, world, summary_path, record
+
+
+def test_router_restart_mid_run(tmp_path):
     with processes() as kids:
-        router = kids.spawn("router", ["-m", "zswarm.net.router", "--listen", endpoint], stdout=subprocess.DEVNULL)
-        assert wait_for_port("127.0.0.1", port, 10.0, router)
-        world, summary_path, record, _ = start_world(kids, endpoint, "rr", "moving-prey", tmp_path, *args,
-                                                     "--duration", "16")
-        for i in range(3):
-            start_agent(kids, endpoint, "rr", "moving-prey", i, *args)
-        with Watch(endpoint, "rr") as watch:
-            watch.reach_step(100)  # 5 s into the run
+        router, endpoint, port, world, summary_path, record = three_agents_behind_a_router(
+            kids, tmp_path, "rr", "16", 100)  # 5 s into the run
         router.proc.terminate()
         try:
             router.proc.wait(timeout=10)
@@ -105,18 +113,9 @@ def test_a_world_cut_off_from_its_router_as_the_run_ends_still_gets_every_final_
     goes nowhere and every agent's token seems to go with the world's link. The world waits for its
     router, repeats the final tick once it is back, and holds every final report (a world that took
     the lost link for the end of its agents named all three missing)."""
-    port = free_port()
-    endpoint = f"tcp/127.0.0.1:{port}"
-    args = ("--set", "n_agents=3")
     with processes() as kids:
-        router = kids.spawn("router", ["-m", "zswarm.net.router", "--listen", endpoint], stdout=subprocess.DEVNULL)
-        assert wait_for_port("127.0.0.1", port, 10.0, router)
-        world, summary_path, record, _ = start_world(kids, endpoint, "cut", "moving-prey", tmp_path, *args,
-                                                     "--duration", "6")
-        for i in range(3):
-            start_agent(kids, endpoint, "cut", "moving-prey", i, *args)
-        with Watch(endpoint, "cut") as watch:
-            watch.reach_step(80)  # 4 s of 6
+        router, endpoint, port, world, summary_path, record = three_agents_behind_a_router(
+            kids, tmp_path, "cut", "6", 80)  # 4 s of 6
         router.proc.kill()
         router.proc.wait(timeout=10)
         gone = time.monotonic()
