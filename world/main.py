@@ -25,8 +25,8 @@ from zswarm.record.live import Viewer, add_viewer_args, viewer_from_args
 
 #: At the end the world waits for each agent's final report: while one that has not reported is alive (it
 #: puts its report until the world says it holds it) or the world is cut off from its router (it comes
-#: back), else FINAL_STATS_WAIT after the last came or went, FINAL_STATS_MAX in all. Every FINAL_TICK_REPEAT it asks again: the final tick, to the agents still to
-#: report.
+#: back), else FINAL_STATS_WAIT after the last came or went, FINAL_STATS_MAX in all. Every
+#: FINAL_TICK_REPEAT it asks again: the final tick, to the agents still to report.
 FINAL_TICK_REPEAT = 0.25
 FINAL_STATS_WAIT = 3.0
 FINAL_STATS_MAX = 15.0

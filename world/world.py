@@ -114,7 +114,7 @@ class World:
         self.obstacles = ObstacleService(*self.scenario.obstacle_arrays(), self.keys.obstacles, self.dims)
         self.rejected = Rejections("world", self.event)
         self.census = Census()
-        self.cut_off = False  # its session lost its router (said once)
+        self.said_cut_off = False  # its session lost its router, said once
         self.ending = False  # set when the world announces the final tick: agents going now are not departures
         self.clock = Clock()
         self.stats = StatsBook(self.keys.agent_of, self.rejected)
@@ -232,8 +232,8 @@ class World:
             else:
                 if not connected(self.session):  # the token went with the world's own link
                     c.cut_off.add(who)
-                if c.cut_off and not self.cut_off:
-                    self.cut_off = True
+                if c.cut_off and not self.said_cut_off:
+                    self.said_cut_off = True
                     self.event(f"world: cut off from its router at t = {self.clock.t:.2f} s: the agents' tokens "
                                "went with the link, and their departures are the world's, not theirs")
                     print(f"world: cut off from its router at t = {self.clock.t:.2f} s", file=sys.stderr, flush=True)
