@@ -30,6 +30,7 @@ import msgpack
 
 from agents.counters import Counters
 from agents.sensing import Body
+from zswarm.net.bridge import ASK_QOS
 
 #: Counters fields carried as they are (the rejections are carried as their counts).
 _CARRIED = tuple(f.name for f in dataclasses.fields(Counters) if f.name != "rejections")
@@ -142,10 +143,10 @@ def take_over(session: Any, key: str, timeout: float, stopped: Callable[[], bool
     within ``timeout`` seconds, or ``stopped()``); ``idle`` runs between asks (take in what arrived)."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline and not stopped():
-        for reply in session.get(key, timeout=min(5.0, max(deadline - time.monotonic(), 0.1))):
+        for reply in session.get(key, timeout=min(5.0, max(deadline - time.monotonic(), 0.1)), **ASK_QOS):
             if reply.ok is not None:
                 state = reply.ok.payload.to_bytes()
-                for _ in session.get(f"{key}?taken", timeout=1.0):  # the running process may go now
+                for _ in session.get(f"{key}?taken", timeout=1.0, **ASK_QOS):  # the running process may go now
                     pass
                 return state
         idle()

@@ -18,8 +18,9 @@ from zswarm.net.keys import parse_parameters
 from zswarm.net.messages import encoding_of
 from zswarm.net.rings import WIDE_CAPACITY
 
-#: Every ask (``get``) and so its answers travel with congestion control ``drop``: an answer to an asker
-#: whose link is full is dropped (it asks again) rather than waited on. Zenoh's default for queries,
+#: Every ask (``get``: of a cell, of obstacles, a migration look, a handoff) and so its answers travel
+#: with congestion control ``drop``: an answer to an asker whose link is full is dropped (it asks again)
+#: rather than waited on. Zenoh's default for queries,
 #: ``block``, made the router stop forwarding everything the answering process sent until that link
 #: closed (5 s, ``wait_before_close``): a world that answered a starved agent's obstacle query went
 #: silent for 5 s and could lose its own link (docs/reliability.md).
