@@ -222,6 +222,13 @@ class Agent:
             except asyncio.TimeoutError:
                 self.publish_stats_now()
 
+    def world_gone(self, now: float) -> bool:
+        """Nothing (prey, ticks) came from the world for ``world_timeout`` seconds since its clock started
+        (``now``: ``time.monotonic()``): it ended or died, its final tick unheard here; ``world_lost`` says so."""
+        heard = self.sensing.world_heard
+        self.world_lost = heard is not None and now - heard >= self.world_timeout
+        return self.world_lost
+
     # --- the two clocks --------------------------------------------------------------------------------
 
     async def run_lockstep(self) -> None:
@@ -234,8 +241,7 @@ class Agent:
             if not done:  # no tick for a while: the world is gone once nothing at all came for that long
                 tick_task.cancel()
                 stop_task.cancel()
-                if s.world_heard is not None and time.monotonic() - s.world_heard >= self.world_timeout:
-                    self.world_lost = True
+                if self.world_gone(time.monotonic()):
                     return
                 continue
             if tick_task not in done:

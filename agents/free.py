@@ -92,8 +92,7 @@ async def run_free(agent: Agent, injector: FaultInjector | None, stopped: Callab
         agent.publish_pose(-1)
         if agent.law_failure is not None:  # braked this tick and said where: the process ends on it
             return False
-        if s.world_heard is not None and now - s.world_heard >= agent.world_timeout:  # ended or died unheard
-            agent.world_lost = True
+        if agent.world_gone(now):
             return False
         if c.ticks % stats_every == 0:
             agent.publish_stats_now()

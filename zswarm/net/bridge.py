@@ -20,10 +20,10 @@ from zswarm.net.rings import WIDE_CAPACITY
 
 #: Every ask (``get``: of a cell, of obstacles, a migration look, a handoff) and so its answers travel
 #: with congestion control ``drop``: an answer to an asker whose link is full is dropped (it asks again)
-#: rather than waited on. Zenoh's default for queries,
-#: ``block``, made the router stop forwarding everything the answering process sent until that link
-#: closed (5 s, ``wait_before_close``): a world that answered a starved agent's obstacle query went
-#: silent for 5 s and could lose its own link (docs/reliability.md).
+#: rather than waited on. Zenoh's default for queries, ``block``, made the router stop forwarding
+#: everything the answering process sent until that link closed (5 s, ``wait_before_close``): a world
+#: that answered a starved agent's obstacle query went silent for 5 s and could lose its own link
+#: (docs/reliability.md).
 ASK_QOS = {"congestion_control": zenoh.CongestionControl.DROP}
 
 Inbound = tuple[str, str, bytes, bool, float]  # (tag, key, payload, is_delete, local wall time of receipt)

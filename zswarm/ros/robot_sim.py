@@ -125,12 +125,13 @@ def run(session, route: Route, robots: list[SimRobot], rate: float, stop: StopSi
                 if not r.silent:
                     payload, attachment = r.odometry()
                     pub.put(payload, attachment=attachment)
-            late = time.monotonic() - next_tick
-            if late > PAUSE_SAID_S:  # its agents may have taken the pause for silent odometry
-                print(f"robot-sim: starved of CPU, the robots paused {late:.2f} s", file=sys.stderr, flush=True)
+            ticked = time.monotonic()
+            if ticked - next_tick > PAUSE_SAID_S:  # its agents may have taken the pause for silent odometry
+                print(f"robot-sim: starved of CPU, the robots paused {ticked - next_tick:.2f} s", file=sys.stderr,
+                      flush=True)
             # starved of CPU, the robots pause rather than leap: steps made up in a burst would move an
             # agent's pose farther in one of its ticks than it can go, and its neighbours refuse that (jump)
-            next_tick = max(next_tick + period, time.monotonic())
+            next_tick = max(next_tick + period, ticked)
             stop.wait(max(next_tick - time.monotonic(), 0.0))
         return "stopped"
     finally:
