@@ -126,6 +126,7 @@ def test_the_real_agent_is_back_in_its_neighbours_table_within_the_bound() -> No
             second.announce()
             started, back, real = time.monotonic(), None, (0.35, 0.5)
             silent, sent = 0.0, started  # the longest the real agent went without a pose (a starved test)
+            contest, taken = first.agent.sensing.neighbours.contest, None
             while time.monotonic() - started < 4.0:
                 silent, sent = max(silent, time.monotonic() - sent), time.monotonic()
                 second.agent.publish_pose(-1)  # in its cell, with its member token there
@@ -133,10 +134,14 @@ def test_the_real_agent_is_back_in_its_neighbours_table_within_the_bound() -> No
                 take_in(first.agent, None)
                 held = first.agent.sensing.neighbours.get(1).latest.position
                 if back is None and held == real:
-                    back = time.monotonic() - started
+                    back, taken = time.monotonic() - started, contest.takeovers
                 elif back is not None:
-                    # (once the real agent fell silent that long, the rule gives the id to the track that sends)
-                    assert held == real or silent > TAKEOVER, ("the forger took agent 1 back", silent)
+                    # The rule never gives the id back to the forger (once the real agent fell silent over
+                    # TAKEOVER, it gives the id to the track that sends). A forged pose within reach of the
+                    # real agent's last is another thing, which docs/running.md says an open run cannot stop:
+                    # the reach grows with the time since that pose, and a loaded receiver that went 0.15 s
+                    # without one takes the forger's, 0.72 away, as a move.
+                    assert contest.takeovers == taken or silent > TAKEOVER, ("the forger took agent 1 back", silent)
                 time.sleep(PERIOD)
             assert back is not None and back <= TAKEOVER + 1.0, back  # the bound, plus the token's way here
             assert first.agent.sensing.counters.rejections.counts.get("jump", 0) > 0
