@@ -1,7 +1,8 @@
 """Whom to believe first: a peer that publishes a forged pose under an agent's id before the agent
 starts, and keeps publishing it, cannot lock the real agent out of its neighbours' tables, or out of
 the world's record, for longer than a stated bound (zswarm.net.poses.Contest: TAKEOVER seconds once
-the real agent's member token is heard, or once the forger falls silent)."""
+the real agent's member token is heard, or once the forger falls silent). A forged pose within reach
+of the real agent's last is taken as a move: what an open run cannot stop (docs/running.md)."""
 
 from __future__ import annotations
 
@@ -92,14 +93,14 @@ def agent(endpoint: str, agent_id: int, x: float):
 def test_the_real_agent_is_back_in_its_neighbours_table_within_the_bound() -> None:
     """Over a real router: a forger publishes agent 1 at a plausible point of agent 0's cell from
     before agent 1 starts, and goes on; agent 0's table holds the real agent 1 within the bound of its
-    first pose, and keeps it while the forger goes on."""
+    first pose, and the rule never gives the id back to the forger while it goes on."""
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     with zenoh.open(zenoh_config("router", listen=[endpoint])) as router:
         first = agent(endpoint, 0, 0.5)
         keys = first.spec.keys
         world = stand_in_world(router, keys)
         stop = threading.Event()
-        forged = (0.95, 0.1)  # in agent 0's cell, 0.6 from where agent 1 is
+        forged = (0.95, 0.1)  # in agent 0's cell, 0.72 from where agent 1 is
 
         def forge() -> None:
             with zenoh.open(zenoh_config("client", [endpoint])) as peer:
