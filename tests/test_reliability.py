@@ -107,7 +107,6 @@ while True:
 """
 
 
-
 def test_a_world_cut_off_from_its_router_as_the_run_ends_still_gets_every_final_report(tmp_path):
     """The router goes 2 s before the run's end and is back a second after it: the world's final tick
     goes nowhere and every agent's token seems to go with the world's link. The world waits for its
