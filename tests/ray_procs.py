@@ -1,10 +1,11 @@
 """Helpers of the tests that run Ray clusters (tests/test_cluster.py): Ray starts only inside a network
-namespace that has nothing but loopback (``unshare --net``, :func:`offline`) or inside two namespaces
-joined by a veth pair (:func:`start_ray`), and every process of a test's run carries its mark, so that
+namespace that looks like a user's machine, an interface and a default route into a gateway that
+forwards nothing (:func:`hostlike`), or inside two namespaces joined by a veth pair (:func:`start_ray`), and every process of a test's run carries its mark, so that
 each test finds its own run's processes and no other's."""
 
 from __future__ import annotations
 
+import atexit
 import importlib.util
 import os
 import shutil
@@ -23,7 +24,7 @@ from conftest import ROOT
 NO_RAY = importlib.util.find_spec("ray") is None
 
 
-def _can_unshare() -> bool:
+def can_make_hosts() -> bool:
     if os.geteuid() != 0 or shutil.which("unshare") is None or shutil.which("ip") is None:
         return False
     return subprocess.run(["unshare", "--net", "true"], capture_output=True).returncode == 0
@@ -31,18 +32,58 @@ def _can_unshare() -> bool:
 
 #: The marks of every test that runs a cluster.
 RAY_TESTS = [pytest.mark.skipif(NO_RAY, reason='Ray is not installed (pip install -e ".[cluster]")'),
-             pytest.mark.skipif(not _can_unshare(), reason="needs root, unshare and iproute2 for a loopback-only "
-                                                           "network namespace (Ray must not reach past it)")]
+             pytest.mark.skipif(not can_make_hosts(), reason="needs root and iproute2 for network namespaces (Ray "
+                                                           "must not reach past them)")]
 
-#: In a fresh network namespace: loopback up, then a record of the namespace's links and routes, then
-#: the command. Nothing but loopback, and no route: nothing the command opens can leave the machine.
-OFFLINE = 'ip link set lo up && ip -o link > "$NS_LINKS" && ip route > "$NS_ROUTES" && exec "$@"'
+#: The namespaces :func:`hostlike` made (each with its gateway), removed by :func:`remove_hostlike`.
+_MADE: list[str] = []
+#: What a host-like namespace has: an interface, its address, and its gateway (the default route).
+ETH0, GATEWAY = "10.231.0.2", "10.231.0.1"
 
 
-def offline(cwd: Path, *argv: str, mark: str) -> tuple[list[str], dict[str, str]]:
-    env = {**os.environ, "PYTHONPATH": str(ROOT), "ZSWARM_TEST_MARK": mark,
-           "NS_LINKS": str(cwd / "links.txt"), "NS_ROUTES": str(cwd / "routes.txt")}
-    return ["unshare", "--net", "--", "sh", "-c", OFFLINE, "offline", sys.executable, *argv], env
+def _ip(*args: str) -> None:
+    subprocess.run(["ip", *args], check=True, capture_output=True, timeout=30)
+
+
+def make_hostlike(records: Path | None = None) -> str:
+    """A network namespace that looks like a user's machine (as ``hostlike`` does): loopback, and
+    ``eth0`` at :data:`ETH0`/24 with a default route via :data:`GATEWAY`, a second namespace that
+    forwards nothing, so nothing sent there leaves this machine. ``records``: a folder that gets the
+    namespace's addresses (``links.txt``) and routes (``routes.txt``). Its name, for ``ip netns exec``."""
+    name = f"zshl{os.getpid()}-{len(_MADE)}"
+    gw, tmp = f"{name}g", f"zv{os.getpid() % 100000}{len(_MADE)}"
+    _MADE.append(name)
+    _ip("netns", "add", name)
+    _ip("netns", "add", gw)
+    _ip("link", "add", tmp, "netns", name, "type", "veth", "peer", "name", "gw0", "netns", gw)
+    _ip("-n", name, "link", "set", tmp, "name", "eth0")
+    _ip("-n", name, "addr", "add", f"{ETH0}/24", "dev", "eth0")
+    _ip("-n", gw, "addr", "add", f"{GATEWAY}/24", "dev", "gw0")
+    for ns, dev in ((name, "lo"), (name, "eth0"), (gw, "lo"), (gw, "gw0")):
+        _ip("-n", ns, "link", "set", dev, "up")
+    _ip("-n", name, "route", "add", "default", "via", GATEWAY)
+    if records is not None:
+        for what, file in (("addr", "links.txt"), ("route", "routes.txt")):
+            out = subprocess.run(["ip", "-n", name, "-o", what], capture_output=True, text=True, timeout=30).stdout
+            (records / file).write_text(out)
+    return name
+
+
+def remove_hostlike() -> None:
+    while _MADE:
+        name = _MADE.pop()
+        for ns in (name, f"{name}g"):
+            subprocess.run(["ip", "netns", "del", ns], capture_output=True, timeout=30)
+
+
+atexit.register(remove_hostlike)
+
+
+def hostlike(cwd: Path, *argv: str, mark: str) -> tuple[list[str], dict[str, str]]:
+    """``python ARGV`` in a new :func:`make_hostlike` namespace, its records in ``cwd``: the command
+    line (``ip netns exec`` execs it: the process started is python itself) and its environment."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "ZSWARM_TEST_MARK": mark}
+    return ["ip", "netns", "exec", make_hostlike(cwd), sys.executable, *argv], env
 
 
 #: What the calls below learned of whose each process is (pid or Ray run folder -> mark): a process is

@@ -1,6 +1,7 @@
 """A swarm over a Ray cluster (``zswarm run --cluster``), for real: Ray's own nodes, pinned actors, a
-router per node, agents as processes. Ray starts only inside a network namespace that has nothing but
-loopback (made here with ``unshare --net``): whatever it tries, nothing leaves the machine.
+router per node, agents as processes. Ray starts only inside a network namespace that looks like a user's
+machine, an interface with an address and a default route into a gateway that forwards nothing
+(tests/ray_procs.py): whatever it tries, nothing leaves the machine, and what a real network changes shows.
 
 One 3-node cluster run serves the checks of a run, and a --secure one those of a guest on a node's
 router; then a head with or without token authentication, a lockstep run, a killed driver, a node's dead
@@ -27,22 +28,29 @@ import pytest
 import zswarm
 from conftest import ROOT
 from ray_procs import (FAST_HEALTH, HEAD, RAY_TESTS, WORKER, end_run, fake_zswarm, in_ns, is_zswarm, kill_all,
-                       left_behind, node_processes, offline, ray_node_env, read_until, stale_keys, start_ray,
+                       left_behind, node_processes, hostlike, ray_node_env, remove_hostlike, read_until, stale_keys, start_ray,
                        wait_gone)
 
 pytestmark = RAY_TESTS
 
 
+@pytest.fixture(autouse=True)
+def _hosts_removed():
+    """The host-like namespaces a test made go with it."""
+    yield
+    remove_hostlike()
+
+
 @pytest.fixture(scope="module")
 def three_nodes(tmp_path_factory):
-    """``zswarm run --cluster local:3 --agents 12``: three Ray nodes (Ray's ``cluster_utils``) on this
+    """``zswarm run --cluster local:3 --agents 12``: three Ray nodes (``ray start``) on this
     machine, at twice the wall clock (the reference catches the prey at 14.75 s of 25: the agents of a
     node are one scheduling group, and beside the rest of the suite on 2 cores a run of 20 once ended
     before they caught it; the world ends it 2 s after the capture); agents are moved between the nodes
     every 3 s as the swarm moves."""
     tmp = tmp_path_factory.mktemp("cluster3")
     mark = uuid.uuid4().hex
-    argv, env = offline(tmp, "-m", "zswarm", "run", "--cluster", "local:3", "--agents", "12", "--duration", "25",
+    argv, env = hostlike(tmp, "-m", "zswarm", "run", "--cluster", "local:3", "--agents", "12", "--duration", "25",
                         "--time-scale", "2", "--end-after-capture", "2", "--migrate-every", "3", "--record", str(tmp / "c.rrd"), mark=mark)
     driver = subprocess.Popen(argv, env=env, cwd=tmp, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
@@ -53,7 +61,7 @@ def three_nodes(tmp_path_factory):
     res = subprocess.CompletedProcess(argv, driver.returncode, out, err)
     left = wait_gone(mark, 10.0)
     summary = json.loads((tmp / "c.json").read_text()) if (tmp / "c.json").exists() else None
-    return res, summary, left, tmp, driver.pid  # unshare and sh exec'd it: the driver's pid
+    return res, summary, left, tmp, driver.pid  # ip netns exec exec'd it: the driver's pid
 
 
 def test_a_swarm_over_three_nodes_catches_the_prey_and_says_where_each_agent_ran(three_nodes):
@@ -89,12 +97,18 @@ def test_a_swarm_over_three_nodes_catches_the_prey_and_says_where_each_agent_ran
     assert s["ticks"] + s["skipped_ticks"] >= 0.97 * 12 * s["steps"], (s["ticks"], s["skipped_ticks"])
 
 
-def test_the_cluster_ran_with_nothing_but_loopback_and_left_nothing_behind(three_nodes):
-    res, _, left, tmp, driver = three_nodes
+def test_the_cluster_ran_on_loopback_on_a_machine_with_a_network_and_left_nothing_behind(three_nodes):
+    """Where the machine has an interface with an address and a default route (as a workstation or a cloud
+    VM has), every Ray node of a local cluster is on loopback all the same: Ray would take the interface's
+    address for 127.0.0.1 (ray-project/ray#59110), which is where the nodes of 5a0dc16 were not."""
+    from zswarm.cluster.local_nodes import RAY_LOOPBACK
+
+    res, s, left, tmp, driver = three_nodes
     assert res.returncode == 0, res.stderr[-3000:]
-    links = (tmp / "links.txt").read_text().split("\n")
-    assert [ln.split(":")[1].strip() for ln in links if ln.strip()] == ["lo"]  # no interface but loopback
-    assert (tmp / "routes.txt").read_text().strip() == ""  # and no route anywhere
+    assert re.search(r"eth0\s+inet 10\.231\.0\.2/24", (tmp / "links.txt").read_text())  # a machine with a network
+    assert (tmp / "routes.txt").read_text().startswith("default via 10.231.0.1 dev eth0")
+    assert {n["address"] for n in s["cluster"]["nodes"]} == {RAY_LOOPBACK}, s["cluster"]["nodes"]
+    assert "Failed to connect to GCS" not in res.stderr
     assert left == [], left
     assert not list(Path("/tmp").glob(f"zs-ray-{driver}-*"))  # its Ray folder too
 
@@ -105,7 +119,7 @@ def test_a_guest_on_a_secure_clusters_node_reaches_nobody(tmp_path):
     1, a far prey and a final tick for 5 s: nobody takes any of them (the prey is caught where the world
     put it, no pose is refused, the run lasts its whole duration), and nothing is left behind."""
     mark = uuid.uuid4().hex
-    argv, env = offline(tmp_path, str(ROOT / "tests" / "cluster_guest.py"), str(tmp_path), mark=mark)
+    argv, env = hostlike(tmp_path, str(ROOT / "tests" / "cluster_guest.py"), str(tmp_path), mark=mark)
     res = subprocess.run(argv, env=env, cwd=tmp_path, capture_output=True, text=True, timeout=400)
     assert res.returncode == 0, res.stderr[-3000:]
     out = json.loads(res.stdout.strip().splitlines()[-1])
@@ -127,7 +141,7 @@ def test_a_head_that_wants_a_token_lets_in_only_the_right_one(tmp_path, mode):
     its summary says "ray_auth": "token". A head without authentication: a --secure run is refused in one
     line with exit 2; with --cluster-insecure-ok it runs, and its summary says "ray_auth": "off"."""
     mark = uuid.uuid4().hex
-    argv, env = offline(tmp_path, str(ROOT / "tests" / "ray_auth_head.py"), mode, str(tmp_path), mark=mark)
+    argv, env = hostlike(tmp_path, str(ROOT / "tests" / "ray_auth_head.py"), mode, str(tmp_path), mark=mark)
     res = subprocess.run(argv, env=env, cwd=tmp_path, capture_output=True, text=True, timeout=400)
     assert res.returncode == 0, res.stderr[-3000:]
     out = json.loads(res.stdout.strip().splitlines()[-1])
@@ -161,7 +175,7 @@ def test_a_lockstep_run_over_two_nodes_equals_the_reference(tmp_path):
     from zswarm.sim.simulator import simulate
 
     mark = uuid.uuid4().hex
-    argv, env = offline(tmp_path, "-m", "zswarm", "run", "--cluster", "local:2", "--scenario", "goal-near-obstacle",
+    argv, env = hostlike(tmp_path, "-m", "zswarm", "run", "--cluster", "local:2", "--scenario", "goal-near-obstacle",
                         "--clock", "lockstep", "--duration", "8", "--record", str(tmp_path / "l.rrd"),
                         "--trajectory", str(tmp_path / "l.npz"), "--quiet", mark=mark)
     res = subprocess.run(argv, env=env, cwd=tmp_path, capture_output=True, text=True, timeout=240)
@@ -178,9 +192,9 @@ def test_a_lockstep_run_over_two_nodes_equals_the_reference(tmp_path):
 
 
 def start_local_run(tmp_path: Path, mark: str, stderr: int) -> tuple[subprocess.Popen, list[str]]:
-    """``zswarm run --cluster local:2 --agents 6 --duration 60``, offline, read until its world has
+    """``zswarm run --cluster local:2 --agents 6 --duration 60``, host-like, read until its world has
     started (every node's router and agents are up): the driver, and the lines it printed so far."""
-    argv, env = offline(tmp_path, "-m", "zswarm", "run", "--cluster", "local:2", "--agents", "6", "--duration", "60",
+    argv, env = hostlike(tmp_path, "-m", "zswarm", "run", "--cluster", "local:2", "--agents", "6", "--duration", "60",
                         "--record", str(tmp_path / "run.rrd"), mark=mark)
     driver = subprocess.Popen(argv, env=env, cwd=tmp_path, stdout=subprocess.PIPE, stderr=stderr, text=True)
     try:
@@ -311,7 +325,7 @@ def test_a_driver_killed_mid_run_leaves_no_process_within_ten_seconds(tmp_path):
         assert len(running) > 10  # Ray's nodes, the routers, the world, the agents
         # but no autoscaler and no log monitor: nothing scales a local cluster, and no worker log is read
         assert not [p for p in running if "monitor.py" in p], running
-        driver.send_signal(signal.SIGKILL)  # unshare and sh exec'd it: this pid is the driver itself
+        driver.send_signal(signal.SIGKILL)  # ip netns exec exec'd it: this pid is the driver itself
         driver.wait(timeout=10)
         left = wait_gone(mark, 10.0)
         assert left == [], left
@@ -327,7 +341,7 @@ def test_a_pace_the_clusters_cores_cannot_hold_is_refused_before_any_agent_start
     fake = tmp_path.parent / f"{tmp_path.name}-noray"
     (fake / "ray").mkdir(parents=True)
     (fake / "ray" / "__init__.py").write_text('raise ImportError("this refusal must not need Ray")\n')
-    argv, env = offline(tmp_path, "-m", "zswarm", "run", "--cluster", "local:2", "--agents", "500",
+    argv, env = hostlike(tmp_path, "-m", "zswarm", "run", "--cluster", "local:2", "--agents", "500",
                         "--time-scale", "10", mark=mark)
     env["PYTHONPATH"] = f"{fake}:{env['PYTHONPATH']}"
     res = subprocess.run(argv, env=env, cwd=tmp_path, capture_output=True, text=True, timeout=120)

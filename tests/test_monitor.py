@@ -115,8 +115,50 @@ def test_a_local_run_whose_launcher_was_killed_is_no_run(tmp_path, monkeypatch):
 
     monkeypatch.setenv("XDG_RUNTIME_DIR", str(tmp_path))
     path = announce("alive-run", "tcp/127.0.0.1:1")
-    assert endpoint_of("alive-run") == "tcp/127.0.0.1:1"  # this process is its launcher
+    assert endpoint_of("alive-run") == ("tcp/127.0.0.1:1", None)  # this process is its launcher
     dead = sp.Popen([sys.executable, "-c", "pass"])
     dead.wait()
     path.write_text(f"tcp/127.0.0.1:2 {dead.pid}\n")
     assert endpoint_of("alive-run") is None and not path.exists()
+
+
+def test_the_monitor_command_a_secure_run_prints_works_as_printed(tmp_path):
+    """``zswarm run --secure DIR`` prints ``... monitor --run RUN``: pasted as it is, it joins the run over
+    TLS (the world's identity, announced with the run) and ends with the run; so does the docs' form with
+    ``--config DIR/world.json5`` (the run's router found by its name)."""
+    import re
+
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    swarm = subprocess.Popen([sys.executable, str(ROOT / "launch.py"), "--agents", "4", "--duration", "15",
+                              "--record", str(tmp_path / "s.rrd"), "--secure", str(tmp_path / "pki"), "--run",
+                              "secure-watch"], cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                             text=True, env=env, start_new_session=True)
+    views: list[subprocess.Popen] = []
+    try:
+        printed = None
+        for line in swarm.stdout:
+            if m := re.search(r"watch it live: (\S+) monitor --run (\S+)$", line.strip()):
+                printed = m.groups()
+                break
+        assert printed is not None and printed[1] == "secure-watch"
+        # a command that is there: on PATH, or the one beside this Python (relative to the run's folder)
+        assert printed[0] == "zswarm" or (tmp_path / printed[0]).is_file(), printed
+        # both at once, each to the run's end (a view told to stop after S seconds may stop before its first
+        # refresh on a busy machine)
+        views += [subprocess.Popen([sys.executable, "-m", "zswarm", "monitor", "--run", "secure-watch", "--json", *extra],
+                                   cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                                   start_new_session=True)
+                  for extra in ([], ["--config", str(tmp_path / "pki" / "world.json5")])]
+        rest = swarm.stdout.read()
+        swarm.wait(timeout=60)
+        said = [view.communicate(timeout=60) for view in views]
+    finally:
+        for proc in (swarm, *views):
+            if proc.poll() is None:
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()
+    assert swarm.returncode == 0, rest[-2000:]
+    for view, (out, err) in zip(views, said):  # as printed; in the docs' form
+        assert view.returncode == 0, err[-2000:]
+        assert max(json.loads(line)["alive"] for line in out.splitlines()) == 4, out[-2000:]
+        assert "the run ended" in err, err[-2000:]

@@ -59,8 +59,9 @@ def two_hosts():
 
 def test_router_and_world_on_one_host_agents_on_another(two_hosts, tmp_path, secure=True):
     """docs/running.md's recipe for machines started by hand, secure: on host A the router and the
-    world, on host B the agents; ``zswarm certs`` names host A's address, every process speaks mutual
-    TLS with its own identity, and the summary says so. (``secure=False`` runs the open recipe: the
+    world, on host B the agents; ``zswarm certs`` names host A's address and writes B's bundle (the CA's
+    certificate and the agents' identities, no ``ca.key``), each host's folder at a path of its own;
+    every process speaks mutual TLS with its own identity, and the summary says so. (``secure=False`` runs the open recipe: the
     Ray cluster's two-host test crosses hosts over plain TCP already, so the suite runs this one.)"""
     a, b = two_hosts
     # at real time: paced faster than a loaded machine can hold (the suite beside two busy loops), a swarm
@@ -71,12 +72,16 @@ def test_router_and_world_on_one_host_agents_on_another(two_hosts, tmp_path, sec
     launch = [sys.executable, str(ROOT / "launch.py")]
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     proto, identity = "tcp", []
-    if secure:  # the recipe: certificates for host A's address, then each host with --secure
-        pki = tmp_path / "pki"
-        subprocess.run([sys.executable, "-m", "zswarm", "certs", str(pki), "--agents", "10", "--router",
-                        "tls/10.77.0.1:7447", "--hosts", "10.77.0.1,localhost"], check=True, env=env,
-                       capture_output=True, timeout=60)
-        proto, identity = "tls", ["--secure", str(pki)]
+    identity_b = []
+    if secure:  # the recipe: certificates for host A's address, B's bundle, then each host with --secure
+        pki, bundle = tmp_path / "host-a" / "pki", tmp_path / "host-b" / "keys"
+        for argv in (["--agents", "10", "--router", "tls/10.77.0.1:7447", "--hosts", "10.77.0.1,localhost"],
+                     ["--bundle", str(bundle), "--names", "agent-*"]):
+            subprocess.run([sys.executable, "-m", "zswarm", "certs", str(pki), *argv], check=True, env=env,
+                           capture_output=True, timeout=60)
+        assert (pki / "ca.key").is_file() and not (bundle / "ca.key").exists()  # the CA's key stays on A
+        assert sorted(p.stem for p in bundle.glob("*.json5")) == sorted(f"agent-{i}" for i in range(10))
+        proto, identity, identity_b = "tls", ["--secure", str(pki)], ["--secure", str(bundle)]
     host_a = subprocess.Popen(["ip", "netns", "exec", a, *launch, "--role", "router,world", *identity,
                                "--listen", f"{proto}/10.77.0.1:7447", "--record", str(tmp_path / "n.rrd"), *common],
                               env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -84,7 +89,7 @@ def test_router_and_world_on_one_host_agents_on_another(two_hosts, tmp_path, sec
     # every process that writes to it (the launcher, its agents) stops in the middle of the run
     said_b = tmp_path / "host-b.txt"
     with open(said_b, "w") as b_out:
-        host_b = subprocess.Popen(["ip", "netns", "exec", b, *launch, "--role", "agents", *identity,
+        host_b = subprocess.Popen(["ip", "netns", "exec", b, *launch, "--role", "agents", *identity_b,
                                    "--connect", f"{proto}/10.77.0.1:7447", *common],
                                   env=env, stdout=b_out, stderr=subprocess.STDOUT, text=True)
     try:

@@ -269,7 +269,8 @@ def test_certs_command_writes_usable_configs_and_reuses_its_ca(tmp_path, cli):
     for name in ("router", "world", "agent", "guest"):
         conf = json.loads((d / f"{name}.json5").read_text())
         tls = conf["transport"]["link"]["tls"]
-        assert Path(tls["connect_certificate"]).is_file() and tls["enable_mtls"] is True
+        assert (d / tls["connect_certificate"]).is_file() and tls["enable_mtls"] is True
+        assert not Path(tls["connect_certificate"]).is_absolute()  # the folder's own, wherever it is
         assert ("access_control" in conf) == (name == "router")
     assert json.loads((d / "world.json5").read_text())["connect"]["endpoints"] == ["tls/localhost:9"]
     ca, keys = (d / "ca.pem").read_bytes(), {p.name: p.read_bytes() for p in d.glob("*.key")}
@@ -289,11 +290,11 @@ def test_certs_command_writes_usable_configs_and_reuses_its_ca(tmp_path, cli):
 
 def test_launch_passes_full_zenoh_configs_through(certs, tmp_path):
     """--router-config / --config hand each process a whole Zenoh configuration: here TLS without
-    access control (so one client certificate serves world and agents). Over a tls/ endpoint the run
-    only works if every process got its file."""
+    access control (so one client certificate serves world and agents), beside the files it names by
+    their folder's paths. Over a tls/ endpoint the run only works if every process got its file."""
     conf = json.loads((certs / "router.json5").read_text())
     conf["access_control"]["enabled"] = False
-    router_conf = tmp_path / "router-tls.json5"
+    router_conf = certs / "router-tls.json5"
     router_conf.write_text(json.dumps(conf))
     record = tmp_path / "pass.rrd"
     res = run_cli(str(ROOT / "launch.py"), "--router-config", str(router_conf), "--config", str(certs / "agent.json5"),

@@ -132,7 +132,7 @@ CASES = [
     ([LAUNCH, "sweep", "--out", "{dir}/s", "--latency", "1ms,x"], "expected a duration"),
     ([LAUNCH, "sweep", "--out", "{dir}/s", "--latency", "0,100"], "'100' needs a unit: 100ms or 100s"),
     ([LAUNCH, "sweep", "--out", "{dir}/s", "--dropout", "1.5"], "expected a loss probability in [0, 1)"),
-    ([LAUNCH, "sweep", "--out", "{dir}/s", "--duration", "-1"], "--duration: expected a duration >= 0"),
+    ([LAUNCH, "sweep", "--out", "{dir}/s", "--duration", "-1"], "--duration: expected a duration > 0"),
     ([LAUNCH, "sweep", "--out", "{junk}"], "is a file"),
     # files that cannot be written, or would be written under the wrong name
     (["-m", "zswarm", "design", "--save", "/proc/x.rrd"], "cannot create a file in /proc"),
@@ -146,14 +146,14 @@ CASES = [
     (["-m", "zswarm", "replay", "{dir}"], "is a directory"),
     # monitor, tune
     (["-m", "zswarm", "monitor", "--run", "x", "--connect", "foo:bar"], "must look like tcp/HOST:PORT"),
-    (["-m", "zswarm", "monitor", "--run", "x", "--wait", "-1"], "argument --wait: expected a duration >= 0"),
+    (["-m", "zswarm", "monitor", "--run", "x", "--wait", "-1"], "argument --wait: expected a duration > 0"),
     (["-m", "zswarm", "monitor", "--run", "x", "--connect", "tcp/999.1.1.1:7447"], "999.1.1.1 is not an IP address"),
     (["-m", "agents", "--id", "0", "--connect", "tcp/127.0.0.1:70000"], "the port must be in 1..65535"),
     ([LAUNCH, "--record", "{old}"], "exists (an earlier run's): give --force to overwrite it, or another --record"),
     (["-m", "zswarm", "sim", "--record", "{old}"], "old.rrd exists; give another path or --force"),
     (["-m", "zswarm", "design", "--save", "{old}"], "old.rrd exists; give another path or --force"),
     (["-m", "zswarm", "sim", "--agents", "0"], "--agents"),
-    (["-m", "zswarm", "monitor", "--run", "x", "--stop-after", "-1"], "--stop-after: expected a duration >= 0"),
+    (["-m", "zswarm", "monitor", "--run", "x", "--stop-after", "-1"], "--stop-after: expected a duration > 0"),
     (["-m", "zswarm", "tune", "--out", "{dir}/t", "--popsize", "1"], "--popsize must be >= 2"),
     (["-m", "zswarm", "tune", "--out", ""], "--out needs a directory"),
     # the processes

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import re
 import sys
 from typing import Any, Callable, NoReturn, Sequence
@@ -30,7 +31,9 @@ def run_main(fn: Callable[[Sequence[str] | None], int], argv: Sequence[str] | No
              prog: str = "zswarm") -> int:
     """Call ``fn(argv)``; turn a :class:`UsageError` or a ValueError from validation into exit 2."""
     try:
-        return fn(argv)
+        code = fn(argv)
+        sys.stdout.flush()  # here, where a reader that went away is caught below, not at exit
+        return code
     except (UsageError, ParamError) as exc:
         print(f"{prog}: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
@@ -40,6 +43,9 @@ def run_main(fn: Callable[[Sequence[str] | None], int], argv: Sequence[str] | No
     except KeyboardInterrupt:
         print(f"{prog}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # its reader stopped reading (| head): no more to say, and no traceback at exit
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
 
 
 def add_param_args(parser: argparse.ArgumentParser) -> None:
@@ -222,24 +228,22 @@ def counted(n: int, noun: str) -> str:
     return f"{n} {noun}{'' if n == 1 else 's'}"
 
 
-def seconds(text: str) -> float:
+def seconds(text: str, positive: bool = False) -> float:
     """A duration flag's value in seconds: a bare number is seconds; ``500ms``, ``30s``, ``2min`` and
-    ``1h`` say their unit. (Fault delays, ``--latency`` and ``--jitter``, take no bare number but 0:
-    they are given in ms or s, and say which.)"""
+    ``1h`` say their unit; ``positive``: above zero, which the refusal of any other value says. (Fault
+    delays, ``--latency`` and ``--jitter``, take no bare number but 0: they are given in ms or s, and say
+    which.)"""
     value = duration_seconds(text)
     if value is None:
         raise argparse.ArgumentTypeError(f"expected a duration like 30, 30s, 500ms or 2min, got {text!r}")
-    if not math.isfinite(value) or value < 0:
-        raise argparse.ArgumentTypeError(f"expected a duration >= 0, got {text!r}")
+    if not math.isfinite(value) or value < 0 or (positive and value == 0):
+        raise argparse.ArgumentTypeError(f"expected a duration {'> 0' if positive else '>= 0'}, got {text!r}")
     return value
 
 
 def positive_seconds(text: str) -> float:
     """:func:`seconds`, above zero."""
-    value = seconds(text)
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"expected a duration > 0, got {text!r}")
-    return value
+    return seconds(text, positive=True)
 
 
 def sim_seconds(text: str) -> float:

@@ -26,14 +26,28 @@ def add_arguments(certs: argparse.ArgumentParser) -> None:
                        help="also give agents 0..N-1 an identity each (agent-I), allowed only their own keys; "
                             "the router's access control then holds N rules (default 0: one shared identity)")
     certs.add_argument("--days", type=positive_int, default=30, help="validity (default 30)")
+    certs.add_argument("--bundle", type=Path, default=None, metavar="OUT",
+                       help="write into OUT only what another machine needs: ca.pem and the key, certificate and "
+                            "config of each identity --names picks, never ca.key (docs/running.md)")
+    certs.add_argument("--names", default="", metavar="PATTERN,..",
+                       help="with --bundle: the identities to copy, e.g. world or 'agent-*' (shell patterns)")
     certs.add_argument("--force", action="store_true",
                        help="make a new CA even where DIR has one (by default its CA is reused and signs the new certificates)")
 
 
 def run(args: argparse.Namespace) -> int:
-    from zswarm.net.certs import ROLES
+    from zswarm.net.certs import ROLES, check_hosts, write_bundle
     from zswarm.net.security import write_secure_dir
 
+    if args.bundle is not None:
+        patterns = [n for n in args.names.split(",") if n]
+        if not patterns:
+            raise UsageError("--bundle needs --names: the identities that machine runs, e.g. --names 'agent-*'")
+        names = write_bundle(args.directory, args.bundle, patterns)
+        print(f"{args.bundle}: ca.pem and {', '.join(names)} (no ca.key); copy it to the machine that runs them")
+        return 0
+    if args.names:
+        raise UsageError("--names goes with --bundle OUT")
     ca = [args.directory / "ca.pem", args.directory / "ca.key"]
     if args.force:
         for path in ca:
@@ -48,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
     if args.agents < 0:
         raise UsageError(f"--agents must be >= 0 (got {args.agents})")
     extra = tuple(n for n in args.extra.split(",") if n)
-    hosts = tuple(h for h in args.hosts.split(",") if h)
+    hosts = check_hosts([h.strip() for h in args.hosts.split(",") if h.strip()])
     try:
         written = write_secure_dir(args.directory, args.router, hosts, ROLES + extra, args.days, args.agents)
     except OSError as exc:

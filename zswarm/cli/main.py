@@ -94,7 +94,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv[:1] in (["run"], ["sweep"]):
         return _delegate(argv[0], argv[1:], f"zswarm {argv[0]}")
-    return run_main(_main, argv)
+    return run_main(_main, argv, prog=command_prog(argv))
+
+
+def command_prog(argv: Sequence[str]) -> str:
+    """``zswarm CMD`` (``zswarm bench CMD``) for ``argv``: what every error line of that command begins with."""
+    words = []
+    for arg in argv[:2]:
+        if arg.startswith("-"):
+            break
+        words.append(arg)
+        if arg != "bench":
+            break
+    return " ".join(["zswarm", *words])
 
 
 def launch_main(argv: Sequence[str] | None = None) -> int:

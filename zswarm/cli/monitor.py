@@ -9,12 +9,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import signal
 import sys
 import time
 
-from zswarm.args import positive_seconds, renamed, wall_seconds, seconds
+from zswarm.args import positive_seconds, renamed, wall_seconds
 from zswarm.errors import UsageError
 from zswarm.net.keys import Keys, check_run_id
 
@@ -32,7 +31,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--stop-after", type=wall_seconds, default=None, metavar="S",
                         help="stop after S seconds of the wall clock (default: when the run ends)")
     renamed(parser, "--duration", "the monitor runs on the wall clock: give --stop-after S")
-    parser.add_argument("--wait", type=seconds, default=10.0, metavar="S",
+    parser.add_argument("--wait", type=positive_seconds, default=10.0, metavar="S",
                         help="give up (exit 2) if no agent of the run is heard within S seconds (default 10)")
     parser.add_argument("--json", action="store_true", help="one JSON object per refresh instead of the table")
     add_zenoh_args(parser)
@@ -75,17 +74,17 @@ def run(args: argparse.Namespace) -> int:
     from zswarm.net.watch import RunWatch
 
     check_run_id(args.run_id)
-    if not (math.isfinite(args.wait) and args.wait > 0):  # --every and --duration: positive_seconds
-        raise UsageError(f"--wait must be a number of seconds > 0 (got {args.wait:g})")
-    if not args.connect and args.config is None:  # a run of this machine, found by its name
+    if not args.connect:  # a run of this machine, found by its name: its router, and how to join it over TLS
         from zswarm.launch.local_runs import endpoint_of, runs_dir
 
-        endpoint = endpoint_of(args.run_id)
-        if endpoint is None:
+        found = endpoint_of(args.run_id)
+        if found is None and args.config is None:
             raise UsageError(f"no run {args.run_id!r} is running on this machine (its runs are listed in "
                              f"{runs_dir()}); for a run elsewhere give --connect tcp/ROUTER:PORT (zswarm run "
                              "prints its router)")
-        args.connect = [endpoint]
+        if found is not None:
+            args.connect = [found[0]]
+            args.config = args.config or found[1]
     session = open_session(config_from_args(args), what="monitor", retry_for=args.connect_timeout)
     watch = RunWatch(Keys(args.run_id, cell_size=1.0))  # the wildcards it subscribes to span every cell
     stopping: list[int] = []  # the signal that asked this view to stop, once one has

@@ -82,7 +82,7 @@ class ClusterLaunch(Launch):
                     from None
             link.watch()
         self.endpoint = self.endpoints[0]
-        self.announced = announce(self.spec.run, self.endpoint)  # zswarm monitor --run finds it here
+        self.announced = announce(self.spec.run, self.endpoint, self._monitor_config())  # zswarm monitor --run finds it
         if not plan.quiet:
             counts = np.bincount(list(self.where.values()), minlength=len(self.links))
             _say(", ".join(f"{link.label}: {c} agents, router {e}" for link, c, e in

@@ -1,6 +1,6 @@
 """Reaching a Ray cluster from the driver: an existing one (``ADDRESS`` or ``auto``), or one started
-here (``local``: this machine as one node; ``local:K``: K nodes on this machine, Ray's own
-``cluster_utils``, for trying a multi-node run and for the tests).
+here (``local``: this machine as one node; ``local:K``: K nodes on this machine,
+:mod:`zswarm.cluster.local_nodes`).
 
 Every Ray process started here gets the offline environment of :mod:`zswarm.cluster.ray_env`. Ray is
 imported only here and in :mod:`zswarm.cluster.hosts`, lazily: ``zswarm`` runs without it.
@@ -9,7 +9,6 @@ imported only here and in :mod:`zswarm.cluster.hosts`, lazily: ``zswarm`` runs w
 from __future__ import annotations
 
 import contextlib
-import io
 import os
 import re
 import shutil
@@ -17,11 +16,13 @@ import subprocess
 import sys
 import tempfile
 import threading
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from zswarm.cluster.ray_env import HEAD_ONLY_ARGS, NODE_ARGS, SYSTEM_CONFIG, offline_env
+from zswarm.cluster.local_nodes import RAY_LOOPBACK, LocalNodes
+from zswarm.cluster.ray_env import offline_env
 from zswarm.errors import UsageError
 from zswarm.ports import LOOPBACK
 
@@ -62,8 +63,8 @@ def import_ray() -> Any:
 
 @dataclass
 class RayCluster:
-    """The driver's connection; ``local`` holds the nodes started here (stopped by :meth:`close`);
-    ``auth``: "token" when the cluster wants a token (one made for a cluster started here), "off" when
+    """The driver's connection; ``local`` holds the nodes started here (:class:`LocalNodes`, stopped by
+    :meth:`close`); ``auth``: "token" when the cluster wants a token (one made for a cluster started here), "off" when
     anyone who reaches its head may run code on it (run only with ``--cluster-insecure-ok``)."""
 
     address: str
@@ -86,8 +87,7 @@ class RayCluster:
         with contextlib.suppress(Exception):
             ray.shutdown()
         if self.local is not None:
-            with contextlib.suppress(Exception):
-                self.local.shutdown()
+            self.local.close()
         if self.run_dir is not None:
             shutil.rmtree(self.run_dir, ignore_errors=True)
 
@@ -126,18 +126,19 @@ def ray_startup_filter():
 
 
 @contextlib.contextmanager
-def loopback_only():
-    """While a local cluster's nodes start: Ray's version check of each node asks for "this node's
-    address" before the driver has one, and finds it by a probe towards 8.8.8.8 (1.1 s each, and a
-    warning line each, where there is no route). Every node of a local cluster is on loopback."""
-    from ray._private import services
+def _signals_interrupt():
+    """While the cluster starts: SIGTERM as Ctrl-C (KeyboardInterrupt), so that either ends the nodes
+    started so far, at once (the run's own handlers take over once it runs)."""
+    import signal
 
-    original = services.get_node_ip_address
-    services.get_node_ip_address = lambda address=None: LOOPBACK
+    def interrupt(*_: object) -> None:
+        raise KeyboardInterrupt
+
+    before = signal.signal(signal.SIGTERM, interrupt)
     try:
         yield
     finally:
-        services.get_node_ip_address = original
+        signal.signal(signal.SIGTERM, before)
 
 
 def reachable(address: str, timeout: float = 5.0) -> tuple[str, str]:
@@ -212,6 +213,7 @@ try:
 except ImportError as exc:
     print("internals " + str(exc)[:160], flush=True)
     raise SystemExit(0)
+print("imported", flush=True)
 
 def ask():
     try:
@@ -229,19 +231,49 @@ if answer == "auth" and held:
     print(ask(), flush=True)
 """
 AUTH_TIMEOUT = 5.0
+#: How long the probe may take to import Ray, on a machine however busy.
+IMPORT_TIMEOUT = 60.0
 
 
 def _probe(address: str, token: dict[str, str]) -> list[str]:
     """What the head at ``address`` answered a driver without a token, then (where it refused that and
-    ``token`` holds this driver's token settings) one with it: "ok", "auth" or "error ..." each."""
+    ``token`` holds this driver's token settings) one with it: "ok", "auth" or "error ..." each. The head
+    has :data:`AUTH_TIMEOUT` seconds from the moment the probe has imported Ray (which a busy machine
+    may take seconds for: that is no silence of the head)."""
     env = {k: v for k, v in os.environ.items() if k not in AUTH_VARS}
     env.update({f"ZSWARM_PROBE_{k}": v for k, v in token.items()})  # not RAY_AUTH_*: the first ask goes without
+    proc = subprocess.Popen([sys.executable, "-c", _PROBE.format(address=address)], env=env, stdin=subprocess.DEVNULL,
+                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
     try:
-        out = subprocess.run([sys.executable, "-c", _PROBE.format(address=address)], env=env, capture_output=True,
-                             text=True, timeout=AUTH_TIMEOUT, stdin=subprocess.DEVNULL)
+        said = _read(proc, b"imported\n", IMPORT_TIMEOUT)
+        if said.startswith(b"imported\n"):
+            said = said[len(b"imported\n"):] + _read(proc, None, AUTH_TIMEOUT)
+        proc.wait(timeout=1.0)  # it said all it had to: it ends
     except subprocess.TimeoutExpired:
         return [f"error no answer in {AUTH_TIMEOUT:g} s"]
-    return out.stdout.strip().splitlines() or ["auth"]  # Ray aborted: token mode without a usable token
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    return said.decode(errors="replace").strip().splitlines() or ["auth"]  # Ray aborted: token mode, no token
+
+
+def _read(proc: subprocess.Popen, until: bytes | None, seconds: float) -> bytes:
+    """What ``proc`` writes, read straight from its pipe, until it has written ``until`` (None: until it
+    ends) or ``seconds`` have passed."""
+    import selectors
+
+    fd, said = proc.stdout.fileno(), b""
+    deadline = time.monotonic() + seconds
+    with selectors.DefaultSelector() as sel:
+        sel.register(fd, selectors.EVENT_READ)
+        while (until is None or until not in said) and (left := deadline - time.monotonic()) > 0:
+            if sel.select(timeout=left):
+                chunk = os.read(fd, 4096)
+                if not chunk:
+                    break
+                said += chunk
+    return said
 
 
 def head_auth(address: str) -> str:
@@ -308,20 +340,12 @@ def connect(address: str, cores: int, insecure_ok: bool = False) -> RayCluster:
                          stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, start_new_session=True,
                          env={k: v for k, v in os.environ.items() if k != "ZSWARM_RAY_RUN"})
     try:
-        with ray_startup_filter():
-            if address == "local":
-                ray.init(num_cpus=cores, _node_ip_address=LOOPBACK, _system_config=SYSTEM_CONFIG, **NODE_ARGS, **quiet)
-            elif address.startswith("local:"):
-                from ray.cluster_utils import Cluster
-
+        with ray_startup_filter(), _signals_interrupt():
+            if local:
                 k, each = local_nodes(address, cores)
-                args = {"num_cpus": each, "node_ip_address": LOOPBACK, **NODE_ARGS}
-                with contextlib.redirect_stdout(io.StringIO()), loopback_only():
-                    cluster.local = Cluster(initialize_head=True,
-                                            head_node_args={**args, **HEAD_ONLY_ARGS, "_system_config": SYSTEM_CONFIG})
-                    for _ in range(k - 1):
-                        cluster.local.add_node(**args)
-                ray.init(address=cluster.local.address, _node_ip_address=LOOPBACK, **quiet)
+                cluster.local = LocalNodes()
+                head = cluster.local.start(k, each)
+                ray.init(address=head, _node_ip_address=RAY_LOOPBACK, **quiet)
             else:
                 ray.init(address=address, _node_ip_address=own, **quiet)
     except (ConnectionError, RuntimeError, TimeoutError, ValueError) as exc:
@@ -329,4 +353,7 @@ def connect(address: str, cores: int, insecure_ok: bool = False) -> RayCluster:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise UsageError(f"cannot reach the Ray cluster at {address}: {first[:160]} (start it with "
                          "ray start --head, or use --cluster local)") from None
+    except BaseException:
+        cluster.close()
+        raise
     return cluster

@@ -8,7 +8,6 @@ addresses (169.254.169.254, metadata.google.internal) which cloud it runs on unl
 ``_private/services.py``). :func:`offline_env` switches each of these off or points it at loopback,
 gives the run its own ``RAY_TMPDIR`` and ``HOME`` (holding the bootstrap file), and turns Ray's memory
 monitor off (it kills workers at 95 % of host memory: a swarm's agents are not Ray's to kill).
-:data:`NODE_ARGS` caps the object store (zswarm moves no data through it) and leaves the dashboard out.
 """
 
 from __future__ import annotations
@@ -41,16 +40,8 @@ SYSTEM_CONFIG = {
     "health_check_failure_threshold": 3,
 }
 
-#: The object store's smallest size Ray accepts: zswarm sends nothing through it.
+#: The object store of a node started here: about the smallest Ray accepts (zswarm sends nothing through it).
 OBJECT_STORE_BYTES = 80 * 1024 * 1024
-
-#: What a node zswarm starts is given (``Cluster.add_node`` / ``ray.init`` of a local cluster).
-NODE_ARGS = {"object_store_memory": OBJECT_STORE_BYTES, "include_dashboard": False}
-
-#: What the head of a local cluster (``local:K``) is given besides: no autoscaler monitor (nothing
-#: scales a cluster of this machine's processes) and no log monitor (the driver asks for no worker
-#: logs: ``log_to_driver=False``).
-HEAD_ONLY_ARGS = {"no_monitor": True, "include_log_monitor": False}
 
 #: Ray's cluster launcher writes this file on a head; its presence skips the cloud-metadata probe.
 BOOTSTRAP = "ray_bootstrap_config.yaml"

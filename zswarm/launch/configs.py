@@ -27,13 +27,13 @@ def _role_configs(plan: Plan, n_agents: int, say: Callable[..., None]) -> dict[s
         if plan.router_config is not None:
             out["router"] = ["--config", str(plan.router_config)]
         return out
-    from zswarm.net.security import is_secure_dir, router_configs, write_secure_dir
+    from zswarm.net.security import router_configs, write_secure_dir
 
-    if not is_secure_dir(plan.secure):
+    if not any(plan.secure.iterdir()):  # a folder with files was checked (plan.check_secure_dir)
         write_secure_dir(plan.secure, agents=n_agents)
         if not plan.quiet:
             say(f"made a CA, certificates (one per agent) and configs in {plan.secure}", err=False)
-    out = {"world": ["--config", str(plan.secure / "world.json5")]}
+    out = {"world": ["--config", str(plan.secure / "world.json5")]} if "world" in plan.roles else {}
     if "router" in plan.roles:  # each router of the mesh its own identity
         out["routers"] = [["--config", str(path)] for path in router_configs(plan.secure, plan.routers)]
     return out

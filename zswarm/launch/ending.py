@@ -57,17 +57,17 @@ def add_tracks(plan: Plan, say: Callable[..., None]) -> None:
         f"{summary.get('collisions')})", err=False)
 
 
-def viewer_command() -> str:
-    """How to start the Rerun viewer from here: ``rerun`` where it is on PATH, else the one installed
-    beside this Python (a virtual environment's bin/ that was not activated), relative to here when it
-    is below."""
+def viewer_command(name: str = "rerun") -> str:
+    """How to start the installed command ``name`` (``rerun``, ``zswarm``) from here: ``name`` where it is
+    on PATH, else the one installed beside this Python (a virtual environment's bin/ that was not
+    activated), relative to here when it is below."""
     import shutil
     import sys
     from pathlib import Path
 
-    if shutil.which("rerun") is not None:
-        return "rerun"
-    beside = Path(sys.executable).parent / "rerun"
+    if shutil.which(name) is not None:
+        return name
+    beside = Path(sys.executable).parent / name
     try:
         return str(beside.relative_to(Path.cwd()))
     except ValueError:

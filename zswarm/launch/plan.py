@@ -101,13 +101,18 @@ def plan_from_args(args: argparse.Namespace, cores: int | None = None, memory_mi
         if path is not None:
             if args.secure is not None:
                 raise UsageError(f"{flag} and --secure both set the Zenoh configuration; give one")
+            from zswarm.net.certs import check_config_files
             from zswarm.net.config import zenoh_config
 
             zenoh_config(None, config=path)  # a missing or unreadable file fails here, not in a child
+            check_config_files(path)  # and so do the TLS files it names
     if not 1 <= args.routers <= 64:
         raise UsageError(f"--routers must be between 1 and 64 (got {args.routers})")
     if args.routers > 1 and "router" not in args.role:
         raise UsageError("--routers K starts K routers: give the router role too (or leave --role alone)")
+    if "agents" in args.role and args.connect is None and args.routers > max(len(ids), 1):
+        raise UsageError(f"--routers {args.routers} for {len(ids)} agents leaves at least "
+                         f"{args.routers - len(ids)} routers with no agent; give --routers {len(ids)} or fewer")
     if args.routers > 1 and args.secure is not None:
         from zswarm.net.security import is_secure_dir, meshes
 
@@ -128,7 +133,7 @@ def plan_from_args(args: argparse.Namespace, cores: int | None = None, memory_mi
         raise UsageError("--world-crash T:S restarts the world; watch it with --connect to a viewer of your own "
                          "(--spawn and --serve live in the world process)")
     if args.secure is not None:
-        check_secure_dir(args.secure, ids if "agents" in args.role else ())
+        check_secure_dir(args.secure, args.role, ids)
     design = None  # after every flag is checked: the swarm check simulates for half a second
     if "world" in args.role or args.require_design:
         design = judge_design(spec, args.require_design)
@@ -341,12 +346,17 @@ def judge_design(spec: RunSpec, required: bool) -> dict:
     return result
 
 
-def check_secure_dir(directory: Path, ids: Sequence[int]) -> None:
-    from zswarm.net.security import agent_config, agent_name, is_secure_dir
+def check_secure_dir(directory: Path, roles: Sequence[str], ids: Sequence[int]) -> None:
+    """``--secure DIR``: an empty or new DIR, which the run makes (where it can write); or one that holds
+    every config this machine's roles use (``zswarm certs`` made it, or its ``--bundle`` for this machine),
+    each naming files of DIR that are there and sound (:func:`zswarm.net.certs.check_config_files`).
+    UsageError in one line otherwise, before anything starts."""
+    from zswarm.net.certs import check_config_files
+    from zswarm.net.security import agent_config, agent_name
 
     if directory.exists() and not directory.is_dir():
         raise UsageError(f"--secure {directory} is not a directory")
-    if not is_secure_dir(directory):  # zswarm makes it: it must be able to
+    if not directory.exists() or not any(directory.iterdir()):  # zswarm makes it: it must be able to
         try:
             directory.mkdir(parents=True, exist_ok=True)
             probe = directory / ".zswarm-probe"
@@ -355,13 +365,19 @@ def check_secure_dir(directory: Path, ids: Sequence[int]) -> None:
         except OSError as exc:
             raise UsageError(f"--secure {directory}: cannot write the keys there ({exc.strerror or exc}); give a "
                              "directory of yours") from None
-    if directory.is_dir() and any(directory.iterdir()) and not is_secure_dir(directory):
-        raise UsageError(f"--secure {directory} has no router/world/agent .json5 configs; "
-                         f"make them with: zswarm certs {directory}")
-    if ids and is_secure_dir(directory):
-        own = [i for i in ids if agent_config(directory, i).name == f"{agent_name(i)}.json5"]
-        if own and len(own) < len(ids):
-            lacking = sorted(set(ids) - set(own))
-            raise UsageError(f"--secure {directory} gives agents their own identities, but none to agent "
-                             f"{lacking[0]}{' and others' if len(lacking) > 1 else ''}; remake it with: "
-                             f"zswarm certs {directory} --force --agents {max(ids) + 1}")
+        return
+    needed = {role: directory / f"{role}.json5" for role in ("router", "world") if role in roles}
+    needed.update({f"agent {i}": agent_config(directory, i) for i in (ids if "agents" in roles else ())})
+    for role, config in needed.items():
+        if not config.is_file():
+            raise UsageError(f"--secure {directory} has no {config.name}, which this machine's {role} needs: make "
+                             f"the folder with zswarm certs {directory}, or on the machine with the CA a bundle for "
+                             f"this one with zswarm certs DIR --bundle OUT --names NAME,... (docs/running.md)")
+    own = [i for i in ids if agent_config(directory, i).name == f"{agent_name(i)}.json5"]
+    if own and len(own) < len(ids):
+        lacking = sorted(set(ids) - set(own))
+        raise UsageError(f"--secure {directory} gives agents their own identities, but none to agent "
+                         f"{lacking[0]}{' and others' if len(lacking) > 1 else ''}; remake it with: "
+                         f"zswarm certs {directory} --force --agents {max(ids) + 1}")
+    for config in dict.fromkeys(needed.values()):
+        check_config_files(config, directory)

@@ -135,9 +135,16 @@ class Launch:
         if not plan.quiet:
             _say(self._started(), err=False)
             if self.announced is not None:
-                _say(f"watch it live: zswarm monitor --run {self.spec.run}", err=False)
+                from zswarm.launch.ending import viewer_command
+
+                _say(f"watch it live: {viewer_command('zswarm')} monitor --run {self.spec.run}", err=False)
             for note in plan.notes:
                 _say(note, err=False)
+
+    def _monitor_config(self) -> Path | None:
+        """The Zenoh config ``zswarm monitor --run`` joins this run with: the world's (an identity that may
+        watch it under --secure), or the one given with --config; None for an open run."""
+        return self.plan.secure / "world.json5" if self.plan.secure is not None else self.plan.config
 
     def _start_routers(self) -> None:
         """This machine's routers (``--routers K`` meshed, joined to ``--connect``), or, on a machine
@@ -155,7 +162,7 @@ class Launch:
                                      self.configs.get("routers"))
         except RuntimeError as exc:
             raise UsageError(str(exc)) from None
-        self.announced = announce(self.spec.run, self.endpoint)  # zswarm monitor --run finds it here
+        self.announced = announce(self.spec.run, self.endpoint, self._monitor_config())  # zswarm monitor --run finds it
 
     def _started(self) -> str:
         """The line that says the run has started, and where."""

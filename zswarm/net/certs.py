@@ -11,6 +11,7 @@ from __future__ import annotations
 import datetime as dt
 import ipaddress
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
@@ -150,10 +151,75 @@ def _leaves(directory: Path, names: Sequence[str], ca, ca_key, hosts: tuple[str,
 
 
 def _load_ca(directory: Path) -> tuple:
-    """The CA of ``directory``: its certificate and its private key."""
+    """The CA of ``directory``: its certificate and its private key (UsageError in one line, naming the
+    file, where one is not a PEM certificate or key, or the key is not the certificate's)."""
     x509, _, serialization, _, _, _ = _crypto()
-    return (x509.load_pem_x509_certificate((directory / "ca.pem").read_bytes()),
-            serialization.load_pem_private_key((directory / "ca.key").read_bytes(), password=None))
+    cert, key = directory / "ca.pem", directory / "ca.key"
+    try:
+        ca = x509.load_pem_x509_certificate(cert.read_bytes())
+    except (OSError, ValueError) as exc:
+        raise UsageError(f"{cert} is not a readable PEM certificate ({getattr(exc, 'strerror', None) or 'corrupt'}): "
+                         f"restore it, or make a new CA with zswarm certs {directory} --force") from None
+    try:
+        ca_key = serialization.load_pem_private_key(key.read_bytes(), password=None)
+    except (OSError, ValueError, TypeError) as exc:
+        raise UsageError(f"{key} is not a readable PEM private key ({getattr(exc, 'strerror', None) or 'corrupt'}): "
+                         f"restore it, or make a new CA with zswarm certs {directory} --force") from None
+    pub = [k.public_bytes(serialization.Encoding.PEM, serialization.PublicFormat.SubjectPublicKeyInfo)
+           for k in (ca.public_key(), ca_key.public_key())]
+    if pub[0] != pub[1]:
+        raise UsageError(f"{key} is not the key of {cert}: restore the pair, or make a new CA with zswarm certs "
+                         f"{directory} --force")
+    return ca, ca_key
+
+
+#: A DNS name a certificate may carry: dot-separated labels of letters, digits and inner hyphens.
+HOST_NAME = re.compile(r"^(?=.{1,253}$)([A-Za-z0-9]([A-Za-z0-9-]{0,61}[A-Za-z0-9])?)(\.[A-Za-z0-9]([A-Za-z0-9-]{0,61}[A-Za-z0-9])?)*$")
+
+
+def check_hosts(hosts: Sequence[str]) -> tuple[str, ...]:
+    """``hosts`` as given, each an IP address or a DNS name (UsageError in one line naming the first that
+    is neither)."""
+    for host in hosts:
+        try:
+            ipaddress.ip_address(host)
+        except ValueError:
+            if not HOST_NAME.match(host) or host.replace(".", "").isdigit():
+                raise UsageError(f"--hosts: {host!r} is neither an IP address nor a host name (letters, digits "
+                                 "and hyphens, in dot-separated labels)") from None
+    if not hosts:
+        raise UsageError("--hosts names no host: give the names and addresses the router is reached by")
+    return tuple(hosts)
+
+
+def write_bundle(directory: Path, out: Path, patterns: Sequence[str]) -> list[str]:
+    """Into ``out`` (made private), what another machine needs of ``directory``: the CA's certificate and,
+    for each identity whose name matches one of ``patterns`` (shell patterns: ``agent-*``), its key,
+    certificate and config; never the CA's key. The identities copied, by name."""
+    import fnmatch
+    import shutil
+
+    directory = Path(directory)
+    if not (directory / "ca.pem").is_file():
+        raise UsageError(f"{directory} holds no CA (ca.pem): make it first with zswarm certs {directory}")
+    names = sorted(p.stem for p in directory.glob("*.json5")
+                   if any(fnmatch.fnmatchcase(p.stem, pat) for pat in patterns))
+    if not names:
+        have = ", ".join(sorted(p.stem for p in directory.glob("*.json5"))) or "none"
+        raise UsageError(f"--names {','.join(patterns)} matches no identity of {directory} (it has: {have})")
+    if Path(out).resolve() == directory.resolve():
+        raise UsageError("--bundle must be another folder than DIR")
+    out = private_dir(out)
+    shutil.copyfile(directory / "ca.pem", out / "ca.pem")
+    for name in names:
+        paths = CertPaths(directory, name)
+        if not paths.key.is_file():
+            raise UsageError(f"{directory} has no {paths.key.name}: {name}'s key was made on another machine")
+        _write_key(out / paths.key.name, paths.key.read_bytes())
+        for src in (paths.cert, directory / f"{name}.json5"):
+            shutil.copyfile(src, out / src.name)
+        check_config_files(out / f"{name}.json5", out)
+    return names
 
 
 def _own_key(path: Path):
@@ -209,3 +275,57 @@ def sign(ca_directory: Path, public_keys: dict[str, str], hosts: tuple[str, ...]
     return {name: _pem(serialization, cert=_leaf(name, serialization.load_pem_public_key(pem.encode()),
                                                  ca_cert, ca_key, hosts, days)).decode()
             for name, pem in public_keys.items()}
+
+
+def check_config_files(config: Path, folder: Path | None = None) -> None:
+    """The TLS files a Zenoh config names (:func:`zswarm.net.config.tls_files`), checked before anything
+    starts: each there and readable, inside ``folder`` when one is given (a ``--secure`` folder uses its
+    own files), and, where ``cryptography`` is installed, each certificate and key one, each key its
+    certificate's, each certificate signed by the config's CA. UsageError in one line naming the file
+    otherwise (Zenoh itself says only that a session could not open)."""
+    import zenoh
+
+    from zswarm.net.config import tls_files
+
+    files = tls_files(zenoh.Config.from_file(str(config)), Path(config).resolve().parent)
+    data = {}
+    for key, path in files.items():
+        what = "private key" if key.endswith("_key") else "certificate"
+        if folder is not None and path.resolve().parent != Path(folder).resolve():
+            raise UsageError(f"{config} names {path}, outside {folder}: its configs were written by an older "
+                             f"zswarm; write them anew with: zswarm certs {folder}")
+        try:
+            data[key] = path.read_bytes()
+        except OSError as exc:
+            raise UsageError(f"{config} names {path} as its {what}: {exc.strerror} (a copy of the folder needs "
+                             "the files beside the config)") from None
+    try:
+        x509, _, serialization, _, _, _ = _crypto()
+    except UsageError:  # without the tls extra: Zenoh checks the rest when it opens
+        return
+    loaded = {}
+    for key, pem in data.items():
+        try:
+            loaded[key] = (serialization.load_pem_private_key(pem, password=None) if key.endswith("_key")
+                           else x509.load_pem_x509_certificate(pem))
+        except (ValueError, TypeError):
+            what = "private key" if key.endswith("_key") else "certificate"
+            raise UsageError(f"{files[key]} is not a PEM {what} ({config} names it): make it again with "
+                             "zswarm certs") from None
+
+    def public(k) -> bytes:
+        return k.public_bytes(serialization.Encoding.PEM, serialization.PublicFormat.SubjectPublicKeyInfo)
+
+    ca = loaded.get("root_ca_certificate")
+    for side in ("connect", "listen"):
+        key, cert = loaded.get(f"{side}_private_key"), loaded.get(f"{side}_certificate")
+        if key is not None and cert is not None and public(key.public_key()) != public(cert.public_key()):
+            raise UsageError(f"{files[f'{side}_private_key']} is not the key of {files[f'{side}_certificate']} "
+                             f"({config} names both): copy the pair that was made together")
+        if ca is not None and cert is not None:
+            try:
+                cert.verify_directly_issued_by(ca)
+            except Exception:  # noqa: BLE001 (InvalidSignature, or a CA of another kind of key)
+                raise UsageError(f"{files[f'{side}_certificate']} is not signed by the CA "
+                                 f"{files['root_ca_certificate']} ({config} names both): copy the CA and the "
+                                 "certificates it signed") from None

@@ -55,6 +55,8 @@ def zenoh_config(mode: str | None = "client", connect: Iterable[str] = (), liste
             conf = zenoh.Config.from_file(str(config))
         except Exception as exc:  # zenoh reports parse errors as ZError
             raise UsageError(f"cannot read zenoh config {config}: {_first_line(exc)}") from None
+        for key, path in tls_files(conf, Path(config).resolve().parent).items():
+            conf.insert_json5(f"{TLS}/{key}", json.dumps(str(path)))
     else:
         conf = zenoh.Config()
     if mode is not None or config is None:
@@ -80,6 +82,26 @@ def zenoh_config(mode: str | None = "client", connect: Iterable[str] = (), liste
 
 
 DEFAULT_ROUTER = f"tcp/{LOOPBACK}:7447"
+
+#: Where a Zenoh configuration names its TLS files, and the keys that name them.
+TLS = "transport/link/tls"
+TLS_FILES = ("root_ca_certificate", "connect_private_key", "connect_certificate", "listen_private_key",
+             "listen_certificate")
+
+
+def tls_files(conf: zenoh.Config, folder: Path) -> dict[str, Path]:
+    """The TLS files ``conf`` names, a relative path taken from ``folder`` (the config file's own: unlike
+    ``zenohd``, which reads it from the working directory), so that a folder of configs and their files
+    can be moved or copied whole (docs/running.md)."""
+    out = {}
+    for key in TLS_FILES:
+        try:
+            value = json.loads(conf.get_json(f"{TLS}/{key}"))
+        except Exception:  # noqa: BLE001 (zenoh: no such key)
+            continue
+        if isinstance(value, str) and value:
+            out[key] = Path(value) if Path(value).is_absolute() else folder / value
+    return out
 
 
 def _first_line(exc: Exception) -> str:

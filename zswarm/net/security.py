@@ -115,12 +115,13 @@ def access_control(agents: int = 0) -> dict:
 
 
 def tls(paths: CertPaths, listen: bool) -> dict:
-    """``transport/link/tls`` for one role: mutual TLS against the swarm's CA."""
-    block = {"root_ca_certificate": str(paths.ca.resolve()), "enable_mtls": True,
-             "connect_private_key": str(paths.key.resolve()), "connect_certificate": str(paths.cert.resolve()),
-             "verify_name_on_connect": True}
+    """``transport/link/tls`` for one role: mutual TLS against the swarm's CA. The files are named
+    relative to the config's own folder (:func:`zswarm.net.config.zenoh_config` reads them there), so
+    that the folder works wherever it is moved or copied, with its own files."""
+    block = {"root_ca_certificate": paths.ca.name, "enable_mtls": True, "connect_private_key": paths.key.name,
+             "connect_certificate": paths.cert.name, "verify_name_on_connect": True}
     if listen:
-        block.update(listen_private_key=str(paths.key.resolve()), listen_certificate=str(paths.cert.resolve()))
+        block.update(listen_private_key=paths.key.name, listen_certificate=paths.cert.name)
     return block
 
 
@@ -198,10 +199,7 @@ def router_configs(directory: Path, count: int) -> list[Path]:
     out = []
     for name in names:
         conf = json.loads(json.dumps(base))
-        tls = conf["transport"]["link"]["tls"]
-        paths = CertPaths(directory, name)
-        tls.update(connect_private_key=str(paths.key.resolve()), listen_private_key=str(paths.key.resolve()),
-                   connect_certificate=str(paths.cert.resolve()), listen_certificate=str(paths.cert.resolve()))
+        conf["transport"]["link"]["tls"].update(tls(CertPaths(directory, name), listen=True))
         if "access_control" in base:
             conf["access_control"] = with_routers(base["access_control"], names)
         path = directory / f"{name}.json5"

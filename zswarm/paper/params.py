@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
@@ -135,6 +136,9 @@ def groups_of(text: str) -> list[tuple[int, str, str | None]]:
     for item in (part.strip() for part in text.split(",") if text.strip()):
         count, _, rest = item.partition(":")
         law, slash, body = rest.rpartition("/")
+        if slash and body.strip() not in KINDS and re.fullmatch(r"[A-Za-z][\w-]*", body.strip()):
+            raise ParamError(f"groups: {body.strip()!r} in {item!r} is not a body; the bodies are "
+                             f"{', '.join(KINDS)} (COUNT:LAW[/BODY], e.g. 4:boids/unicycle)")
         if not slash or body.strip() not in KINDS:
             law, body = rest, ""
         try:
