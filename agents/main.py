@@ -45,7 +45,7 @@ if TYPE_CHECKING:
 
 
 def build_parser() -> Parser:
-    parser = Parser(prog="agents", description="One zswarm agent: an independent process that senses its "
+    parser = Parser(prog="zswarm agent", description="One zswarm agent: an independent process that senses its "
                     "neighbours over Zenoh and follows the APF control law.")
     parser.add_argument("--id", type=int, required=True, help="this agent's id (0 .. N-1 for spawn)")
     parser.add_argument("--start", metavar="X,Y[,Z]", help="start position (X,Y,Z in a 3-D scenario; default: "
@@ -131,7 +131,7 @@ class Process:
         p, keys = spec.scenario.params, spec.keys
         # its own control step (zswarm run probed the laws before any process started)
         control = control_step([spec.scenario], [spec.combination], spec.safety, agents=[args.id])
-        self.session = open_session(config_from_args(args), what=f"agent {args.id}", retry_for=args.connect_timeout)
+        self.session = open_session(config_from_args(args), retry_for=args.connect_timeout)
         body = starting_body(control, start, spec.scenario.prey_start)
         # free clock: samples wait in ring channels (in an inbox, stamped on arrival, when a delay is
         # injected from the arrival time) and are taken in once per tick; lockstep: each one wakes the loop
@@ -361,7 +361,9 @@ def _main(argv: Sequence[str] | None) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    return run_main(_main, argv, prog="agents")
+    given = list(sys.argv[1:] if argv is None else argv)
+    who = given[given.index("--id") + 1] if "--id" in given[:-1] else ""
+    return run_main(_main, argv, prog=f"zswarm agent {who}".strip())
 
 
 if __name__ == "__main__":

@@ -119,3 +119,24 @@ def test_a_bad_groups_setting_is_one_line(groups, says):
 def test_a_unicycle_group_in_3d_is_refused():
     with pytest.raises((ValueError, UsageError), match="unicycle drives on the ground"):
         get_scenario("moving-prey-3d", {"groups": "2:apf/unicycle"})
+
+
+def test_a_sweep_of_a_mixed_swarm_reports_each_group(tmp_path):
+    """results.md has a row per group and cell beside the swarm's row, from the cells' own summaries."""
+    import json as _json
+
+    from zswarm.launch.sweep import Cell, aggregate, write_tables
+
+    cells = [Cell(0.0, 0.0, 0), Cell(0.0, 0.0, 1)]
+    summaries = [simulate(get_scenario("moving-prey", MIX), seed, duration=3.0, safety="off").summary for seed in (0, 1)]
+    for cell, s in zip(cells, summaries):
+        (tmp_path / "cells" / cell.name).mkdir(parents=True)
+        (tmp_path / "cells" / cell.name / "sim.json").write_text(_json.dumps(s))
+    rows = aggregate(cells, tmp_path, ["simulated"])
+    write_tables(rows, tmp_path)
+    table = (tmp_path / "results.md").read_text()
+    for k, group in enumerate(summaries[0]["groups"]):
+        closest = min(s["groups"][k]["min_pair_distance"] for s in summaries)
+        mean = np.mean([s["groups"][k]["collisions"] for s in summaries])
+        assert f"| {group['agents']} | {group['law']} | {group['body']} | {mean:.3g} | {closest:.3g} |" in table, table
+    assert "groups" not in (tmp_path / "results.csv").read_text().splitlines()[0]

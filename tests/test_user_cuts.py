@@ -88,3 +88,28 @@ def test_what_the_readme_commands_write_in_a_checkout_is_ignored():
                "tune/best.toml", "pki/ca.key", "mixed-sweep/results.json", "run.npz"]
     res = subprocess.run(["git", "check-ignore", "--no-index", *written], cwd=ROOT, capture_output=True, text=True)
     assert sorted(res.stdout.split()) == sorted(written), set(written) - set(res.stdout.split())
+
+
+@pytest.mark.parametrize("argv, prog", [(["-m", "world", "--run", "x"], "zswarm world"),
+                                        (["-m", "agents", "--id", "3", "--run", "x"], "zswarm agent 3"),
+                                        (["-m", "zswarm.net.router", "--listen", "tcp/192.0.2.1:7447"], "zswarm router")])  # not this machine's: binding fails
+def test_a_child_process_names_itself_once_in_its_errors(argv, prog):
+    """A process the launcher starts says ``zswarm NAME: error: ...`` as every command does, once (not
+    ``world: error: world: ...``)."""
+    extra = [] if "router" in prog else ["--connect", "tcp/127.0.0.1:1", "--connect-timeout", "0.5"]
+    res = subprocess.run([sys.executable, *argv, *extra], capture_output=True, text=True, timeout=60,
+                         env={**os.environ, "PYTHONPATH": str(ROOT)})
+    line = res.stderr.strip().splitlines()[-1]
+    assert res.returncode == 2 and line.startswith(f"{prog}: error: "), res.stderr[-1000:]
+    assert line.count(prog.split()[1]) == 1, line
+
+
+def test_every_commands_scenario_help_names_its_default():
+    from zswarm.cli import launch, sweep
+    from zswarm.cli.main import build_parser
+
+    parsers = {"run": launch.build_parser(), "sweep": sweep.build_parser(),
+               "sim": build_parser()._subparsers._group_actions[0].choices["sim"]}
+    for name, parser in parsers.items():
+        action = next(a for a in parser._actions if "--scenario" in a.option_strings)
+        assert f"default {action.default}" in " ".join(action.help.split()), (name, action.help)

@@ -33,7 +33,7 @@ FINAL_STATS_MAX = 15.0
 
 
 def build_parser() -> Parser:
-    parser = Parser(prog="world", description="The zswarm world: obstacles, prey, recording, metrics.")
+    parser = Parser(prog="zswarm world", description="The zswarm world: obstacles, prey, recording, metrics.")
     add_run_args(parser)
     parser.add_argument("--record", type=Path, metavar="FILE.rrd", help="write a Rerun recording")
     parser.add_argument("--summary", type=Path, metavar="FILE.json", help="write the run summary here")
@@ -76,7 +76,7 @@ def design_verdict(text: str) -> dict:
 
 async def run_world(args: argparse.Namespace, spec: RunSpec, viewer: Viewer | None = None) -> dict:
     loop = asyncio.get_running_loop()
-    session = open_session(config_from_args(args), what="world", retry_for=args.connect_timeout)
+    session = open_session(config_from_args(args), retry_for=args.connect_timeout)
     recorder = WorldRecorder(args.record, args.summary, args.trajectory, spec.scenario.n_agents, spec.scenario.dt,
                              viewer, {"auto": None, "on": True, "off": False}[args.sensing_graph])
     batched = spec.clock == "free" and (args.intake == "batch" or
@@ -174,7 +174,7 @@ def _main(argv: Sequence[str] | None) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    return run_main(_main, argv, prog="world")
+    return run_main(_main, argv, prog="zswarm world")
 
 
 if __name__ == "__main__":

@@ -85,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
         if found is not None:
             args.connect = [found[0]]
             args.config = args.config or found[1]
-    session = open_session(config_from_args(args), what="monitor", retry_for=args.connect_timeout)
+    session = open_session(config_from_args(args), retry_for=args.connect_timeout)
     watch = RunWatch(Keys(args.run_id, cell_size=1.0))  # the wildcards it subscribes to span every cell
     stopping: list[int] = []  # the signal that asked this view to stop, once one has
     for sig in (signal.SIGINT, signal.SIGTERM):

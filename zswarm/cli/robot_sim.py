@@ -62,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
                              "does not spawn; give it an id below N or --set n_agents=")
         start = robot_sim.start_pose(r, (float(spawn[r.id, 0]), float(spawn[r.id, 1])), facing)
         robots.append(robot_sim.SimRobot(r, robots_file.route, start, args.cmd_timeout))
-    session = open_session(config_from_args(args), what="robot-sim", retry_for=args.connect_timeout)
+    session = open_session(config_from_args(args), retry_for=args.connect_timeout)
     stop = stop_on_signals()
     route = robots_file.route
     print(f"robot-sim: {len(robots)} robots on {route.route} ({route.distro}, domain {route.domain_id}), "

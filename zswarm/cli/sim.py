@@ -16,7 +16,8 @@ from zswarm.swarm.scenarios import SCENARIOS, get_scenario
 
 def add_sim_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scenario", default="static-goal",
-                        help=f"a registered scenario ({', '.join(SCENARIOS)}) or a .toml file")
+                        help=f"a registered scenario ({', '.join(SCENARIOS)}) or a .toml file (default static-goal, "
+                             "the paper's Fig 13; zswarm run's default is moving-prey, the demo)")
     parser.add_argument("--seed", type=seed_arg, default=0, help="random seed (spawn positions); default 0")
     add_param_args(parser)
     add_law_arg(parser)

@@ -111,8 +111,18 @@ def aggregate(cells: list[Cell], out: Path, sources: Sequence[str]) -> list[dict
                     row[k] = max(v for v in vals if v is not None)
                 else:
                     row[f"{k}_mean"], row[f"{k}_std"] = _stats(vals)
+            if summaries[0].get("groups"):  # a mixed swarm: each group's own tally, over the same runs
+                row["groups"] = [_group_row(k, g, summaries) for k, g in enumerate(summaries[0]["groups"]) if g]
             rows.append(row)
     return rows
+
+
+def _group_row(k: int, group: dict[str, Any], summaries: list[dict[str, Any]]) -> dict[str, Any]:
+    """Group ``k`` of a mixed swarm over ``summaries``: who it is, its mean collisions, its closest pair."""
+    tallies = [s["groups"][k] for s in summaries if len(s.get("groups") or []) > k and s["groups"][k]]
+    closest = [t["min_pair_distance"] for t in tallies if t.get("min_pair_distance") is not None]
+    return {"agents": group["agents"], "law": group["law"], "body": group["body"],
+            "collisions_mean": _stats([t["collisions"] for t in tallies])[0], "min_pair_distance": min(closest, default=None)}
 
 
 def _fmt(v: Any, digits: int = 3) -> str:
@@ -126,9 +136,9 @@ def _fmt(v: Any, digits: int = 3) -> str:
 def write_tables(rows: list[dict[str, Any]], out: Path) -> None:
     if not rows:
         return
-    fields = list(dict.fromkeys(k for r in rows for k in r))
+    fields = list(dict.fromkeys(k for r in rows for k in r if k != "groups"))
     with open(out / "results.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=fields)
+        w = csv.DictWriter(f, fieldnames=fields, extrasaction="ignore")
         w.writeheader()
         w.writerows(rows)
     lines = ["| source | latency ms | dropout | safety | runs | captured | capture time s | collisions | min clearance "
@@ -142,6 +152,13 @@ def write_tables(rows: list[dict[str, Any]], out: Path) -> None:
                      f"{_fmt(r['observed_dropout_mean'])} | {_fmt(r['observed_latency_ms_mean'])} |")
     lines += ["", "min clearance: the closest any agent came to an obstacle's edge (m); \"none sensed\": no agent came "
               "within its sensing radius of one."]
+    if any(r.get("groups") for r in rows):
+        lines += ["", "Each group of the mixed swarm (a pair of two groups counts for both):", "",
+                  "| source | latency ms | dropout | safety | agents | law | body | collisions | closest pair |",
+                  "|---|---|---|---|---|---|---|---|---|"]
+        lines += [f"| {r['source']} | {r['latency_ms']:g} | {r['dropout']:g} | {r['safety']} | {g['agents']} | {g['law']} "
+                  f"| {g['body']} | {_fmt(g['collisions_mean'])} | {_fmt(g['min_pair_distance'])} |"
+                  for r in rows for g in r.get("groups") or []]
     (out / "results.md").write_text("\n".join(lines) + "\n")
 
 

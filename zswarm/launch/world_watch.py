@@ -22,8 +22,7 @@ class WorldWatch:
 
     def __init__(self, keys: Keys, endpoint: str, config: Path | None = None, retry_for: float = 15.0) -> None:
         self.started = threading.Event()
-        self.session = open_session(zenoh_config("client", [endpoint], config=config), what="launcher",
-                                    retry_for=retry_for)
+        self.session = open_session(zenoh_config("client", [endpoint], config=config), retry_for=retry_for)
 
         def heard(sample: zenoh.Sample) -> None:  # on a Zenoh thread: only sets an event
             if sample.kind == zenoh.SampleKind.PUT:

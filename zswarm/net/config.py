@@ -175,10 +175,11 @@ def _answers(endpoint: str) -> bool:
     return port_in_use(local_host(host), port, timeout=0.5)
 
 
-def open_session(conf: zenoh.Config, what: str = "zenoh", retry_for: float = 0.0,
+def open_session(conf: zenoh.Config, what: str = "", retry_for: float = 0.0,
                  runtime: str | None = LEAN_RUNTIME) -> zenoh.Session:
     """Open a session, retrying for ``retry_for`` seconds (a router that is still starting); then an
-    unreachable router or a taken port is a one-line :class:`UsageError`. Zenoh's runtime is
+    unreachable router or a taken port is a one-line :class:`UsageError` (beginning ``what: `` where the
+    command's own name does not say which of its sessions it is). Zenoh's runtime is
     ``runtime`` (default the lean one, :data:`LEAN_RUNTIME`; None: Zenoh's own pools) unless
     ``ZENOH_RUNTIME`` says otherwise."""
     if runtime is not None:
@@ -186,6 +187,7 @@ def open_session(conf: zenoh.Config, what: str = "zenoh", retry_for: float = 0.0
     if os.environ.get("RUST_LOG"):  # Zenoh's own log on stderr, e.g. RUST_LOG=zenoh=debug
         zenoh.init_log_from_env_or("error")
 
+    lead = f"{what}: " if what else ""
     deadline = time.monotonic() + retry_for
     while True:
         try:
@@ -193,14 +195,14 @@ def open_session(conf: zenoh.Config, what: str = "zenoh", retry_for: float = 0.0
         except Exception as exc:
             first = _first_line(exc)
             if "listener" in first or "in use" in first:
-                raise UsageError(f"{what}: cannot listen: {first} (the port is taken or the address is not "
+                raise UsageError(f"{lead}cannot listen: {first} (the port is taken or the address is not "
                                  f"local: pick another --listen)") from None
             if time.monotonic() >= deadline:
                 connect = json.loads(conf.get_json("connect/endpoints") or "[]")
                 if connect and not any(_answers(e) for e in connect):
-                    raise UsageError(f"{what}: {unreachable(', '.join(connect), retry_for)}") from None
+                    raise UsageError(f"{lead}{unreachable(', '.join(connect), retry_for)}") from None
                 waited = f" after {retry_for:g} s" if retry_for > 0 else ""
-                raise UsageError(f"{what}: cannot open a zenoh session{waited}: {first} (something answers on the "
+                raise UsageError(f"{lead}cannot open a zenoh session{waited}: {first} (something answers on the "
                                  "port: is it a Zenoh router, with this run's certificates? check --connect, "
                                  "--secure)") from None
             time.sleep(0.25)

@@ -20,7 +20,7 @@ ROUTER_RUNTIME: str | None = None  # Zenoh's default pools
 
 
 def build_parser() -> Parser:
-    parser = Parser(prog="zswarm.net.router", description="Run a Zenoh router until SIGINT/SIGTERM.")
+    parser = Parser(prog="zswarm router", description="Run a Zenoh router until SIGINT/SIGTERM.")
     add_zenoh_args(parser, default_mode="router")
     return parser
 
@@ -32,7 +32,7 @@ def _main(argv: Sequence[str] | None) -> int:
     stop = stop_on_signals()
     # the router is no agent: it carries every message of the swarm, so it keeps Zenoh's own
     # multi-threaded runtime rather than the agents' single worker (measured: docs/benchmarks.md)
-    session = open_session(config_from_args(args), what="router", runtime=ROUTER_RUNTIME)
+    session = open_session(config_from_args(args), runtime=ROUTER_RUNTIME)
     try:
         if args.connect and not joined(session, args.connect_timeout, stop):
             if stop.is_set():
@@ -84,7 +84,7 @@ def close_within(session, wait: float) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    return run_main(_main, argv, prog="zswarm.net.router")
+    return run_main(_main, argv, prog="zswarm router")
 
 
 if __name__ == "__main__":
