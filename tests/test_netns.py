@@ -21,8 +21,8 @@ def sh(*args: str) -> None:
 
 
 def make_hosts() -> tuple[str, str]:
-    """Two network namespaces joined by a veth pair (10.77.0.1 and 10.77.0.2), loopback up, no other
-    link and no route out (skips the test where they cannot be made)."""
+    """Two network namespaces joined by a veth pair (10.77.0.1 and 10.77.0.2), loopback up, each one's
+    default route the other, which forwards nothing (skips the test where they cannot be made)."""
     tag = f"{os.getpid() % 100000}"
     a, b = f"zswA{tag}", f"zswB{tag}"
     veth_a, veth_b = f"zva{tag}", f"zvb{tag}"
@@ -34,9 +34,12 @@ def make_hosts() -> tuple[str, str]:
         sh("ip", "link", "set", veth_b, "netns", b)
         sh("ip", "-n", a, "addr", "add", "10.77.0.1/24", "dev", veth_a)
         sh("ip", "-n", b, "addr", "add", "10.77.0.2/24", "dev", veth_b)
-        for ns, dev in ((a, veth_a), (b, veth_b)):
+        for ns, dev, peer in ((a, veth_a, "10.77.0.2"), (b, veth_b, "10.77.0.1")):
             sh("ip", "-n", ns, "link", "set", dev, "up")
             sh("ip", "-n", ns, "link", "set", "lo", "up")
+            # a default route, as a user's machine has (Ray's address guess finds the interface by it); the
+            # other host does not forward, so nothing sent there leaves the machine
+            sh("ip", "-n", ns, "route", "add", "default", "via", peer)
     except (subprocess.CalledProcessError, OSError) as exc:
         remove_hosts(a, b)
         pytest.skip(f"cannot create network namespaces here: {exc}")
