@@ -112,38 +112,17 @@ def pytest_collection_modifyitems(config, items) -> None:
     items.sort(key=lambda item: rank.get(item.module.__name__, len(LONGEST_FIRST)))
 
 
-#: ``-n auto`` (the README's command): this many pytest-xdist workers, one more on an idle machine
+#: ``-n auto`` (the README's command): this many pytest-xdist workers on 2 cores. Workers beyond the cores
+#: fill the time tests spend waiting on the wall clock (free-running swarms, Ray nodes starting) with other
+#: tests' work; a fifth, even on a machine idle as the suite starts, starved the free-running swarms in a
+#: slow hour (docs/benchmarks.md, "The suite").
 WORKERS = 4
 
 
 @pytest.hookimpl(optionalhook=True)  # a hook of pytest-xdist: pytest without it (-p no:xdist) runs too
 def pytest_xdist_auto_num_workers(config) -> int | None:
-    """``-n auto``: :data:`WORKERS` workers, and one more where the CPU is idle as the suite starts (at
-    least half of it, over half a second). Workers beyond the cores fill the time tests spend waiting on
-    the wall clock (free-running swarms, Ray nodes starting) with other tests' work; a machine already
-    busy has no such time to fill, and a fifth worker there only starves the free-running swarms
-    (docs/benchmarks.md, "The suite"). ``PYTEST_XDIST_AUTO_NUM_WORKERS``, where set, decides."""
-    if os.environ.get("PYTEST_XDIST_AUTO_NUM_WORKERS"):
-        return None
-    return WORKERS + (cpu_idle_share(0.5) >= 0.5)
-
-
-def cpu_idle_share(seconds: float) -> float:
-    """The share of the machine's CPU time that is idle over the next ``seconds`` (0 where unknown)."""
-    import time
-
-    def sample() -> tuple[int, int]:
-        with open("/proc/stat") as f:
-            ticks = [int(v) for v in f.readline().split()[1:9]]  # user .. steal
-        return ticks[3] + ticks[4], sum(ticks)  # idle and iowait, all
-
-    try:
-        idle, total = sample()
-        time.sleep(seconds)
-        idle2, total2 = sample()
-    except (OSError, ValueError, IndexError):
-        return 0.0
-    return (idle2 - idle) / max(total2 - total, 1)
+    """``-n auto``: :data:`WORKERS` workers; ``PYTEST_XDIST_AUTO_NUM_WORKERS``, where set, decides."""
+    return None if os.environ.get("PYTEST_XDIST_AUTO_NUM_WORKERS") else WORKERS
 
 
 def pytest_configure(config) -> None:
