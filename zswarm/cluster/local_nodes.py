@@ -27,6 +27,10 @@ from zswarm.errors import UsageError
 RAY_LOOPBACK = "127.0.0.2"
 #: How long a node may take to start before the run gives up, in one line.
 START_TIMEOUT_S = 60.0
+#: What ``ray start --block`` prints once its node is up.
+STARTED = b"Ray runtime started."
+
+
 def kernel_port() -> int:
     """A port of :data:`RAY_LOOPBACK` nothing listens on, from the kernel's ephemeral range: not one of
     ``ZSWARM_PORTS``, which may overlap the ports Ray keeps for its workers (10002-19999), a clash Ray
@@ -38,27 +42,22 @@ def kernel_port() -> int:
         return s.getsockname()[1]
 
 
-#: What ``ray start --block`` prints once its node is up.
-STARTED = b"Ray runtime started."
-
-
 def ray_command() -> str:
     """The ``ray`` command beside this interpreter (the one ``pip install -e ".[cluster]"`` put there)."""
     here = Path(sys.executable).parent / "ray"
     return str(here) if here.exists() else "ray"
 
 
-def node_argv(cores: int, head_port: int | None, port: int) -> list[str]:
-    """``ray start`` for one node: the head (``head_port`` None, its GCS on ``port``) or a node that
-    joins the head at ``head_port``; ``port``: its dashboard agent's HTTP port (Ray's default, 52365,
-    is one per machine)."""
+def node_argv(cores: int, gcs_port: int, head: bool) -> list[str]:
+    """``ray start`` for one node with ``cores``: the head, its GCS on ``gcs_port``, or a node that joins
+    it there. Each node's dashboard agent gets a port of its own (Ray's default, 52365, is one a machine)."""
     argv = [ray_command(), "start", "--block", f"--node-ip-address={RAY_LOOPBACK}", f"--num-cpus={cores}",
             f"--object-store-memory={OBJECT_STORE_BYTES}", f"--dashboard-agent-listen-port={kernel_port()}",
             "--disable-usage-stats", "--log-style=record", "--include-log-monitor=false"]  # no worker log is read
-    if head_port is None:  # no dashboard, no autoscaler: nothing scales a cluster of this machine's processes
-        return [*argv, "--head", f"--port={port}", "--include-dashboard=false", "--no-monitor",
+    if head:  # no dashboard, no autoscaler: nothing scales a cluster of this machine's processes
+        return [*argv, "--head", f"--port={gcs_port}", "--include-dashboard=false", "--no-monitor",
                 f"--system-config={json.dumps(SYSTEM_CONFIG)}"]
-    return [*argv, f"--address={RAY_LOOPBACK}:{head_port}"]
+    return [*argv, f"--address={RAY_LOOPBACK}:{gcs_port}"]
 
 
 class LocalNodes:
@@ -74,12 +73,12 @@ class LocalNodes:
         line, with Ray's last words) when a node is not up within ``timeout`` seconds or ends first."""
         port = kernel_port()
         deadline = time.monotonic() + timeout
-        for head in [None] + [port] * (k - 1):
-            self._up(node_argv(cores, head, port), deadline)
+        for n in range(k):
+            self._up(node_argv(cores, port, head=n == 0), deadline, timeout)
         self.address = f"{RAY_LOOPBACK}:{port}"
         return self.address
 
-    def _up(self, argv: list[str], deadline: float) -> None:
+    def _up(self, argv: list[str], deadline: float, timeout: float) -> None:
         """Start one node and read its output (unbuffered: a buffered reader would hold lines the
         selector no longer sees) until it says it is up; then drain the rest (a full pipe would block it)."""
         proc = subprocess.Popen(argv, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
@@ -91,7 +90,7 @@ class LocalNodes:
         while STARTED not in said:
             left = deadline - time.monotonic()
             if left <= 0:
-                raise UsageError(f"a Ray node on this machine did not start within {START_TIMEOUT_S:g} s "
+                raise UsageError(f"a Ray node on this machine did not start within {timeout:g} s "
                                  f"({_last(said)}); use --cluster ADDRESS with a cluster started by ray start")
             if sel.select(timeout=min(left, 0.5)):
                 chunk = os.read(fd, 65536)
@@ -103,8 +102,8 @@ class LocalNodes:
         threading.Thread(target=lambda: [None for _ in iter(lambda: os.read(fd, 65536), b"")], daemon=True).start()
 
     def close(self, grace: float = 3.0) -> None:
-        """SIGTERM to every node (the nodes that joined first, the head last: ``ray start --block`` stops its
-        node's processes), then, past ``grace`` seconds, SIGKILL to each node's whole process group."""
+        """SIGTERM to every node's process group (the head's last: ``ray start --block`` stops its node's
+        processes), up to ``grace`` seconds for them to end, then SIGKILL to whatever is left in each group."""
         for proc in reversed(self.procs):
             _signal(proc, signal.SIGTERM)
         deadline = time.monotonic() + grace
