@@ -429,14 +429,14 @@ def test_the_last_line_names_a_viewer_command_that_exists_here(monkeypatch, tmp_
     import shutil
     import sys
 
-    from zswarm.launch.ending import viewer_command
+    from zswarm.launch.ending import installed_command
 
     monkeypatch.setenv("PATH", str(tmp_path))  # nothing on it
-    command = viewer_command()
+    command = installed_command()
     assert Path(command).name == "rerun" and (Path.cwd() / command).exists()
     assert (Path.cwd() / command).parent.absolute() == Path(sys.executable).parent.absolute()
     monkeypatch.setenv("PATH", str(Path(sys.executable).parent))
-    assert shutil.which("rerun") is not None and viewer_command() == "rerun"
+    assert shutil.which("rerun") is not None and installed_command() == "rerun"
 
 
 def test_cluster_auto_takes_only_the_cluster_ray_start_left_here(tmp_path):

@@ -50,11 +50,11 @@ def test_output_into_a_reader_that_went_away_ends_quietly():
 
 def test_a_printed_command_is_one_that_exists_here(tmp_path, monkeypatch):
     """``zswarm`` where it is on PATH, else the one installed beside this Python, which is there."""
-    from zswarm.launch.ending import viewer_command
+    from zswarm.launch.ending import installed_command
 
     monkeypatch.setenv("PATH", str(tmp_path))  # not activated: nothing on PATH
     monkeypatch.chdir(tmp_path)
-    command = viewer_command("zswarm")
+    command = installed_command("zswarm")
     assert command != "zswarm" and os.path.isfile(command) and os.access(command, os.X_OK), command
 
 

@@ -79,26 +79,22 @@ class LocalNodes:
         return self.address
 
     def _up(self, argv: list[str], deadline: float, timeout: float) -> None:
-        """Start one node and read its output (unbuffered: a buffered reader would hold lines the
-        selector no longer sees) until it says it is up; then drain the rest (a full pipe would block it)."""
+        """Start one node and read its output until it says it is up; then drain the rest (a full pipe
+        would block it)."""
         proc = subprocess.Popen(argv, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                                 start_new_session=True)  # its own group: ended with everything it started
         self.procs.append(proc)
-        fd, said = proc.stdout.fileno(), b""
-        sel = selectors.DefaultSelector()
-        sel.register(fd, selectors.EVENT_READ)
-        while STARTED not in said:
-            left = deadline - time.monotonic()
-            if left <= 0:
+        said = read_until(proc, STARTED, deadline - time.monotonic())
+        if STARTED not in said:
+            try:  # its output ended before the deadline: so has it, or it is about to
+                code = proc.wait(5.0) if time.monotonic() < deadline else None
+            except subprocess.TimeoutExpired:
+                code = None
+            if code is None:
                 raise UsageError(f"a Ray node on this machine did not start within {timeout:g} s "
                                  f"({_last(said)}); use --cluster ADDRESS with a cluster started by ray start")
-            if sel.select(timeout=min(left, 0.5)):
-                chunk = os.read(fd, 65536)
-                said += chunk
-                if not chunk:  # it ended before it was up
-                    raise UsageError(f"a Ray node on this machine ended as it started (exit {proc.wait()}): "
-                                     f"{_last(said)}")
-        sel.close()
+            raise UsageError(f"a Ray node on this machine ended as it started (exit {code}): {_last(said)}")
+        fd = proc.stdout.fileno()
         threading.Thread(target=lambda: [None for _ in iter(lambda: os.read(fd, 65536), b"")], daemon=True).start()
 
     def close(self, grace: float = 3.0) -> None:
@@ -115,6 +111,23 @@ class LocalNodes:
             _signal(proc, signal.SIGKILL)
             proc.wait()
         self.procs = []
+
+
+def read_until(proc: subprocess.Popen, marker: bytes | None, seconds: float) -> bytes:
+    """What ``proc`` writes to its stdout, read straight from the pipe (a buffered reader would hold lines
+    a selector no longer sees), until it has written ``marker`` (None: until it closes it) or ``seconds``
+    have passed."""
+    fd, said = proc.stdout.fileno(), b""
+    deadline = time.monotonic() + seconds
+    with selectors.DefaultSelector() as sel:
+        sel.register(fd, selectors.EVENT_READ)
+        while (marker is None or marker not in said) and (left := deadline - time.monotonic()) > 0:
+            if sel.select(timeout=left):
+                chunk = os.read(fd, 65536)
+                if not chunk:
+                    break
+                said += chunk
+    return said
 
 
 def _signal(proc: subprocess.Popen, sig: int) -> None:

@@ -16,12 +16,11 @@ import subprocess
 import sys
 import tempfile
 import threading
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from zswarm.cluster.local_nodes import RAY_LOOPBACK, LocalNodes
+from zswarm.cluster.local_nodes import RAY_LOOPBACK, LocalNodes, read_until
 from zswarm.cluster.ray_env import offline_env
 from zswarm.errors import UsageError
 from zswarm.ports import LOOPBACK
@@ -245,9 +244,9 @@ def _probe(address: str, token: dict[str, str]) -> list[str]:
     proc = subprocess.Popen([sys.executable, "-c", _PROBE.format(address=address)], env=env, stdin=subprocess.DEVNULL,
                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
     try:
-        said = _read(proc, b"imported\n", IMPORT_TIMEOUT)
+        said = read_until(proc, b"imported\n", IMPORT_TIMEOUT)
         if said.startswith(b"imported\n"):
-            said = said[len(b"imported\n"):] + _read(proc, None, AUTH_TIMEOUT)
+            said = said[len(b"imported\n"):] + read_until(proc, None, AUTH_TIMEOUT)
         proc.wait(timeout=1.0)  # it said all it had to: it ends
     except subprocess.TimeoutExpired:
         return [f"error no answer in {AUTH_TIMEOUT:g} s"]
@@ -256,24 +255,6 @@ def _probe(address: str, token: dict[str, str]) -> list[str]:
             proc.kill()
             proc.wait()
     return said.decode(errors="replace").strip().splitlines() or ["auth"]  # Ray aborted: token mode, no token
-
-
-def _read(proc: subprocess.Popen, until: bytes | None, seconds: float) -> bytes:
-    """What ``proc`` writes, read straight from its pipe, until it has written ``until`` (None: until it
-    ends) or ``seconds`` have passed."""
-    import selectors
-
-    fd, said = proc.stdout.fileno(), b""
-    deadline = time.monotonic() + seconds
-    with selectors.DefaultSelector() as sel:
-        sel.register(fd, selectors.EVENT_READ)
-        while (until is None or until not in said) and (left := deadline - time.monotonic()) > 0:
-            if sel.select(timeout=left):
-                chunk = os.read(fd, 4096)
-                if not chunk:
-                    break
-                said += chunk
-    return said
 
 
 def head_auth(address: str) -> str:

@@ -33,7 +33,7 @@ def finish_recording(plan: Plan, world_code: int, started_at: float, routing: di
     if plan.tracks is not None and plan.summary.exists():
         add_tracks(plan, say)
     if not plan.quiet and plan.record.exists():
-        say(f"recording {plan.record} (open with: {viewer_command()} {plan.record}); summary {plan.summary}", err=False)
+        say(f"recording {plan.record} (open with: {installed_command()} {plan.record}); summary {plan.summary}", err=False)
 
 
 def add_tracks(plan: Plan, say: Callable[..., None]) -> None:
@@ -57,7 +57,7 @@ def add_tracks(plan: Plan, say: Callable[..., None]) -> None:
         f"{summary.get('collisions')})", err=False)
 
 
-def viewer_command(name: str = "rerun") -> str:
+def installed_command(name: str = "rerun") -> str:
     """How to start the installed command ``name`` (``rerun``, ``zswarm``) from here: ``name`` where it is
     on PATH, else the one installed beside this Python (a virtual environment's bin/ that was not
     activated), relative to here when it is below."""

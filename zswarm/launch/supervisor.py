@@ -135,9 +135,9 @@ class Launch:
         if not plan.quiet:
             _say(self._started(), err=False)
             if self.announced is not None:
-                from zswarm.launch.ending import viewer_command
+                from zswarm.launch.ending import installed_command
 
-                _say(f"watch it live: {viewer_command('zswarm')} monitor --run {self.spec.run}", err=False)
+                _say(f"watch it live: {installed_command('zswarm')} monitor --run {self.spec.run}", err=False)
             for note in plan.notes:
                 _say(note, err=False)
 
