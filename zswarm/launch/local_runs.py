@@ -2,9 +2,10 @@
 run's router without ``--connect`` (its port is a free one, chosen at start).
 
 ``zswarm run`` writes one small file per run, ``RUNS_DIR/RUN``, holding its first router's endpoint and
-its own pid (and, for a run over TLS, the Zenoh config of the world's identity, which may watch it), into a folder only this user can read (``$XDG_RUNTIME_DIR/zswarm-runs``, else
-``/tmp/zswarm-runs-UID``), and removes it when the run ends. A launcher killed outright cannot remove
-it: an entry whose launcher is gone is no run, and is removed when it is looked up.
+its own pid (and, for a run over TLS, the Zenoh config of the world's identity, which may watch it),
+into a folder only this user can read (``$XDG_RUNTIME_DIR/zswarm-runs``, else ``/tmp/zswarm-runs-UID``),
+and removes it when the run ends. A launcher killed outright cannot remove it: an entry whose launcher
+is gone is no run, and is removed when it is looked up.
 """
 
 from __future__ import annotations

@@ -165,12 +165,17 @@ def _load_ca(directory: Path) -> tuple:
     except (OSError, ValueError, TypeError) as exc:
         raise UsageError(f"{key} is not a readable PEM private key ({getattr(exc, 'strerror', None) or 'corrupt'}): "
                          f"restore it, or make a new CA with zswarm certs {directory} --force") from None
-    pub = [k.public_bytes(serialization.Encoding.PEM, serialization.PublicFormat.SubjectPublicKeyInfo)
-           for k in (ca.public_key(), ca_key.public_key())]
-    if pub[0] != pub[1]:
+    if not _same_key(ca.public_key(), ca_key.public_key()):
         raise UsageError(f"{key} is not the key of {cert}: restore the pair, or make a new CA with zswarm certs "
                          f"{directory} --force")
     return ca, ca_key
+
+
+def _same_key(a, b) -> bool:
+    """Whether two public keys are one (compared as their DER, whatever their kind)."""
+    _, _, serialization, _, _, _ = _crypto()
+    der = serialization.Encoding.DER, serialization.PublicFormat.SubjectPublicKeyInfo
+    return a.public_bytes(*der) == b.public_bytes(*der)
 
 
 #: A DNS name a certificate may carry: dot-separated labels of letters, digits and inner hyphens.
@@ -313,13 +318,10 @@ def check_config_files(config: Path, folder: Path | None = None) -> None:
             raise UsageError(f"{files[key]} is not a PEM {what} ({config} names it): make it again with "
                              "zswarm certs") from None
 
-    def public(k) -> bytes:
-        return k.public_bytes(serialization.Encoding.PEM, serialization.PublicFormat.SubjectPublicKeyInfo)
-
     ca = loaded.get("root_ca_certificate")
     for side in ("connect", "listen"):
         key, cert = loaded.get(f"{side}_private_key"), loaded.get(f"{side}_certificate")
-        if key is not None and cert is not None and public(key.public_key()) != public(cert.public_key()):
+        if key is not None and cert is not None and not _same_key(key.public_key(), cert.public_key()):
             raise UsageError(f"{files[f'{side}_private_key']} is not the key of {files[f'{side}_certificate']} "
                              f"({config} names both): copy the pair that was made together")
         if ca is not None and cert is not None:
