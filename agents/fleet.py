@@ -23,6 +23,7 @@ agents (SIGTERM) and exits once they have. Agents die with the fleet, the fleet 
 
 from __future__ import annotations
 
+import gc
 import json
 import os
 import select
@@ -58,7 +59,10 @@ def main() -> int:
     # no BLAS thread pool to fork (an agent's control law is plain floats; numpy only draws spawns)
     one_blas_thread(os.environ)
     import agents.free  # noqa: F401  (import the whole agent program once, before any fork)
-    import agents.main  # noqa: F401
+    from agents.main import preload
+
+    preload()
+    gc.freeze()  # what the fleet imported: no agent's collector walks (and so copies) those pages
 
     die_with_parent()
     children: dict[int, str] = {}

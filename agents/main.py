@@ -219,6 +219,25 @@ def write_track(folder: Path, agent_id: int, track: array, dims: int) -> None:
     np.save(folder / f"agent-{agent_id}-{os.getpid()}.npy", rows)
 
 
+def preload() -> None:
+    """Walk an agent's start short of its session (its arguments, spawn point and control step), then
+    import the other built-in laws and uvloop: what an agent would otherwise import after a fleet forks
+    it, each agent its own copy (:mod:`agents.fleet`)."""
+    import importlib
+
+    from zswarm.laws.registry import BUILTIN
+
+    spec = spec_from_args(build_parser().parse_args(["--id", "0", "--set", "n_agents=3"]))  # scaled, as runs are
+    start_position(spec, 0, None)
+    control_step([spec.scenario], [spec.combination], spec.safety, agents=[0])
+    for target in BUILTIN.values():
+        importlib.import_module(target.partition(":")[0])
+    try:
+        import uvloop  # noqa: F401
+    except ImportError:
+        pass
+
+
 def run_loop(main: Coroutine[Any, Any, int]) -> int:
     """Run an agent's coroutine on uvloop's event loop where it is installed (the cheaper loop:
     docs/benchmarks.md, "The agent's event loop"), else on asyncio's own."""

@@ -5,6 +5,7 @@ and the router, starved, queued seconds of poses (docs/safety.md, "A machine tha
 
 from __future__ import annotations
 
+import json
 import os
 import time
 from pathlib import Path
@@ -77,3 +78,40 @@ def test_a_restarted_child_takes_its_dead_selfs_place():
     assert kids.children == [second, other] and kids.get("agent-3") is second
     beside = kids.add(Child("agent-3", ForkedProc(10**6 + 4)))  # second is alive: both are kept
     assert kids.children == [second, other, beside] and kids.get("agent-3") is beside
+
+
+_IMPORTS_AFTER_PRELOAD = r'''
+import json, sys
+import agents.free
+from agents.main import main, preload
+preload()
+before = set(sys.modules)
+code = main(sys.argv[1:])
+print(json.dumps([code, sorted(set(sys.modules) - before)]))
+'''
+
+
+def test_an_agent_imports_nothing_its_fleet_did_not_preload():
+    """What a forked agent imports is its own copy (its start slower, its memory private): the fleet's
+    preload walks every module an agent loads, whatever its law, body, clock and dimensions. Each
+    agent here runs against a router with no world and gives up after 1 s, its sensing, bridge and
+    event loop built."""
+    import subprocess
+    import sys
+
+    from zswarm.host.local import LocalHost
+
+    kids = Children()
+    try:
+        endpoint = LocalHost(kids).start_routers([f"tcp/127.0.0.1:{free_port()}"])[0]
+        for extra in ([], ["--scenario", "moving-prey-3d", "--set", "law=boids"],
+                      ["--set", "body=unicycle", "--set", "law=olfati-saber", "--clock", "lockstep"],
+                      ["--set", "law=vasarhelyi", "--latency", "50ms"]):
+            done = subprocess.run([sys.executable, "-c", _IMPORTS_AFTER_PRELOAD, "--id", "1", "--run", "preload-test",
+                                   "--connect", endpoint, "--start-timeout", "1", *extra],
+                                  capture_output=True, text=True, timeout=60)
+            code, imported = json.loads(done.stdout.strip().splitlines()[-1])
+            assert code == 2 and "did not answer for 1 s" in done.stderr, done.stderr  # waited for a world
+            assert imported == [], f"{extra}: imported after the fleet's preload: {imported}"
+    finally:
+        kids.stop_all(grace=2.0)

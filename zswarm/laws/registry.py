@@ -15,7 +15,6 @@ import hashlib
 import importlib
 import importlib.util
 import inspect
-from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Any
 
@@ -80,7 +79,7 @@ def resolve(name: str) -> tuple[type[SwarmLaw], str]:
         except BaseException as exc:  # noqa: BLE001
             raise _import_failed(name, exc) from None
         return _as_law(_attr(module, attr, name), name), f"module {target}"
-    found = [ep for ep in entry_points(group=GROUP) if ep.name == name]
+    found = [ep for ep in _entry_points() if ep.name == name]
     if found:
         try:
             obj = found[0].load()
@@ -93,7 +92,15 @@ def resolve(name: str) -> tuple[type[SwarmLaw], str]:
 
 def known() -> list[str]:
     """Every law name this installation knows: the built-ins, then the entry points."""
-    return [*BUILTIN, *sorted({ep.name for ep in entry_points(group=GROUP)} - set(BUILTIN))]
+    return [*BUILTIN, *sorted({ep.name for ep in _entry_points()} - set(BUILTIN))]
+
+
+def _entry_points() -> Any:
+    """The installed packages' laws, read only when a name is none of the built-ins (importlib.metadata
+    costs an agent 30 ms and a megabyte it would load for nothing)."""
+    from importlib.metadata import entry_points
+
+    return entry_points(group=GROUP)
 
 
 def _as_law(obj: Any, name: str) -> type[SwarmLaw]:
