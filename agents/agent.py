@@ -99,8 +99,8 @@ class Agent:
                                                  self.lookahead, guard=filtered and not late)
         b = self.body
         try:
-            one = self.control.one(b.position, b.velocity, b.heading, *self.sensed(neighbours, step), goal, guarded,
-                                   late)
+            one = self.control.one(b.position, b.velocity, b.heading, neighbours, self.obstacles_near(), goal,
+                                   guarded, late)
         except LawFailed as exc:
             self.law_failure = str(exc)
             b.vx = b.vy = 0.0
@@ -147,16 +147,14 @@ class Agent:
         c.stalled_run = c.stalled_run + 1 if stalled else 0
         c.stalled_long |= c.stalled_run * self.dt >= 1.0
 
-    def sensed(self, neighbours: list[msg.Pose], step: int | None) -> tuple[list, list]:
-        """What its law may use this tick: each neighbour within the sensing radius as (position,
-        velocity, age: 0 in lockstep, where the step's poses are exact), and each obstacle within it as
-        (centre..., radius)."""
-        b, s = self.body, self.sensing
-        radius, now, scale = s.radius, time.time(), self.spec.time_scale
-        near = [(p.position, p.velocity, 0.0 if step is not None else max(now - p.stamp, 0.0) * scale)
-                for p in neighbours if b.distance(p) <= radius]
-        here, dims = b.position, len(b.position)
-        return near, [o for o in s.obstacles if math.dist(here, o[:dims]) - o[dims] <= radius]
+    def obstacles_near(self) -> list[tuple[float, ...]]:
+        """The obstacles its law may use this tick: each within the sensing radius, as (centre..., radius)."""
+        obstacles = self.sensing.obstacles
+        if not obstacles:
+            return obstacles
+        here, radius = self.body.position, self.sensing.radius
+        dims = len(here)
+        return [o for o in obstacles if math.dist(here, o[:dims]) - o[dims] <= radius]
 
     # --- outbound --------------------------------------------------------------------------------------
 

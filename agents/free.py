@@ -68,12 +68,21 @@ async def hear_cells(agent: Agent, injector: FaultInjector | None, wait: float, 
 async def run_free(agent: Agent, injector: FaultInjector | None, stopped: Callable[[], bool],
                    desk: Desk | None = None) -> bool:
     """Tick until the run ends (False) or, after a tick, a process asks to take this agent over
-    (``desk``, :mod:`agents.handoff`; True: the caller hands its state over and leaves)."""
+    (``desk``, :mod:`agents.handoff`; True: the caller hands its state over and leaves). Each tick is a
+    callback the loop calls at its time: no task step and no future per tick, which cost an agent more
+    than its tick's sleep did (docs/benchmarks.md, "The agent's event loop")."""
+    loop = asyncio.get_running_loop()
+    ended: asyncio.Future[bool] = loop.create_future()
     period = agent.spec.period
     s, c = agent.sensing, agent.counters
     stats_every = max(int(round(STATS_PERIOD / period)), 1)
     next_tick = time.monotonic()
-    while not stopped() and not s.final_tick:
+
+    def tick() -> bool | None:
+        """One tick; what the run's end is, or None to go on."""
+        nonlocal next_tick
+        if stopped() or s.final_tick:
+            return False
         now = time.monotonic()
         c.window_lag_ms = max(c.window_lag_ms, 1000.0 * (now - next_tick))
         if now - next_tick > 0.5 * period:
@@ -99,5 +108,18 @@ async def run_free(agent: Agent, injector: FaultInjector | None, stopped: Callab
         if desk is not None and desk.due:
             return True
         next_tick += period
-        await asyncio.sleep(max(next_tick - time.monotonic(), 0.0))
-    return False
+        return None
+
+    def on_time() -> None:
+        try:
+            end = tick()
+        except Exception as exc:  # noqa: BLE001 - the coroutine awaiting the run raises it
+            ended.set_exception(exc)
+            return
+        if end is None:
+            loop.call_later(max(next_tick - time.monotonic(), 0.0), on_time)
+        else:
+            ended.set_result(end)
+
+    on_time()
+    return await ended

@@ -12,21 +12,24 @@ import math
 import time
 
 from zswarm.control.step import tracked_point
-from zswarm.net import messages as msg
 
 #: How long the safety filter waits for the liveliness token of a sender whose poses it hears (tokens
 #: can come seconds after the poses on a loaded machine) before a silent one stops counting.
 TOKEN_GRACE = 5.0
 
 
+Near = tuple[tuple[float, ...], tuple[float, ...], float]  # a neighbour as its law takes it: position, velocity, age
+
+
 def choose(s: Sensing, step: int | None, staleness: float, time_scale: float = 1.0, period: float = 0.0,
-       lookahead: float = 0.0, guard: bool = True) -> tuple[list[msg.Pose], list[tuple[tuple[float, ...], float, float]]]:
+           lookahead: float = 0.0, guard: bool = True) -> tuple[list[Near], list[tuple[tuple[float, ...], float, float]]]:
     """What the law and the safety filter may use now, from one pass over the neighbours it holds
     (an agent does this every tick): ``(poses, guarded)``.
 
-    *poses* (the law's neighbours): of the agents that hold a liveliness token, the step-k pose
+    *near* (the law's neighbours): of the agents that hold a liveliness token, the step-k pose
     (lockstep, ``step`` k) or the newest, if received within ``staleness`` seconds (free, ``step``
-    None). The age of each pose within the sensing radius is recorded here, at the moment it is used.
+    None), within the sensing radius, as (position, velocity, age: 0 in lockstep, where the step's
+    poses are exact). The age is recorded here too, at the moment it is used.
 
     *guarded* (the safety filter's rows, empty unless ``guard``): (where the filter acts on it, age
     in simulated seconds, its look-ahead) of every neighbour not seen departing, with or without its token. A
@@ -45,7 +48,7 @@ def choose(s: Sensing, step: int | None, staleness: float, time_scale: float = 1
     now, b, entries = time.time(), s.body, s.neighbours.entries
     radius, v, alive, departed = s.radius, s.v_max, s.membership.alive, s.counters.departed
     c = s.counters
-    positions: list[msg.Pose] = []
+    near: list[Near] = []
     heard = []
     # over what is heard: the least time since a neighbour was heard, the least age, the least delay
     quiet_min = age_min = lag_min = math.inf
@@ -59,10 +62,9 @@ def choose(s: Sensing, step: int | None, staleness: float, time_scale: float = 1
                                and (now - nb.first <= TOKEN_GRACE or quiet <= staleness)):
             continue
         d = b.distance(pose)
-        if member and (step is not None or quiet <= staleness):
-            if d <= radius:
-                c.add(c.ages, (now - pose.stamp) * 1000.0)
-            positions.append(pose)
+        if member and d <= radius and (step is not None or quiet <= staleness):
+            c.add(c.ages, (now - pose.stamp) * 1000.0)
+            near.append((pose.position, pose.velocity, 0.0 if step is not None else max(now - pose.stamp, 0.0) * time_scale))
         if guard:
             age = 0.0 if step is not None else max(now - pose.stamp, 0.0) * time_scale + period
             if d - v * age <= radius:
@@ -70,8 +72,8 @@ def choose(s: Sensing, step: int | None, staleness: float, time_scale: float = 1
                 heard.append((pose, age, quiet, d, lag))
                 quiet_min, age_min, lag_min = min(quiet_min, quiet), min(age_min, age), min(lag_min, lag)
     if not heard:
-        return positions, []
-    return positions, _guarded(s, heard, (quiet_min, age_min, lag_min), step, staleness, lookahead)
+        return near, []
+    return near, _guarded(s, heard, (quiet_min, age_min, lag_min), step, staleness, lookahead)
 
 def _guarded(s: Sensing, heard: list, least: tuple[float, float, float], step: int | None, staleness: float,
          lookahead: float) -> list[tuple[tuple[float, ...], float, float]]:

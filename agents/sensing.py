@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from agents.counters import Counters
-from agents.guard import choose
+from agents.guard import Near, choose
 from agents.membership import Membership
 from agents.obstacle_view import ObstacleView
 from agents.probe import LatencyProbe
@@ -222,6 +222,6 @@ class Sensing:
             self.pose_arrived.set()
 
     def sense(self, step: int | None, staleness: float, time_scale: float = 1.0, period: float = 0.0,
-              lookahead: float = 0.0, guard: bool = True) -> tuple[list[msg.Pose], list]:
+              lookahead: float = 0.0, guard: bool = True) -> tuple[list[Near], list]:
         """What the law and the safety filter may use now (:func:`agents.guard.choose`)."""
         return choose(self, step, staleness, time_scale, period, lookahead, guard)

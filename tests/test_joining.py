@@ -56,7 +56,7 @@ def test_an_agent_that_joins_hears_its_cells_before_its_first_step():
                     assert time.monotonic() < deadline, "agent 0's liveliness token never came"
                     take_in(late.agent, None)
                     time.sleep(0.01)
-                assert [p.position for p in late.agent.sensing.sense(None, 0.5, guard=False)[0]] == [(0.5, 0.5)]
+                assert [p for p, _, _ in late.agent.sensing.sense(None, 0.5, guard=False)[0]] == [(0.5, 0.5)]
             finally:
                 late.close(final_stats=False)
         finally:

@@ -104,3 +104,33 @@ def test_the_two_intakes_end_a_tick_with_the_same_swarm(scenario):
         assert {w: t.stamps for w, t in batched.timed.tracks.items()} == {w: t.stamps for w, t in single.timed.tracks.items()}
     finally:
         session.close()
+
+
+def test_the_world_sends_the_prey_as_data_and_only_ticks_ahead_of_it():
+    """The prey goes to every agent every tick as ordinary data, batched with the poses (sent express,
+    it left the router as one write per agent a tick, and the poses' latency p99 rose by half at
+    N = 50: docs/benchmarks.md). A tick goes ahead of data and waits for room; a repeated final tick
+    goes at once and may be dropped. Real Zenoh: the QoS each sample arrives with."""
+    import time
+    from types import SimpleNamespace
+
+    import zenoh
+
+    from world.world import World
+    from zswarm.net import messages as msg
+
+    heard: dict[str, tuple] = {}
+    with zenoh.open(zenoh.Config()) as session:
+        session.declare_subscriber("w/**", lambda s: heard.setdefault(
+            str(s.key_expr), (s.express, s.priority, s.congestion_control)))
+        world = SimpleNamespace(session=session, sent=0)
+        World.publish(world, "w/prey", msg.Prey(1, time.time(), 1, 0.0, 0.0))
+        World.publish(world, "w/tick", msg.Tick(1, time.time(), 0.0, 0.0))
+        World.publish(world, "w/again", msg.Tick(2, time.time(), 0.0, 0.0, final=True), again=True)
+        deadline = time.monotonic() + 10.0
+        while len(heard) < 3 and time.monotonic() < deadline:
+            time.sleep(0.01)
+    assert heard["w/prey"] == (False, zenoh.Priority.DATA, zenoh.CongestionControl.DROP)
+    assert heard["w/tick"] == (True, zenoh.Priority.INTERACTIVE_HIGH, zenoh.CongestionControl.BLOCK)
+    assert heard["w/again"] == (True, zenoh.Priority.DATA, zenoh.CongestionControl.DROP)
+    assert world.sent == 3

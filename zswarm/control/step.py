@@ -176,6 +176,19 @@ class ControlStep:
 
     def __init__(self, groups: list[Group], dt: float, filter: Filter | None = None) -> None:
         self.groups, self.dt, self.filter = groups, dt, filter
+        self._single: tuple | None = None  # what :meth:`one` reads every tick, found once
+
+    def _single_of(self, dims: int) -> tuple:
+        """For :meth:`one`: the law's single form in floats (None: through an observation), its v_max,
+        the filter's parameters (None: no filter) and look-ahead."""
+        law = self.groups[0].law
+        fast = law.law.floats if dims == 2 and not law.state_size else None
+        safety = look = None
+        if self.filter is not None:
+            (_, safety), = self.filter.groups
+            look = float(self.filter.lookahead)
+        self._single = (fast, law.context.v_max, safety, look)
+        return self._single
 
     @property
     def laws(self) -> list[BoundLaw]:
@@ -241,28 +254,28 @@ class ControlStep:
         single form in floats, :attr:`zswarm.laws.contract.SwarmLaw.floats`; the filter; the point body)."""
         g = self.groups[0]
         law = g.law
-        fast = law.law.floats if len(position) == 2 and not law.state_size else None
+        fast, v_max, safety, look = self._single or self._single_of(len(position))
         try:
             if fast is not None:  # no observation to build: the law reads the floats
-                v = law.checked(fast(position, target, obstacles, [n[0] for n in neighbours], law.context.v_max))
+                v = law.checked(fast(position, target, obstacles, [n[0] for n in neighbours], v_max))
             else:
                 v, g.state[0, 0] = law.decide(_observation(position, velocity, neighbours, obstacles, target,
-                                                           law.context.v_max, self.dt, g.state[0, 0]))
+                                                           v_max, self.dt, g.state[0, 0]))
         except Exception as exc:  # noqa: BLE001 - a user's law may raise anything: said in one line
             raise LawFailed.of(law.name, exc, when) from None
         u_hat, acted = (v if type(v) is tuple else tuple(v.tolist())), None
         command = u_hat
-        if self.filter is not None:
-            (_, safety), = self.filter.groups
+        if safety is not None:
             if brake:
                 speed = math.hypot(*u_hat)
                 command, acted = (0.0,) * len(u_hat), Acted(speed > 0.0, speed > 0.0, True)
             else:
-                look = float(self.filter.lookahead)
                 point = bodies.tracked_point(position, heading, look) if look else position
                 command, acted = _filter_floats(safety, point, u_hat, guarded, obstacles, look)
         if g.body.kind == "point":
             dt = self.dt
+            if len(position) == 2:
+                return One(command, acted, (position[0] + dt * command[0], position[1] + dt * command[1]), command, None)
             return One(command, acted, tuple([p + dt * c for p, c in zip(position, command)]), command, None)
         state = bodies.BodyState(np.array(position), np.array(velocity), np.array(np.nan if heading is None else heading))
         moved = bodies.step(g.body, state, np.array(command), self.dt)
