@@ -29,3 +29,21 @@ def test_bench_world_measures_a_world_fed_by_crowds_and_a_crowd_refuses_ids_beyo
     bad = cli("-m", "zswarm.bench.crowd", "--first", "10", "--count", "5", "--scenario", "large-swarm",
               "--set", "n_agents=12", "--connect", "tcp/127.0.0.1:1")
     assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "beyond the run's 12 agents" in bad.stderr
+
+
+def test_compare_refuses_in_one_line_and_tables_both_sides_medians(cli):
+    """``bench net --compare REF``: a ref the clone lacks, or more than one N, is one line and exit 2
+    before anything starts; the table holds each side's median and every run (a whole comparison runs
+    six swarms: docs/benchmarks.md has one)."""
+    from zswarm.bench.compare import FIGURES, table
+
+    bad = cli("-m", "zswarm", "bench", "net", "--compare", "no-such-ref-anywhere", "--agents", "5")
+    assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "no commit 'no-such-ref-anywhere'" in bad.stderr
+    two = cli("-m", "zswarm", "bench", "net", "--compare", "HEAD", "--agents", "5,10")
+    assert two.returncode == 2 and "one N" in two.stderr
+    each = {label: {"ref": [1.0, 2.0, 3.0], "this": [0.5, 0.25, 4.0]} for label, _, _ in FIGURES}
+    out = {"ref": "v1", "commit": "0123456789abcdef", "runs": 3, "each": each,
+           "medians": {label: {"ref": 2.0, "this": 0.5} for label, _, _ in FIGURES}}
+    rows = table(out).splitlines()
+    assert rows[0].startswith("| figure | v1 (0123456) | this tree |") and len(rows) == 2 + len(FIGURES)
+    assert rows[2] == "| agent CPU per tick (ms) | 2.000 | 0.500 | 1.000, 2.000, 3.000; 0.500, 0.250, 4.000 |"

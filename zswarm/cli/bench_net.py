@@ -17,6 +17,7 @@ from pathlib import Path
 from zswarm.args import agent_counts, law_name, positive_int, router_count, safety_mode_arg, sim_seconds
 from zswarm.bench.figures import figure
 from zswarm.bench.net import measure, record_curves
+from zswarm.errors import UsageError
 from zswarm.files import check_writable
 
 
@@ -40,7 +41,27 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--safety", type=safety_mode_arg, default="barrier", metavar="off|barrier",
                    help="the agents' safety filter (default barrier, as runs): compare both for its cost")
     p.add_argument("--law", type=law_name, default="apf", help="the agents' control law (default apf; zswarm laws lists them)")
+    p.add_argument("--compare", metavar="REF", default=None,
+                   help="also run the agents of git ref REF (a commit, tag or branch of this clone), alternating "
+                        "with this tree's, --repeat times each (at least 3), and print both sides' medians")
     p.add_argument("--json", action="store_true")
+
+
+def run_compare(args: argparse.Namespace) -> int:
+    """``--compare REF``: one N, the ref's agents and this tree's, alternately (:mod:`zswarm.bench.compare`)."""
+    import sys
+
+    from zswarm.bench.compare import compare, table
+    from zswarm.provenance import machine
+
+    if len(args.agents) != 1 or args.floor or args.record is not None:
+        raise UsageError("--compare takes one N (--agents N) and neither --floor nor --record")
+    argv = ["--agents", str(args.agents[0]), "--duration", f"{args.duration:g}", "--routers", str(args.routers),
+            "--safety", args.safety, "--law", args.law]
+    out = compare(args.compare, max(args.repeat, 3), argv, say=lambda line: print(line, file=sys.stderr, flush=True))
+    out["settings"], out["machine"] = dict(zip(argv[::2], argv[1::2])), machine()
+    print(json.dumps(out) if args.json else f"{table(out)}\n\n{' '.join(argv)}; machine: {machine()}")
+    return 0
 
 
 def run(args: argparse.Namespace) -> int:
@@ -52,6 +73,8 @@ def run(args: argparse.Namespace) -> int:
     from zswarm.swarm.scenarios import get_scenario
 
     bind(get_scenario("bench-field", {"law": args.law}))  # a law that does not load: refused here, in one line
+    if args.compare is not None:
+        return run_compare(args)
     results = [measure(n, args.duration, args.floor, args.routers, args.repeat, args.safety, args.law)
                for n in args.agents]
     if args.record is not None:

@@ -258,6 +258,10 @@ class ControlStep:
         try:
             if fast is not None:  # no observation to build: the law reads the floats
                 v = law.checked(fast(position, target, obstacles, [n[0] for n in neighbours], v_max))
+            elif law.has_batch:  # a batch of one, built straight from the floats
+                out, g.state = law.decide_batch(_batch_of_one(position, velocity, neighbours, obstacles, target,
+                                                              v_max, self.dt, g.state))
+                v = tuple(out[0, 0].tolist())
             else:
                 v, g.state[0, 0] = law.decide(_observation(position, velocity, neighbours, obstacles, target,
                                                            v_max, self.dt, g.state[0, 0]))
@@ -281,6 +285,21 @@ class ControlStep:
         moved = bodies.step(g.body, state, np.array(command), self.dt)
         return One(command, acted, tuple(moved.position.tolist()), tuple(moved.velocity.tolist()),
                    float(moved.heading) if g.body.headed else None)
+
+
+def _batch_of_one(position, velocity, neighbours, obstacles, target, v_max: float, dt: float,
+                  state: np.ndarray) -> Observations:
+    """One agent's :class:`~zswarm.laws.contract.Observations` (leading axes (1, 1)) from what it holds in
+    plain floats: every neighbour and obstacle a real slot, none padded."""
+    dims, k, m = len(position), len(neighbours), len(obstacles)
+    near = np.array([(*n[0], *n[1], n[2]) for n in neighbours], dtype=float).reshape(1, 1, k, 2 * dims + 1)
+    seen = np.array(obstacles, dtype=float).reshape(1, 1, m, dims + 1)
+    return Observations(np.array(position, dtype=float).reshape(1, 1, dims),
+                        np.array(velocity, dtype=float).reshape(1, 1, dims),
+                        near[..., :dims], near[..., dims:2 * dims], near[..., 2 * dims],
+                        np.ones((1, 1, k), dtype=bool), seen[..., :dims], seen[..., dims],
+                        np.ones((1, 1, m), dtype=bool), np.array(target, dtype=float).reshape(1, 1, dims),
+                        v_max, dt, state)
 
 
 def _observation(position, velocity, neighbours, obstacles, target, v_max: float, dt: float,
