@@ -182,7 +182,7 @@ class ControlStep:
         """For :meth:`one`: the law's single form in floats (None: through an observation), its v_max,
         the filter's parameters (None: no filter) and look-ahead."""
         law = self.groups[0].law
-        fast = law.law.floats if dims == 2 and not law.state_size else None
+        fast = law.law.floats if dims == 2 else None
         safety = look = None
         if self.filter is not None:
             (_, safety), = self.filter.groups
@@ -256,8 +256,12 @@ class ControlStep:
         law = g.law
         fast, v_max, safety, look = self._single or self._single_of(len(position))
         try:
-            if fast is not None:  # no observation to build: the law reads the floats
-                v = law.checked(fast(position, target, obstacles, [n[0] for n in neighbours], v_max))
+            if fast is not None and law.state_size:  # the law reads the floats, and its state
+                v, kept = fast(position, velocity, target, obstacles, neighbours, v_max, self.dt,
+                               tuple(g.state[0, 0].tolist()))
+                v, g.state[0, 0] = law.checked(v), kept
+            elif fast is not None:  # no observation to build: the law reads the floats
+                v = law.checked(fast(position, velocity, target, obstacles, neighbours, v_max, self.dt))
             elif law.has_batch:  # a batch of one, built straight from the floats
                 out, g.state = law.decide_batch(_batch_of_one(position, velocity, neighbours, obstacles, target,
                                                               v_max, self.dt, g.state))

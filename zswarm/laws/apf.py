@@ -82,18 +82,19 @@ class Apf(SwarmLaw):
                                                                      [laws[r].context for r in rows]))))
         return out
 
-    def floats(self, position, target, obstacles, neighbours, v_max: float) -> tuple[float, float]:
+    def floats(self, position, velocity, target, obstacles, neighbours, v_max: float, dt: float) -> tuple[float, float]:
         """The single form in plain floats (2-D): :func:`_velocity_2d` on what one agent holds."""
         law = self.law
-        return _velocity_2d(position[0], position[1], target, obstacles, neighbours, self.context.sensing_radius,
-                            law.p, law.combination, law.formation, v_max, law.neighbours)
+        return _velocity_2d(position[0], position[1], target, obstacles, [n[0] for n in neighbours],
+                            self.context.sensing_radius, law.p, law.combination, law.formation, v_max, law.neighbours)
 
     def command(self, obs: Observation) -> Any:
         law = self.law
         if obs.dims == 2:
-            return self.floats(obs.position.tolist(), obs.target.tolist(),
-                               [(*o.centre.tolist(), o.radius) for o in obs.obstacles],
-                               [n.position.tolist() for n in obs.neighbours], float(obs.v_max))
+            return _velocity_2d(float(obs.position[0]), float(obs.position[1]), obs.target.tolist(),
+                                [(*o.centre.tolist(), o.radius) for o in obs.obstacles],
+                                [n.position.tolist() for n in obs.neighbours], self.context.sensing_radius,
+                                law.p, law.combination, law.formation, float(obs.v_max), law.neighbours)
         centres = np.array([o.centre for o in obs.obstacles], dtype=float).reshape(-1, obs.dims)
         radii = np.array([o.radius for o in obs.obstacles], dtype=float)
         others = np.array([n.position for n in obs.neighbours], dtype=float).reshape(-1, obs.dims)

@@ -21,11 +21,12 @@ v_max 2 px a frame, F_max 0.03 px a frame^2; the target's weight, w_tgt = 1, is 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from zswarm.laws.contract import Observations, SwarmLaw, masked_sum, norm, param, unit
+from zswarm.laws.contract import Observations, SwarmLaw, masked_sum, norm, param, saturate_2d, unit, unit_2d
 from zswarm.laws.scale import Units
 from zswarm.paper.potentials import saturate
 
@@ -78,3 +79,49 @@ class Boids(SwarmLaw):
         a += p.w_coh * np.where(some, steer(top_b * unit(centre - r)), 0.0)
         a += p.w_tgt * steer(top_b * unit(law.target - r))
         return saturate(v + a * law.dt, top) * self.units.speed
+
+    def floats(self, position, velocity, target, obstacles, neighbours, v_max: float, dt: float) -> tuple[float, float]:
+        """:meth:`batch` for one 2-D agent in plain floats (an agent process's tick)."""
+        p, lam, sig = self.params, self.units.length, self.units.speed
+        x, y, vx, vy = position[0] / lam, position[1] / lam, velocity[0] / sig, velocity[1] / sig
+        top, f_max = v_max / sig, p.f_max
+        sx = sy = ax_ = ay_ = cx = cy = 0.0
+        close = near = 0
+        for (nx, ny), (nvx, nvy), _ in neighbours:
+            dx, dy = x - nx / lam, y - ny / lam
+            d = math.sqrt(dx * dx + dy * dy)
+            if d <= 0.0:
+                continue
+            if d < p.r_neighbour:
+                near += 1
+                ax_ += nvx / sig
+                ay_ += nvy / sig
+                cx += nx / lam
+                cy += ny / lam
+            if d < p.r_sep:
+                close += 1
+                ux, uy = dx / d, dy / d
+                sx += ux / d
+                sy += uy / d
+
+        def steer(dx: float, dy: float) -> tuple[float, float]:
+            ux, uy = unit_2d(dx, dy)
+            return saturate_2d(top * ux - vx, top * uy - vy, f_max)
+
+        k = max(close, 1)
+        sx, sy = sx / k, sy / k
+        a_x = a_y = 0.0
+        if math.sqrt(sx * sx + sy * sy) > 0.0:
+            fx, fy = steer(sx, sy)
+            a_x, a_y = p.w_sep * fx, p.w_sep * fy
+        if near:
+            k = max(near, 1)
+            fx, fy = steer(ax_ / k, ay_ / k)
+            a_x, a_y = a_x + p.w_ali * fx, a_y + p.w_ali * fy
+            fx, fy = steer(cx / k - x, cy / k - y)
+            a_x, a_y = a_x + p.w_coh * fx, a_y + p.w_coh * fy
+        fx, fy = steer(target[0] / lam - x, target[1] / lam - y)
+        a_x, a_y = a_x + p.w_tgt * fx, a_y + p.w_tgt * fy
+        tau = lam / sig
+        wx, wy = saturate_2d(vx + a_x * (dt / tau), vy + a_y * (dt / tau), top)
+        return wx * sig, wy * sig

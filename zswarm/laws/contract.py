@@ -272,10 +272,12 @@ class SwarmLaw:
             return dataclasses.asdict(self.params)
         return None
 
-    #: Optionally, the single form in plain floats for one 2-D agent without state, where numpy's per-call
-    #: cost would be most of the work: ``floats(position, target, obstacles, neighbour_positions, v_max)``
-    #: (tuples; obstacles as (cx, cy, radius)) -> (vx, vy). The control step calls it for an agent process
-    #: (:meth:`zswarm.control.step.ControlStep.one`); ``tests/test_control_step.py`` holds it to the batched form.
+    #: Optionally, the single form in plain floats for one 2-D agent, where numpy's per-call cost would be
+    #: most of the work: ``floats(position, velocity, target, obstacles, neighbours, v_max, dt)`` (tuples;
+    #: obstacles as (cx, cy, radius), neighbours as (position, velocity, age)) -> (vx, vy); a law with a
+    #: state takes it last, as a tuple, and returns (velocity, its next state).
+    #: The control step calls it for an agent process (:meth:`zswarm.control.step.ControlStep.one`); the
+    #: batched form stays the law's definition, and ``tests/test_control_step.py`` holds this one to it.
     floats: Any = None
 
     def command(self, obs: Observation) -> Any:
@@ -313,6 +315,21 @@ def masked_sum(values: np.ndarray, mask: np.ndarray) -> np.ndarray:
     if values.ndim == mask.ndim + 1:
         return np.where(mask[..., None], values, 0.0).sum(axis=-2)
     return np.where(mask, values, 0.0).sum(axis=-1)
+
+
+def unit_2d(x: float, y: float) -> tuple[float, float]:
+    """:func:`unit` of one 2-D vector in floats."""
+    n = math.sqrt(x * x + y * y)
+    return (x / n, y / n) if n > 0.0 else (0.0, 0.0)
+
+
+def saturate_2d(x: float, y: float, v_max: float) -> tuple[float, float]:
+    """:func:`zswarm.paper.potentials.saturate` of one 2-D vector in floats."""
+    speed = math.sqrt(x * x + y * y)
+    if speed > v_max:
+        s = v_max / speed
+        return x * s, y * s
+    return x, y
 
 
 def param(default: float, dimension: str = "none", doc: str = "", lo: float = 0.0, lo_open: bool = True,

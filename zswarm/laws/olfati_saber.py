@@ -37,7 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from zswarm.laws.contract import Observations, SwarmLaw, masked_sum, norm, param
+from zswarm.laws.contract import Observations, SwarmLaw, masked_sum, norm, param, saturate_2d
 from zswarm.laws.scale import Units
 from zswarm.paper.potentials import saturate
 
@@ -131,6 +131,71 @@ class OlfatiSaber(SwarmLaw):
         command = saturate(v + u * dt, law.v_max) * self.units.speed
         state = np.concatenate([obs.target, np.ones(obs.lead + (1,))], axis=-1)
         return command, state
+
+
+    def floats(self, position, velocity, target, obstacles, neighbours, v_max: float, dt: float,
+               state: tuple[float, ...]) -> tuple[tuple[float, float], tuple[float, ...]]:
+        """:meth:`batch` for one 2-D agent in plain floats (an agent process's tick): (velocity, state)."""
+        p, lam, sig = self.params, self.units.length, self.units.speed
+        eps, tau = p.eps, lam / sig
+        x, y, vx, vy, h = position[0] / lam, position[1] / lam, velocity[0] / sig, velocity[1] / sig, dt / tau
+
+        def s_norm(zz: float) -> float:  # of a vector whose squared length is zz
+            return (math.sqrt(1.0 + eps * zz) - 1.0) / eps
+
+        def bump_f(z: float, h_: float) -> float:
+            if z < h_:
+                return 1.0
+            return 0.5 * (1.0 + math.cos(math.pi * (min(z, 1.0) - h_) / (1.0 - h_))) if z <= 1.0 else 0.0
+
+        r_a, d_a = s_norm((p.kappa * p.d) ** 2), s_norm(p.d * p.d)
+        c = abs(p.a - p.b) / math.sqrt(4.0 * p.a * p.b)
+        gx = gy = cx = cy = 0.0
+        for (nx, ny), (nvx, nvy), _ in neighbours:
+            zx, zy = nx / lam - x, ny / lam - y
+            zz = zx * zx + zy * zy
+            sz = s_norm(zz)
+            rho = bump_f(sz / r_a, p.h_alpha)
+            w = sz - d_a + c
+            phi = 0.5 * ((p.a + p.b) * (w / math.sqrt(1.0 + w * w)) + (p.a - p.b))
+            k = math.sqrt(1.0 + eps * zz)
+            gx, gy = gx + rho * phi * (zx / k), gy + rho * phi * (zy / k)
+            cx, cy = cx + rho * (nvx / sig - vx), cy + rho * (nvy / sig - vy)
+        ux, uy = p.c1_alpha * gx, p.c1_alpha * gy
+        ux, uy = ux + p.c2_alpha * cx, uy + p.c2_alpha * cy
+        d_b = s_norm((p.d_obstacle * p.d) ** 2)
+        gx = gy = cx = cy = 0.0
+        for ox, oy, radius in obstacles:
+            ox, oy = ox / lam, oy / lam
+            fx, fy = x - ox, y - oy
+            dist = math.sqrt(fx * fx + fy * fy)
+            safe = dist if dist > 0.0 else 1.0
+            mu = (radius / lam) / safe
+            ax, ay = fx / safe, fy / safe
+            zx, zy = (mu * x + (1.0 - mu) * ox) - x, (mu * y + (1.0 - mu) * oy) - y
+            zz = zx * zx + zy * zy
+            if not (math.sqrt(zz) < 1.2 * p.d_obstacle * p.d and dist > 0.0):
+                continue
+            along = ax * vx + ay * vy
+            px_, py_ = mu * (vx - along * ax), mu * (vy - along * ay)
+            sb = s_norm(zz)
+            rho = bump_f(sb / d_b, p.h_beta)
+            w = sb - d_b
+            k = math.sqrt(1.0 + eps * zz)
+            coef = rho * (w / math.sqrt(1.0 + w * w) - 1.0)
+            gx, gy = gx + coef * (zx / k), gy + coef * (zy / k)
+            cx, cy = cx + rho * (px_ - vx), cy + rho * (py_ - vy)
+        ux, uy = ux + p.c1_beta * gx, uy + p.c1_beta * gy
+        ux, uy = ux + p.c2_beta * cx, uy + p.c2_beta * cy
+        tx, ty = target[0] / lam, target[1] / lam
+        prx = pry = 0.0
+        if state[2] > 0.5:
+            prx, pry = (tx - state[0] / lam) / h, (ty - state[1] / lam) / h
+        ex, ey = x - tx, y - ty
+        k = math.sqrt(1.0 + (ex * ex + ey * ey))
+        ux, uy = ux + (-p.c1_gamma * (ex / k) - p.c2_gamma * (vx - prx)), uy + (-p.c1_gamma * (ey / k) - p.c2_gamma * (vy - pry))
+        wx, wy = saturate_2d(vx + ux * h, vy + uy * h, v_max / sig)
+        return (wx * sig, wy * sig), (float(target[0]), float(target[1]), 1.0)
 
 
 def vector_sigma_1(z: np.ndarray) -> np.ndarray:

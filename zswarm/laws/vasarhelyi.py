@@ -25,11 +25,12 @@ its v_max). The law has no attraction term (the paper has none): the target hold
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from zswarm.laws.contract import Observations, SwarmLaw, masked_sum, norm, param, unit
+from zswarm.laws.contract import Observations, SwarmLaw, masked_sum, norm, param, saturate_2d, unit, unit_2d
 from zswarm.laws.scale import Units
 from zswarm.paper.potentials import saturate
 
@@ -56,6 +57,14 @@ def braking(r: np.ndarray, a: float, p: float) -> np.ndarray:
     rp = r * p
     far = np.sqrt(np.maximum(2.0 * a * r - a * a / (p * p), 0.0))
     return np.where(r <= 0.0, 0.0, np.where(rp < a / p, rp, far))
+
+
+def braking_float(r: float, a: float, p: float) -> float:
+    """:func:`braking` of one distance."""
+    if r <= 0.0:
+        return 0.0
+    rp = r * p
+    return rp if rp < a / p else math.sqrt(max(2.0 * a * r - a * a / (p * p), 0.0))
 
 
 class Vasarhelyi(SwarmLaw):
@@ -91,3 +100,36 @@ class Vasarhelyi(SwarmLaw):
         shill = np.maximum(shill_diff - braking(gap - p.r0_shill, p.a_shill, p.p_shill), 0.0)[..., None] * unit(ds)
         v_new += masked_sum(shill, obs.obstacle_mask)
         return saturate(v_new, law.v_max) * self.units.speed
+
+    def floats(self, position, velocity, target, obstacles, neighbours, v_max: float, dt: float) -> tuple[float, float]:
+        """:meth:`batch` for one 2-D agent in plain floats (an agent process's tick)."""
+        p, lam, sig = self.params, self.units.length, self.units.speed
+        x, y, vx, vy = position[0] / lam, position[1] / lam, velocity[0] / sig, velocity[1] / sig
+        ux, uy = unit_2d(target[0] / lam - x, target[1] / lam - y)
+        wx, wy = p.v_flock * ux, p.v_flock * uy
+        rx = ry = fx = fy = 0.0
+        for (nx, ny), (nvx, nvy), _ in neighbours:
+            ax, ay = x - nx / lam, y - ny / lam  # r_i - r_j
+            dist = math.sqrt(ax * ax + ay * ay)
+            if dist < p.r0_rep:
+                k = p.p_rep * max(p.r0_rep - dist, 0.0)
+                ux, uy = unit_2d(ax, ay)
+                rx, ry = rx + k * ux, ry + k * uy
+            dx, dy = nvx / sig - vx, nvy / sig - vy  # v_j - v_i
+            allowed = max(p.v_frict, braking_float(dist - p.r0_frict, p.a_frict, p.p_frict))
+            k = p.c_frict * max(math.sqrt(dx * dx + dy * dy) - allowed, 0.0)
+            ux, uy = unit_2d(dx, dy)
+            fx, fy = fx + k * ux, fy + k * uy
+        wx, wy = wx + rx, wy + ry
+        wx, wy = wx + fx, wy + fy
+        sx = sy = 0.0
+        for cx, cy, radius in obstacles:
+            ox, oy = x - cx / lam, y - cy / lam
+            gap = math.sqrt(ox * ox + oy * oy) - radius / lam
+            ux, uy = unit_2d(ox, oy)
+            dx, dy = p.v_shill * ux - vx, p.v_shill * uy - vy
+            k = max(math.sqrt(dx * dx + dy * dy) - braking_float(gap - p.r0_shill, p.a_shill, p.p_shill), 0.0)
+            ux, uy = unit_2d(dx, dy)
+            sx, sy = sx + k * ux, sy + k * uy
+        wx, wy = saturate_2d(wx + sx, wy + sy, v_max / sig)
+        return wx * sig, wy * sig
