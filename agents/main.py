@@ -308,7 +308,7 @@ def take_over_agent(proc: Process, args: argparse.Namespace, stopped) -> bool:
         agent.seq = apply_state(state, agent.body, agent.counters)
     except HandoffError as exc:
         raise UsageError(f"agent {args.id}: {exc}") from None
-    agent.reach.follow_cells()
+    agent.reach.follow_cells(ask=True)
     return True
 
 

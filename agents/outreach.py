@@ -33,6 +33,7 @@ class Outreach:
         self.cell_view = CellView(self.keys, bridge, sensing.body, sensing.subscription_radius)
         self.asking: set[tuple[int, ...]] = set()  # cells asked for their agents, answers not all in
         self.member_asked: dict[tuple[int, tuple[int, ...]], float] = {}  # (id, cell) -> when its token was asked about
+        self.followed_at: tuple[float, ...] | None = None  # where it followed its cells last
 
     @property
     def cells(self) -> dict[tuple[int, ...], object]:
@@ -43,19 +44,29 @@ class Outreach:
     def request_obstacles(self, now: float, timeout: float = 2.0) -> None:
         self.sensing.obstacle_view.request(self.bridge, now, timeout)
 
-    def follow_cells(self) -> None:
-        """Listen to the cells the sensing disc overlaps; the new cells' agents are asked at once (the
-        cells whose answers are not all in yet: :attr:`asking`)."""
+    def follow_cells(self, ask: bool = False) -> None:
+        """Listen to the cells the sensing disc overlaps, and ask each new cell who sits in it. Its agents'
+        poses are asked for at once (the cells whose answers are not all in yet: :attr:`asking`) where it
+        could not have heard them coming: at its start, after a jump (more than 2 v_max dt since the last
+        tick: a robot's odometry reset) and when ``ask`` (a takeover's state). A cell that a moving
+        agent's disc, grown by 2 v_max dt, has just reached holds nobody within R + v_max dt, and its
+        agents speak again before they can be within R: asking would cost each of them an answer, and
+        a moving swarm's agents a third of their tick, for nothing."""
+        point, last = self.sensing.body.position, self.followed_at
+        self.followed_at = point
         new, left = self.cell_view.move()
         if not new and not left:
             return  # most ticks
         self.sensing.membership.listen_to(new, left)
+        s = self.sensing
+        ask = ask or last is None or math.dist(point, last) > 2.0 * s.v_max * s.dt
         for cell in new:
             # who sits in it already (its live member tokens were subscribed first: Sensing._member)
             self.bridge.tokens_into_inbox(self.keys.cell_members(cell), "in-now", 1.0)
-            self.asking.add(cell)
-            self.bridge.get_into_inbox(self.keys.cell_poses(cell), "pose", 1.0,
-                                       done=lambda cell=cell: self.asking.discard(cell))
+            if ask:
+                self.asking.add(cell)
+                self.bridge.get_into_inbox(self.keys.cell_poses(cell), "pose", 1.0,
+                                           done=lambda cell=cell: self.asking.discard(cell))
 
     def check_members(self, now: float) -> None:
         """Ask again about the member tokens on which alone the safety filter guards a silent neighbour

@@ -4,6 +4,7 @@ it has moved far enough for that set to change."""
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 import zenoh
@@ -60,6 +61,53 @@ def test_an_agent_listens_to_exactly_the_cells_its_disc_meets_along_a_walk():
             assert set(s.cells) == cells_in_disc(spec.keys, body.position, sensing.subscription_radius)
             assert {sub for _, sub in bridge.channels} == set(s.cells.values())
         assert chosen < 300  # most ticks keep the cells without working them out again
+        bridge.close()
+
+
+def test_a_moving_agent_asks_a_cell_for_its_poses_only_where_it_could_not_have_heard_them_coming():
+    """At its start, after a jump and on a takeover an agent asks each new cell for the poses in it; a
+    cell its grown disc reaches while it moves holds nobody it could have missed (their next poses come
+    first), and asking would cost each agent there an answer (agents.outreach.Outreach.follow_cells).
+    Who sits in a new cell (its member tokens) is asked every time. Real Zenoh: the queries that reach a
+    queryable on every cell."""
+    spec = RunSpec(run="asks", scenario_name="bench-field", overrides=(("n_agents", 4),))
+    asked = {"poses": 0}
+    with zenoh.open(zenoh_config("peer")) as session:
+        session.declare_queryable("zswarm/asks/pose/**", lambda q: asked.__setitem__("poses", asked["poses"] + 1))
+        sensing = Sensing(spec, 0, Body(0.3, -0.2), probe_latency=True)
+        bridge = Bridge(session, None, sensing.handle, batch=True, channels=True)
+        body, s = sensing.body, Outreach(sensing, bridge)
+        step = 0.9 * sensing.v_max * sensing.dt  # less than a tick's worth of motion at v_max
+
+        def walk(ticks: int) -> int:
+            before, entered = asked["poses"], 0
+            for _ in range(ticks):
+                body.x += step
+                held = set(s.cells)
+                s.follow_cells()
+                entered += len(set(s.cells) - held)
+            time.sleep(0.3)  # the asks' way through the session
+            assert entered > 0  # it crossed cells
+            return asked["poses"] - before
+
+        def follow(ask: bool = False) -> int:
+            """Follow once; how many cells were new, and how many asks came of it."""
+            before, held = asked["poses"], set(s.cells)
+            s.follow_cells(ask)
+            time.sleep(0.3)  # the asks' way through the session
+            return len(set(s.cells) - held), asked["poses"] - before
+
+        new, asks = follow()  # its start
+        assert new > 0 and asks == new
+        assert walk(60) == 0  # moving: no asks
+        body.x += 5.0  # a jump (an odometry reset): every new cell asked
+        new, asks = follow()
+        assert new > 0 and asks == new
+        new = 0
+        while not new:  # a takeover's state, close by: asked all the same
+            body.x += step
+            new, asks = follow(ask=True)
+        assert asks == new
         bridge.close()
 
 

@@ -179,20 +179,22 @@ def cells_in_disc_margin(keys: Keys, point: Sequence[float], r: float) -> tuple[
     |distance - r|. Cells farther than r + one cell size are not looked at, so the margin is at most
     one cell size.
     """
-    s = keys.cell_size
-    p = np.asarray(point, dtype=float)
-    lo, hi = np.floor((p - r) / s).astype(np.int64), np.floor((p + r) / s).astype(np.int64)  # the disc's box
-    grid = np.stack(np.meshgrid(*(np.arange(a - 1, b + 2) for a, b in zip(lo, hi)), indexing="ij"), -1)
-    grid = grid.reshape(-1, len(p))  # the box's cells and a ring of one cell around them
-    c0 = grid * s
-    d2 = np.zeros(len(grid))
-    for k in range(len(p)):  # axis by axis, in this order: the same sums as one cell at a time
-        d2 += (np.minimum(np.maximum(p[k], c0[:, k]), c0[:, k] + s) - p[k]) ** 2
-    inside = np.minimum(p - c0, c0 + s - p).min(axis=1)
-    member = (d2 <= r * r) & np.all((grid >= lo) & (grid <= hi), axis=1)
-    signed = np.where(d2 > 0.0, np.sqrt(d2), -inside)  # d2: a sum of squares
-    margin = min(s, float(np.abs(signed - r).min()))
-    cells = set(map(tuple, grid[member].tolist()))
+    s, r2 = keys.cell_size, r * r
+    axes = []  # per axis, each cell index of the disc's box and a ring of one cell around it, with its
+    for c in point:  # squared distance to the point along that axis, depth inside, and whether in the box
+        c, lo, hi = float(c), math.floor((float(c) - r) / s), math.floor((float(c) + r) / s)
+        axes.append([(i, (min(max(c, i * s), i * s + s) - c) ** 2, min(c - i * s, i * s + s - c), lo <= i <= hi)
+                     for i in range(lo - 1, hi + 2)])
+    cells: set[tuple[int, ...]] = set()
+    margin = s
+    for combo in itertools.product(*axes):  # in plain floats: an agent asks every tick or two
+        d2 = 0.0
+        for _, dk, _, _ in combo:  # axis by axis, in this order
+            d2 += dk
+        signed = math.sqrt(d2) if d2 > 0.0 else -min(a[2] for a in combo)
+        margin = min(margin, abs(signed - r))
+        if d2 <= r2 and all(a[3] for a in combo):
+            cells.add(tuple(a[0] for a in combo))
     return cells, max(margin - ROUNDING, 0.0)
 
 
