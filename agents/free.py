@@ -1,5 +1,5 @@
-"""The free clock: one agent's life is a loop at 1/period, in an asyncio program (its start on uvloop's
-event loop, where it is installed); its ticks hold the loop and sleep in the kernel (:func:`run_free`).
+"""The free clock: one agent's life is a loop at 1/period on an asyncio event loop (uvloop's, where it
+is installed: docs/benchmarks.md, "The agent's event loop").
 
 Every tick it takes in what arrived since the last one (samples wait in Zenoh's ring channels, or,
 under an injected delay, in the bridge's inbox stamped with the time they arrived; both pass the fault
@@ -68,11 +68,11 @@ async def hear_cells(agent: Agent, injector: FaultInjector | None, wait: float, 
 async def run_free(agent: Agent, injector: FaultInjector | None, stopped: Callable[[], bool],
                    desk: Desk | None = None) -> bool:
     """Tick until the run ends (False) or, after a tick, a process asks to take this agent over
-    (``desk``, :mod:`agents.handoff`; True: the caller hands its state over and leaves). Between ticks
-    it sleeps in the kernel, holding the event loop: nothing else runs on the loop while a free agent
-    ticks (its samples wait in channels, its asks answer into the inbox, signals set a flag), and
-    pacing the ticks on the loop cost the swarm 2-3 ms of pose latency p99 at N = 50 and each agent
-    40 us a tick (docs/benchmarks.md, "An agent against an earlier version")."""
+    (``desk``, :mod:`agents.handoff`; True: the caller hands its state over and leaves). Each tick is a
+    callback the loop calls at its time: no task step and no future per tick, which cost an agent more
+    than its tick's sleep did (docs/benchmarks.md, "The agent's event loop")."""
+    loop = asyncio.get_running_loop()
+    ended: asyncio.Future[bool] = loop.create_future()
     period = agent.spec.period
     s, c = agent.sensing, agent.counters
     stats_every = max(int(round(STATS_PERIOD / period)), 1)
@@ -110,6 +110,16 @@ async def run_free(agent: Agent, injector: FaultInjector | None, stopped: Callab
         next_tick += period
         return None
 
-    while (end := tick()) is None:
-        time.sleep(max(next_tick - time.monotonic(), 0.0))
-    return end
+    def on_time() -> None:
+        try:
+            end = tick()
+        except Exception as exc:  # noqa: BLE001 - the coroutine awaiting the run raises it
+            ended.set_exception(exc)
+            return
+        if end is None:
+            loop.call_later(max(next_tick - time.monotonic(), 0.0), on_time)
+        else:
+            ended.set_result(end)
+
+    on_time()
+    return await ended

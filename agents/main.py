@@ -240,7 +240,7 @@ def preload() -> None:
 
 def run_loop(main: Coroutine[Any, Any, int]) -> int:
     """Run an agent's coroutine on uvloop's event loop where it is installed (the cheaper loop:
-    docs/benchmarks.md, "An agent against an earlier version"), else on asyncio's own."""
+    docs/benchmarks.md, "The agent's event loop"), else on asyncio's own."""
     try:
         import uvloop
     except ImportError:
