@@ -1,5 +1,5 @@
 """The free clock: one agent's life is a loop at 1/period on an asyncio event loop (uvloop's, where it
-is installed: docs/benchmarks.md, "The agent's event loop").
+is installed: docs/benchmarks.md, "An agent against an earlier version").
 
 Every tick it takes in what arrived since the last one (samples wait in Zenoh's ring channels, or,
 under an injected delay, in the bridge's inbox stamped with the time they arrived; both pass the fault
@@ -70,7 +70,7 @@ async def run_free(agent: Agent, injector: FaultInjector | None, stopped: Callab
     """Tick until the run ends (False) or, after a tick, a process asks to take this agent over
     (``desk``, :mod:`agents.handoff`; True: the caller hands its state over and leaves). Each tick is a
     callback the loop calls at its time: no task step and no future per tick, which cost an agent more
-    than its tick's sleep did (docs/benchmarks.md, "The agent's event loop")."""
+    than its tick's sleep did (docs/benchmarks.md, "An agent against an earlier version")."""
     loop = asyncio.get_running_loop()
     ended: asyncio.Future[bool] = loop.create_future()
     period = agent.spec.period

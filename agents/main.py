@@ -223,15 +223,13 @@ def preload() -> None:
     """Walk an agent's start short of its session (its arguments, spawn point and control step), then
     import the other built-in laws and uvloop: what an agent would otherwise import after a fleet forks
     it, each agent its own copy (:mod:`agents.fleet`)."""
-    import importlib
-
-    from zswarm.laws.registry import BUILTIN
+    from zswarm.laws.registry import BUILTIN, resolve
 
     spec = spec_from_args(build_parser().parse_args(["--id", "0", "--set", "n_agents=3"]))  # scaled, as runs are
     start_position(spec, 0, None)
     control_step([spec.scenario], [spec.combination], spec.safety, agents=[0])
-    for target in BUILTIN.values():
-        importlib.import_module(target.partition(":")[0])
+    for name in BUILTIN:
+        resolve(name)
     try:
         import uvloop  # noqa: F401
     except ImportError:
@@ -240,7 +238,7 @@ def preload() -> None:
 
 def run_loop(main: Coroutine[Any, Any, int]) -> int:
     """Run an agent's coroutine on uvloop's event loop where it is installed (the cheaper loop:
-    docs/benchmarks.md, "The agent's event loop"), else on asyncio's own."""
+    docs/benchmarks.md, "An agent against an earlier version"), else on asyncio's own."""
     try:
         import uvloop
     except ImportError:

@@ -52,13 +52,13 @@ class Outreach:
         agent's disc, grown by 2 v_max dt, has just reached holds nobody within R + v_max dt, and its
         agents speak again before they can be within R: asking would cost each of them an answer, and
         a moving swarm's agents a third of their tick, for nothing."""
-        point, last = self.sensing.body.position, self.followed_at
+        s = self.sensing
+        point, last = s.body.position, self.followed_at
         self.followed_at = point
         new, left = self.cell_view.move()
         if not new and not left:
             return  # most ticks
-        self.sensing.membership.listen_to(new, left)
-        s = self.sensing
+        s.membership.listen_to(new, left)
         ask = ask or last is None or math.dist(point, last) > 2.0 * s.v_max * s.dt
         for cell in new:
             # who sits in it already (its live member tokens were subscribed first: Sensing._member)

@@ -25,10 +25,13 @@ FIGURES: tuple[tuple[str, Callable[[dict[str, Any]], Any], str], ...] = (
 )
 
 
-def checkout(ref: str, folder: Path) -> str:
-    """``ref`` checked out (detached) in ``folder``, from the repository this package runs from; returns
-    its commit. UsageError in one line where there is no repository or no such ref."""
-    repo = Path(__file__).resolve().parents[2]
+#: The clone this package runs from: this tree's side of a comparison, and where the ref is checked out from.
+HERE = Path(__file__).resolve().parents[2]
+
+
+def checkout(ref: str, folder: Path, repo: Path = HERE) -> str:
+    """``ref`` checked out (detached) in ``folder``, from ``repo``; returns its commit. UsageError in one
+    line where there is no repository or no such ref."""
     found = subprocess.run(["git", "-C", str(repo), "rev-parse", "--verify", "--quiet", f"{ref}^{{commit}}"],
                            capture_output=True, text=True)
     if found.returncode != 0:
@@ -53,18 +56,17 @@ def run_at(tree: Path, argv: list[str]) -> dict[str, Any]:
 
 def compare(ref: str, runs: int, argv: list[str], say: Callable[[str], None] = print) -> dict[str, Any]:
     """``runs`` alternating pairs (the ref, then this tree) of ``bench net`` with ``argv``; the medians."""
-    here = Path(__file__).resolve().parents[2]
     with tempfile.TemporaryDirectory(prefix="zswarm-compare-") as tmp:
         folder = Path(tmp) / "ref"
         commit = checkout(ref, folder)
         try:
             results: dict[str, list[dict[str, Any]]] = {"ref": [], "this": []}
             for k in range(runs):
-                for side, tree in (("ref", folder), ("this", here)):
+                for side, tree in (("ref", folder), ("this", HERE)):
                     results[side].append(run_at(tree, argv))
                     say(f"run {k + 1}/{runs} {side} done")
         finally:
-            subprocess.run(["git", "-C", str(here), "worktree", "remove", "--force", str(folder)], capture_output=True)
+            subprocess.run(["git", "-C", str(HERE), "worktree", "remove", "--force", str(folder)], capture_output=True)
     table = {label: {side: statistics.median(read(r) for r in rs) for side, rs in results.items()}
              for label, read, _ in FIGURES}
     return {"ref": ref, "commit": commit, "runs": runs, "medians": table,

@@ -60,7 +60,7 @@ def run_compare(args: argparse.Namespace) -> int:
             "--safety", args.safety, "--law", args.law]
     out = compare(args.compare, max(args.repeat, 3), argv, say=lambda line: print(line, file=sys.stderr, flush=True))
     out["settings"], out["machine"] = dict(zip(argv[::2], argv[1::2])), machine()
-    print(json.dumps(out) if args.json else f"{table(out)}\n\n{' '.join(argv)}; machine: {machine()}")
+    print(json.dumps(out) if args.json else f"{table(out)}\n\n{' '.join(argv)}; machine: {out['machine']}")
     return 0
 
 

@@ -115,7 +115,7 @@ class Boids(SwarmLaw):
             fx, fy = steer(sx, sy)
             a_x, a_y = p.w_sep * fx, p.w_sep * fy
         if near:
-            k = max(near, 1)
+            k = near
             fx, fy = steer(ax_ / k, ay_ / k)
             a_x, a_y = a_x + p.w_ali * fx, a_y + p.w_ali * fy
             fx, fy = steer(cx / k - x, cy / k - y)
