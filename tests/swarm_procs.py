@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import functools
 import json
 import shutil
 import signal
@@ -37,12 +38,24 @@ def split_spec(run: str, scenario: str, *args: str) -> tuple[RunSpec, list[str]]
 
 
 def start_world(kids: Children, endpoint: str, run: str, scenario: str, tmp: Path, *extra: str,
-                name: str = "world") -> tuple:
+                name: str = "world", judges: bool = False) -> tuple:
+    """The world of a run, handed its design verdict as ``zswarm run`` hands it (``judges``: left to judge
+    it itself, beside its starting swarm)."""
     summary, record, traj = tmp / f"{run}.json", tmp / f"{run}.rrd", tmp / f"{run}.npz"
     spec, rest = split_spec(run, scenario, *extra)
+    if not judges and "--design" not in rest and "--resume" not in rest:
+        rest = [*rest, "--design", design_of(spec.scenario.params, spec.scenario.dt, spec.safety)]
     child = host_of(kids).spawn_world(spec, endpoint, *rest, "--summary", str(summary), "--record", str(record),
                                       "--trajectory", str(traj), "--progress", "0", name=name)
     return child, summary, record, traj
+
+
+@functools.lru_cache(maxsize=32)
+def design_of(params, dt: float, safety: str) -> str:
+    """A set's design verdict in JSON, judged once per test worker."""
+    from zswarm.design.guidelines import verdict
+
+    return json.dumps(verdict(params, dt, safety))
 
 
 #: The host of each set of children, which starts its processes as ``zswarm run``'s does: its agents

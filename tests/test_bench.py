@@ -47,3 +47,23 @@ def test_compare_refuses_in_one_line_and_tables_both_sides_medians(cli):
     rows = table(out).splitlines()
     assert rows[0].startswith("| figure | v1 (0123456) | this tree |") and len(rows) == 2 + len(FIGURES)
     assert rows[2] == "| agent CPU per tick (ms) | 2.000 | 0.500 | 1.000, 2.000, 3.000; 0.500, 0.250, 4.000 |"
+
+
+def test_the_bench_hands_its_world_the_verdict_as_zswarm_run_does(tmp_path):
+    """The bench's world is started as ``zswarm run`` starts it, with the set's design verdict judged
+    before anything starts: a world left to judge it spent a core beside the swarm it measured."""
+    import json
+
+    from zswarm.bench.net import field_spec, start_field
+    from zswarm.design.guidelines import verdict
+    from zswarm.host.procs import Children
+
+    spec = field_spec(3, "judged", 2.0)
+    kids = Children()
+    try:
+        _, world, _ = start_field(kids, spec, tmp_path / "s.json")
+        argv = open(f"/proc/{world.pid}/cmdline", "rb").read().decode().split("\0")
+    finally:
+        kids.stop_all(grace=3.0)
+    given = json.loads(argv[argv.index("--design") + 1])
+    assert given == json.loads(json.dumps(verdict(spec.scenario.params, spec.scenario.dt, spec.safety)))

@@ -161,7 +161,8 @@ def test_two_runs_on_one_router_do_not_see_each_other(tmp_path):
         given = {"ok": False, "failures": ["as its launcher judged it"], "paper_failures": [], "interaction": "x"}
         wa, sa, _, _ = start_world(kids, endpoint, "runA", "static-goal", tmp_path, *args, "--design",
                                    json.dumps(given), name="world-a")
-        wb, sb, _, _ = start_world(kids, endpoint, "runB", "static-goal", tmp_path, *args, name="world-b")
+        wb, sb, _, _ = start_world(kids, endpoint, "runB", "static-goal", tmp_path, *args, name="world-b",
+                                   judges=True)
         for run, ids in (("runA", (0, 1)), ("runB", (2, 3))):
             for i, start in zip(ids, ("-3,0", "-3,0.6")):  # the same places
                 start_agent(kids, endpoint, run, "static-goal", i, *args[:4], f"--start={start}")

@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from zswarm.bench.measure import CpuWindow, pss_mb, rss_mb
+from zswarm.design.guidelines import verdict
 from zswarm.launch.world_watch import wait_for_start
 from zswarm.swarm.faults import FaultModel
 from zswarm.host.local import LocalHost
@@ -39,14 +40,22 @@ def start_routers(host: LocalHost, k: int) -> list[str]:
     return host.start_routers([host.endpoint() for _ in range(k)])
 
 
+def judged(spec: RunSpec) -> list[str]:
+    """The world's ``--design`` with the set's verdict, judged here as ``zswarm run`` judges it before it
+    starts anything. A world left to judge it spends a core for over a second beside its starting swarm:
+    on 2 cores that doubled the start-up and the pose latency p99 of 50 agents (docs/benchmarks.md)."""
+    return ["--design", json.dumps(verdict(spec.scenario.params, spec.scenario.dt, spec.safety))]
+
+
 def start_field(kids: Children, spec: RunSpec, summary_path: Path, routers: int = 1) -> tuple[str, Child, list[Child]]:
     """Routers, the world (waiting up to 120 s for the agents) and the N agent processes of ``spec``,
     forked from one fleet as ``zswarm run`` starts them (agent i on router i mod K). Returns the first
     router's endpoint, the world and the agents."""
     host = LocalHost(kids)
+    design = judged(spec)
     endpoints = start_routers(host, routers)
     world = host.spawn_world(spec, endpoints[0], "--summary", str(summary_path), "--progress", "0",
-                             "--start-timeout", "120")
+                             "--start-timeout", "120", *design)
     agents = [host.spawn_agent(f"agent-{i}", agent_argv(spec, i, endpoints[i % routers], "--node", str(i % routers))[2:])
               for i in range(spec.scenario.n_agents)]
     return endpoints[0], world, agents

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from zswarm.bench.measure import CpuWindow
-from zswarm.bench.net import start_routers
+from zswarm.bench.net import judged, start_routers
 from zswarm.launch.world_watch import wait_for_start
 from zswarm.host.local import LocalHost
 from zswarm.host.procs import Children
@@ -40,9 +40,10 @@ def measure(n_agents: int, duration: float, scenario: str = "large-swarm", time_
         summary_path, record = Path(tmp) / "world.json", Path(tmp) / "world.rrd"
         try:
             host = LocalHost(kids)
+            design = judged(spec)
             endpoint = start_routers(host, 1)[0]
             world = host.spawn_world(spec, endpoint, "--summary", str(summary_path), "--record", str(record),
-                                     "--progress", "0", "--intake", intake, "--start-timeout", "120")
+                                     "--progress", "0", "--intake", intake, "--start-timeout", "120", *design)
             share, first = -(-n_agents // crowds), 0
             while first < n_agents:
                 count = min(share, n_agents - first)
