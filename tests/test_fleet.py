@@ -115,3 +115,56 @@ def test_an_agent_imports_nothing_its_fleet_did_not_preload():
             assert imported == [], f"{extra}: imported after the fleet's preload: {imported}"
     finally:
         kids.stop_all(grace=2.0)
+
+
+def test_agents_forked_together_tick_each_at_a_phase_of_its_own(tmp_path):
+    """A fleet forks its agents within a second, and each would start ticking as it came up: together.
+    Each ticks at its own phase of the period instead (:func:`agents.free.first_tick`), read here off the
+    stamps of the poses they publish over a real router."""
+    import statistics
+    import threading
+
+    from agents.free import PHASE_STEP
+    from swarm_procs import Watch, start_agent, start_world
+    from zswarm.net import messages as msg
+    from zswarm.net.config import open_session, zenoh_config
+    from zswarm.host.local import LocalHost
+    from zswarm.net.keys import Keys
+
+    n, period = 8, 0.05  # bench-field runs at 20 Hz
+    args = ("--set", f"n_agents={n}", "--duration", "6")
+    kids = Children()
+    stamps: dict[int, list[float]] = {}
+    lock = threading.Lock()
+
+    def heard(sample) -> None:
+        m = msg.decode(sample.payload.to_bytes())
+        with lock:
+            stamps.setdefault(m.id, []).append(m.stamp)
+
+    try:
+        endpoint = LocalHost(kids).start_routers([f"tcp/127.0.0.1:{free_port()}"])[0]
+        start_world(kids, endpoint, "phases", "bench-field", tmp_path, *args)
+        for i in range(n):
+            start_agent(kids, endpoint, "phases", "bench-field", i, *args[:2])
+        with Watch(endpoint, "phases") as watch:
+            watch.reach_step(20, timeout=60)
+            session = open_session(zenoh_config("client", [endpoint]), "phases", retry_for=10.0)
+            sub = session.declare_subscriber(Keys("phases", 1.0).all_poses, heard)
+            watch.reach_step(watch.step + 40, timeout=60)
+            sub.undeclare()
+            session.close()
+    finally:
+        kids.stop_all(grace=3.0)
+
+    phases = {}
+    for who in range(n):
+        assert len(stamps.get(who, [])) >= 20, f"agent {who}: {len(stamps.get(who, []))} poses"
+        due = (who * PHASE_STEP) % 1.0
+        # each pose's phase as a distance from its due phase, signed; the median is robust to late ticks
+        off = statistics.median(((s / period - due + 0.5) % 1.0) - 0.5 for s in stamps[who])
+        phases[who] = (due + off) % 1.0
+        assert abs(off) < 0.2, f"agent {who} ticks {off * period * 1000:.1f} ms off its phase"
+    ordered = sorted(phases.values())
+    gaps = [b - a for a, b in zip(ordered, ordered[1:])] + [1.0 - ordered[-1] + ordered[0]]
+    assert max(gaps) < 0.4, f"the agents' ticks bunch: phases {ordered}"
