@@ -187,6 +187,16 @@ def cells_in_disc_margin(keys: Keys, point: Sequence[float], r: float) -> tuple[
                      for i in range(lo - 1, hi + 2)])
     cells: set[tuple[int, ...]] = set()
     margin = s
+    if len(axes) == 2:  # the same, written out for the plane: a moving agent asks every tick or two
+        for i, dx, ex, bx in axes[0]:
+            for j, dy, ey, by in axes[1]:
+                d2 = dx + dy
+                m = abs((math.sqrt(d2) if d2 > 0.0 else -min(ex, ey)) - r)
+                if m < margin:
+                    margin = m
+                if bx and by and d2 <= r2:
+                    cells.add((i, j))
+        return cells, max(margin - ROUNDING, 0.0)
     for combo in itertools.product(*axes):  # in plain floats: an agent asks every tick or two
         d2 = 0.0
         for _, dk, _, _ in combo:  # axis by axis, in this order
