@@ -30,7 +30,9 @@ def test_kill_restart_and_world_outage(tmp_path):
     assert tracks["poses"] > 5 * 100 and tracks["collisions"] == 0
     assert tracks["closest"] is None or tracks["closest"] > 0.1  # None: no pair came within twice 2 d^r
     assert s["collisions_at_one_time"] == 0 and s["judged_at_one_time_s"] > 8.0
-    assert "killed agents" in res.stderr and "restarted agents" in res.stderr and "world frozen" in res.stderr
+    assert "killed agents" in res.stderr and "restarted agents" in res.stderr and "world paused" in res.stderr
+    assert [(e["action"], e.get("what")) for e in s["staged"]] == [
+        ("kill_agents", None), ("restart_agents", None), ("pause", "world"), ("unpause", "world")]
     early = [d for d in s["departures"] if d["t"] < 9.9]
     assert len(early) == 1 and 0.5 < early[0]["t"] < 2.5
     victim = str(early[0]["id"])
@@ -48,6 +50,25 @@ def test_kill_restart_and_world_outage(tmp_path):
     assert early[0]["how"] == "crashed" and "run ended: 5 agents stopped with it" in events, events
     assert "departed" not in events and "left" not in events  # the end of the run is no departure
     assert "world clock stalled" in events, events
+
+
+def test_a_paused_router_agent_and_world_each_go_on_and_nothing_is_lost(tmp_path):
+    """``--pause WHAT@T:S``: the router, an agent and the world each frozen in turn (SIGSTOP) and let go
+    (SIGCONT): no collision, every agent's final report, nobody taken for crashed, the pauses in the
+    summary as they were staged."""
+    res = launch("--agents", "5", "--duration", "16", "--pause", "router@2:2", "--pause", "agent-2@5:2",
+                 "--pause", "world@8:6", "--record", str(tmp_path / "p.rrd"), "--quiet", cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    s = json.loads((tmp_path / "p.json").read_text())
+    assert s["collisions_at_one_time"] == 0 and s["collisions"] == 0
+    assert s["agents_final_reports"] == 5 and s["agents_without_final_report"] == []
+    assert s["departures"] == [] and s["crashed_agents"] == []
+    staged = [(e["action"], e["what"], e["at_s"]) for e in s["staged"]]
+    assert [(a, w) for a, w, _ in staged] == [("pause", "router"), ("unpause", "router"), ("pause", "agent-2"),
+                                             ("unpause", "agent-2"), ("pause", "world"), ("unpause", "world")]
+    assert all(abs(at - due) < 1.0 for (_, _, at), due in zip(staged, (2, 4, 5, 7, 8, 14)))
+    for what in ("router", "agent-2", "world"):
+        assert f"{what} paused at" in res.stderr and f"{what} resumed at" in res.stderr
 
 
 def test_sweep_simulated_resumes_without_touching_finished_cells(tmp_path):

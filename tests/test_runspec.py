@@ -9,7 +9,7 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from zswarm.args import Parser
-from zswarm.launch.chaos import Event, schedule
+from zswarm.launch.chaos import Event, Pause, schedule
 from zswarm.errors import UsageError
 from zswarm.swarm.faults import FaultModel
 from zswarm.net.runspec import CLOCKS, RunSpec, add_run_args, spec_from_args
@@ -70,8 +70,10 @@ def test_invalid_specs_are_usage_errors(kwargs, needle):
 
 
 def test_chaos_is_a_schedule_of_events_in_time_order():
-    events = schedule(kill=(2, 10.0), restart_after=5.0, world_outage=(3.0, 4.0), world_crash=(8.0, 1.0))
-    assert events == [Event(3.0, "freeze_world"), Event(7.0, "thaw_world"), Event(8.0, "kill_world"),
-                      Event(9.0, "resume_world"), Event(10.0, "kill_agents", 2), Event(15.0, "restart_agents")]
+    events = schedule(kill=(2, 10.0), restart_after=5.0, world_outage=(3.0, 4.0), world_crash=(8.0, 1.0),
+                      pauses=[Pause("agent-4", 9.5, 0.5)])
+    assert events == [Event(3.0, "pause", what="world"), Event(7.0, "unpause", what="world"), Event(8.0, "kill_world"),
+                      Event(9.0, "resume_world"), Event(9.5, "pause", what="agent-4"), Event(10.0, "kill_agents", 2),
+                      Event(10.0, "unpause", what="agent-4"), Event(15.0, "restart_agents")]
     assert schedule() == [] and schedule(kill=(1, 2.0)) == [Event(2.0, "kill_agents", 1)]
     assert schedule(world_crash=(4.0, None)) == [Event(4.0, "kill_world")]

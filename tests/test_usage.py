@@ -109,6 +109,13 @@ CASES = [
     ([LAUNCH, "--world-crash", "100", "--duration", "5"], "--world-crash 100: 100 s is after the run's end"),
     ([LAUNCH, "--world-outage", "2:25", "--duration", "30"], "the agents leave a world silent for 30 s"),
     ([LAUNCH, "--world-outage", "3:1", "--role", "agents", "--connect", "tcp/127.0.0.1:1"], "give this machine the world role"),
+    ([LAUNCH, "--agents", "4", "--pause", "agent-7@2:1"], "--pause agent-7@2:1: this machine runs no agent-7 "
+                                                        "(its processes: router, world, agent-0 ... agent-3)"),
+    ([LAUNCH, "--routers", "2", "--pause", "router-2@2:1"], "this machine runs no router-2"),
+    ([LAUNCH, "--pause", "router@2:25", "--duration", "30"], "a router may be paused 20 s at most"),
+    ([LAUNCH, "--pause", "world@40:1", "--duration", "30"], "--pause world@40:1: 40 s is after the run's end"),
+    ([LAUNCH, "--pause", "robot@2:1"], "expected WHAT@T:S with WHAT world, router, router-K or agent-ID"),
+    ([LAUNCH, "--pause", "agent-1@2"], "expected T:S"),
     ([LAUNCH, "--restart-after", "2"], "give --kill K@T too"),
     ([LAUNCH, "--kill", "2@3", "--restart-after", "9", "--duration", "10"], "the restart falls after the run's end"),
     ([LAUNCH, "--routers", "2", "--migrate-every", "30", "--duration", "10"], "no move falls within the run"),

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Sequence
 
 from zswarm.args import Parser, ZenohEndpoint, agent_count, positive_seconds, router_count, run_main, seconds
-from zswarm.launch.chaos import parse_crash, parse_kill, parse_outage
+from zswarm.launch.chaos import parse_crash, parse_kill, parse_outage, parse_pause
 from zswarm.net.runspec import add_run_args
 from zswarm.record.live import add_viewer_args
 
@@ -116,8 +116,12 @@ def build_parser(prog: str = "zswarm run") -> Parser:
     p.add_argument("--restart-after", type=seconds, default=None, metavar="S",
                    help="restart the killed agents S seconds later (they rejoin at their spawn position); with "
                         "--cluster, also the agents of a node that was lost, on the surviving nodes")
+    p.add_argument("--pause", type=parse_pause, action="append", default=None, metavar="WHAT@T:S",
+                   help="freeze a process (SIGSTOP) at T for S seconds, then let it go on (SIGCONT), as a "
+                        "starved or swapped-out machine does: WHAT is world, router, router-K or agent-ID "
+                        "(a robot's bridge is its agent); repeatable (docs/experiments.md)")
     p.add_argument("--world-outage", type=parse_outage, default=None, metavar="T:S",
-                   help="freeze the world (SIGSTOP) at T for S seconds: no prey, no obstacle answers")
+                   help="--pause world@T:S: no prey, no obstacle answers")
     p.add_argument("--world-crash", type=parse_crash, default=None, metavar="T[:S]",
                    help="kill the world (SIGKILL) at T; with :S start a new one S seconds later with --resume "
                         "(it recovers the run from the recording and writes the next segment), without, "

@@ -19,6 +19,7 @@ from typing import Sequence
 from zswarm.args import (Parser, UsageError, add_law_arg, add_param_args, agent_count, loss_probabilities,
                          positive_int, renamed, safety_modes, seed_arg, sim_seconds)
 from zswarm.files import out_dir, write_json
+from zswarm.launch.chaos import parse_pause
 from zswarm.launch.sweep import Cell, aggregate, cell_spec, run_cell_distributed, simulate_cells, write_curves, write_tables
 from zswarm.swarm.faults import FaultModel, parse_duration_list
 
@@ -46,6 +47,9 @@ def build_parser(prog: str = "zswarm sweep") -> Parser:
     add_law_arg(p)
     p.add_argument("--out", type=Path, required=True, help="output directory (reused to resume)")
     p.add_argument("--sim-only", action="store_true", help="only the reference simulator (fast)")
+    p.add_argument("--pause", type=parse_pause, action="append", default=[], metavar="WHAT@T:S",
+                   help="freeze a process of every distributed run at T for S seconds (zswarm run --pause; "
+                        "the simulation has no processes to pause)")
     return p
 
 
@@ -80,7 +84,14 @@ def main(argv: Sequence[str] | None, prog: str = "zswarm sweep") -> int:
     from zswarm.paper.params import parse_assignments
 
     args.overrides = {**parse_assignments(args.assignments), **({"n_agents": args.agents} if args.agents is not None else {})}
-    control_step([get_scenario(args.scenario, args.overrides)], probe=True)  # a bad scenario, set or law stops here
+    scenario = get_scenario(args.scenario, args.overrides)
+    control_step([scenario], probe=True)  # a bad scenario, set or law stops here
+    for pause in args.pause:  # each cell's run would refuse it: once, here
+        if pause.what.startswith("agent-") and int(pause.what.split("-")[1]) >= scenario.n_agents or \
+                pause.what.startswith("router-"):
+            raise UsageError(f"--pause {pause}: a sweep's run has a world, a router and agents 0-{scenario.n_agents - 1}")
+    if args.pause and args.sim_only:
+        raise UsageError("--pause freezes a process of each distributed run: not with --sim-only")
     if args.out.exists() and not args.out.is_dir():
         raise UsageError(f"--out {args.out} is a file; give a directory (a new one, or a sweep's to resume it)")
     out_dir(args.out)

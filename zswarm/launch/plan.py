@@ -52,7 +52,7 @@ class Plan:
     fork: bool
     kill: tuple[int, float] | None
     restart_after: float | None
-    world_outage: tuple[float, float] | None
+    pauses: tuple[chaos.Pause, ...]  # --pause, and --world-outage as the world's
     world_crash: tuple[float, float | None] | None
     viewer: Viewer = Viewer()
     design: dict | None = None
@@ -125,8 +125,15 @@ def plan_from_args(args: argparse.Namespace, cores: int | None = None, memory_mi
         raise UsageError(f"--restart-after must be >= 0 (got {args.restart_after})")
     check_migration(args, spec)
     run_s = spec.steps * spec.scenario.dt
+    pauses = tuple(args.pause or ())
+    if pauses and args.cluster is not None:
+        raise UsageError(f"--pause {pauses[0]}: a cluster's processes run on its nodes; pause one machine's "
+                         "processes without --cluster")
     chaos.check(args.kill, args.restart_after, args.world_outage, args.world_crash, args.migrate_every, len(ids),
-                args.role, run_s, run_s / spec.time_scale, cluster=args.cluster is not None)
+                args.role, run_s, run_s / spec.time_scale, cluster=args.cluster is not None, pauses=pauses,
+                names=process_names(args.role, args.routers, ids))
+    if args.world_outage is not None:
+        pauses = (chaos.Pause("world", *args.world_outage), *pauses)
     tracks = tracks_folder(args.tracks)
     viewer = viewer_from_args(args) if "world" in args.role else Viewer()
     if (viewer.spawn or viewer.serve) and args.world_crash is not None and args.world_crash[1] is not None:
@@ -155,9 +162,17 @@ def plan_from_args(args: argparse.Namespace, cores: int | None = None, memory_mi
                 summary=args.summary or args.record.with_suffix(".json"), trajectory=args.trajectory,
                 connect=args.connect, listen=args.listen, secure=args.secure, config=args.config,
                 router_config=args.router_config, quiet=args.quiet, fork=args.fork, kill=args.kill, restart_after=args.restart_after,
-                world_outage=args.world_outage, world_crash=args.world_crash, viewer=viewer, design=design,
+                pauses=pauses, world_crash=args.world_crash, viewer=viewer, design=design,
                 robots=args.robots, notes=tuple(notes), connect_timeout=args.connect_timeout,
                 tracks=tracks, migrate_every=args.migrate_every, end_after_capture=args.end_after_capture)
+
+
+def process_names(roles: Sequence[str], routers: int, ids: Sequence[int]) -> list[str]:
+    """The names the launcher gives this machine's processes (``--pause`` names one)."""
+    from zswarm.net.security import router_name
+
+    return ([*(router_name(k) for k in range(routers))] if "router" in roles else []) + \
+        (["world"] if "world" in roles else []) + ([f"agent-{i}" for i in ids] if "agents" in roles else [])
 
 
 def check_migration(args: argparse.Namespace, spec: RunSpec) -> None:

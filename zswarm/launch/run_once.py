@@ -15,6 +15,7 @@ import os
 import signal
 import subprocess
 from pathlib import Path
+from typing import Sequence
 
 from zswarm.host.procs import Children
 from zswarm.net.runspec import RunSpec
@@ -22,11 +23,12 @@ from zswarm.net.runspec import RunSpec
 STOP_GRACE_S = 30.0
 
 
-def run_once(spec: RunSpec, record: Path, summary: Path, what: str) -> None:
-    """Run ``spec`` to its end; raise RuntimeError (naming ``what``) with the child's last words if it fails."""
+def run_once(spec: RunSpec, record: Path, summary: Path, what: str, extra: Sequence[str] = ()) -> None:
+    """Run ``spec`` to its end (``extra``: more ``zswarm run`` options); raise RuntimeError (naming
+    ``what``) with the child's last words if it fails."""
     part = summary.with_name(summary.name.removesuffix(".json") + ".part.json")
-    args = ["-m", "zswarm", "run", *spec.to_argv(), "--record", str(record), "--summary", str(part), "--quiet",
-            "--force"]  # an unfinished run of this cell left its files: they are redone
+    args = ["-m", "zswarm", "run", *spec.to_argv(), *extra, "--record", str(record), "--summary", str(part),
+            "--quiet", "--force"]  # an unfinished run of this cell left its files: they are redone
     child = Children().spawn("run", args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:
         _, err = child.proc.communicate()

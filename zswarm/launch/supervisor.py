@@ -70,7 +70,10 @@ class Launch:
         # this machine: its routers bind where --listen says (loopback by default), its agents fork here
         self.local = LocalHost(self.kids, plan.fork, endpoint_host_port(plan.listen)[0] if plan.listen else LOOPBACK)
         self.watch: WorldWatch | None = None  # with chaos to time: the world's start, heard on Zenoh
-        self.pending: list[Event] = schedule(plan.kill, plan.restart_after, plan.world_outage, plan.world_crash)
+        self.pending: list[Event] = schedule(plan.kill, plan.restart_after, world_crash=plan.world_crash,
+                                             pauses=plan.pauses)
+        self.staged: list[dict] = []  # each fault as it was staged, for the summary
+        self.paused: dict[str, Child] = {}  # frozen now: let go before anything is stopped
         self.rng = np.random.default_rng([self.spec.seed, 0xC0FFEE])
         self.killed: list[int] = []
         self.expected_exits: set[str] = set()  # children chaos killed on purpose
@@ -358,8 +361,12 @@ class Launch:
                 and any(c.name in self.crashed for c in agents))
 
     def _stage(self, event: Event, t: float) -> None:
-        """Carry out one scheduled event (world events only where this machine runs the world)."""
+        """Carry out one scheduled event (world events only where this machine runs the world); each one
+        staged goes into the summary's ``staged``, at the wall time since the world's clock started."""
         world = self.world
+        if world is not None or event.action in ("kill_agents", "restart_agents", "pause", "unpause"):
+            self.staged.append({"at_s": round(t, 3), "action": event.action, **({"what": event.what} if event.what else {}),
+                                **({"count": event.count} if event.count else {})})
         if event.action == "kill_agents":
             alive = [c for c in self.kids.named("agent") if c.alive()]
             chosen = self.rng.choice(len(alive), size=min(event.count, len(alive)), replace=False)
@@ -372,6 +379,12 @@ class Launch:
             for i in self.killed:
                 self._spawn_agent(i)
             _say(f"restarted agents {sorted(self.killed)} at {t:.1f} s")
+        elif event.action == "pause":
+            self._pause(event.what, t)
+            return
+        elif event.action == "unpause":
+            self._unpause(event.what, t)
+            return
         elif world is None:
             return
         elif event.action == "kill_world":
@@ -383,12 +396,24 @@ class Launch:
             self._spawn_world(resume=True)
             self.world_down = False
             _say(f"started a new world at {t:.1f} s (--resume)")
-        elif event.action == "freeze_world":
-            world.proc.send_signal(signal.SIGSTOP)
-            _say(f"world frozen at {t:.1f} s")
-        elif event.action == "thaw_world":
-            world.proc.send_signal(signal.SIGCONT)
-            _say(f"world resumed at {t:.1f} s")
+
+    def _pause(self, what: str, t: float) -> None:
+        """Freeze the process named ``what`` (its newest, where an agent has moved), as a machine that
+        stops scheduling it would."""
+        live = [c for c in self.kids.children if c.name == what and c.alive()]
+        if not live:
+            self.staged[-1]["not_running"] = True
+            _say(f"{what} is not running at {t:.1f} s: nothing to pause")
+            return
+        live[-1].proc.send_signal(signal.SIGSTOP)
+        self.paused[what] = live[-1]
+        _say(f"{what} paused at {t:.1f} s")
+
+    def _unpause(self, what: str, t: float) -> None:
+        child = self.paused.pop(what, None)
+        if child is not None and child.alive():
+            child.proc.send_signal(signal.SIGCONT)
+            _say(f"{what} resumed at {t:.1f} s")
 
     # --- end ------------------------------------------------------------------------------------------
 
@@ -427,7 +452,8 @@ class Launch:
         return {"routers": self.endpoints, "agent_router": agent_router, "crashed_agents": sorted(how),
                 "crashes": {str(i): how[i] for i in sorted(how)},
                 "law_failures": sorted(i for i, code in exits.items() if code == EXIT_LAW_FAILED),
-                "security": {"tls": secure, "acl": secure, "ray_auth": self.ray_auth}, **self._migration_summary()}
+                "security": {"tls": secure, "acl": secure, "ray_auth": self.ray_auth}, "staged": self.staged,
+                **self._migration_summary()}
 
     @property
     def ray_auth(self) -> str | None:

@@ -50,7 +50,8 @@ def cell_spec(cell: Cell, args: argparse.Namespace, jitter: float) -> RunSpec:
 
 
 def run_cell_distributed(cell: Cell, args: argparse.Namespace, folder: Path, jitter: float) -> None:
-    run_once(cell_spec(cell, args, jitter), folder / "run.rrd", folder / "run.json", f"cell {cell.name}")
+    pauses = [a for p in getattr(args, "pause", ()) for a in ("--pause", str(p))]
+    run_once(cell_spec(cell, args, jitter), folder / "run.rrd", folder / "run.json", f"cell {cell.name}", pauses)
 
 
 def simulate_cell(cell: Cell, args: argparse.Namespace, jitter: float, **kw):
