@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 
 from zswarm.net import histogram
@@ -30,6 +31,7 @@ class Counters:
     heard: dict[int, int] = field(default_factory=dict)  # id -> poses of it taken in
     seq_received: int = 0
     seq_lost: int = 0
+    born: float = field(default_factory=time.time)  # wall time its first process started (a taker-over carries it)
     departed: dict[int, float] = field(default_factory=dict)
     returned: dict[int, float] = field(default_factory=dict)
     # since the last stats message: the longest inbound queue seen at a tick, and the latest tick start
@@ -68,7 +70,7 @@ class Counters:
         heard, heard_poses = self.heard_lists()
         return msg.Stats(agent, self.sent, self.received, dict(self.rejections.counts), self.late_ticks, self.ticks,
                          dict(self.ages), dict(self.latency), final, health, heard,
-                         dict(self.departed), dict(self.returned), heard_poses)
+                         dict(self.departed), dict(self.returned), heard_poses, self.born)
 
     def heard_lists(self) -> tuple[tuple[int, ...], tuple[int, ...]]:
         """The ids heard (sorted, at most MAX_HEARD) and the poses taken in from each."""

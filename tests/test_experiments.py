@@ -53,22 +53,29 @@ def test_kill_restart_and_world_outage(tmp_path):
 
 
 def test_a_paused_router_agent_and_world_each_go_on_and_nothing_is_lost(tmp_path):
-    """``--pause WHAT@T:S``: the router, an agent and the world each frozen in turn (SIGSTOP) and let go
-    (SIGCONT): no collision, every agent's final report, nobody taken for crashed, the pauses in the
-    summary as they were staged."""
-    res = launch("--agents", "5", "--duration", "16", "--pause", "router@2:2", "--pause", "agent-2@5:2",
-                 "--pause", "world@8:6", "--record", str(tmp_path / "p.rrd"), "--quiet", cwd=tmp_path)
+    """``--pause WHAT@T:S``: the router, the world and two agents each frozen in turn (SIGSTOP) and let go
+    (SIGCONT): no collision, every agent's final report, the pauses in the summary as they were staged.
+    Agent 1, frozen for less than its link's lease (10 s), is nobody's departure; agent 2, frozen for
+    longer, is seen to go when its router closes its link and to come back, and is told unreachable,
+    not crashed."""
+    res = launch("--agents", "5", "--duration", "22", "--pause", "router@2:2", "--pause", "world@4:3",
+                 "--pause", "agent-1@5:2", "--pause", "agent-2@8:11", "--record", str(tmp_path / "p.rrd"),
+                 "--quiet", cwd=tmp_path)
     assert res.returncode == 0, res.stderr
     s = json.loads((tmp_path / "p.json").read_text())
     assert s["collisions_at_one_time"] == 0 and s["collisions"] == 0
     assert s["agents_final_reports"] == 5 and s["agents_without_final_report"] == []
-    assert s["departures"] == [] and s["crashed_agents"] == []
+    assert [(d["id"], d["how"]) for d in s["departures"]] == [(2, "unreachable")], s["departures"]
+    assert 17.0 < s["departures"][0]["t"] < 19.5 and s["crashed_agents"] == []
     staged = [(e["action"], e["what"], e["at_s"]) for e in s["staged"]]
-    assert [(a, w) for a, w, _ in staged] == [("pause", "router"), ("unpause", "router"), ("pause", "agent-2"),
-                                             ("unpause", "agent-2"), ("pause", "world"), ("unpause", "world")]
-    assert all(abs(at - due) < 1.0 for (_, _, at), due in zip(staged, (2, 4, 5, 7, 8, 14)))
-    for what in ("router", "agent-2", "world"):
+    assert [(a, w) for a, w, _ in staged] == [
+        ("pause", "router"), ("unpause", "router"), ("pause", "world"), ("pause", "agent-1"), ("unpause", "world"),
+        ("unpause", "agent-1"), ("pause", "agent-2"), ("unpause", "agent-2")]
+    assert all(abs(at - due) < 1.0 for (_, _, at), due in zip(staged, (2, 4, 4, 5, 7, 7, 8, 19)))
+    for what in ("router", "world", "agent-1", "agent-2"):
         assert f"{what} paused at" in res.stderr and f"{what} resumed at" in res.stderr
+    events = " | ".join(recorded_events(tmp_path / "p.rrd"))
+    assert "agent 2 was unreachable from" in events and "agent 2 returned" in events, events
 
 
 def test_sweep_simulated_resumes_without_touching_finished_cells(tmp_path):

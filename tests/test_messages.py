@@ -21,9 +21,10 @@ poses = st.one_of(st.builds(msg.Pose, *pose_fields, z=st.none(), vz=st.none(), s
 hist = st.dictionaries(st.integers(0, msg.MAX_HIST_BINS - 1), st.integers(0, 10**6), max_size=20)
 
 
-def _stats(heard: list[tuple[int, int]], *fields) -> msg.Stats:
+def _stats(heard: list[tuple[int, int]], *fields, born: float | None = None) -> msg.Stats:
     """A Stats message whose heard ids and their pose counts line up."""
-    return msg.Stats(*fields[:10], tuple(i for i, _ in heard), *fields[10:], heard_poses=tuple(n for _, n in heard))
+    return msg.Stats(*fields[:10], tuple(i for i, _ in heard), *fields[10:], heard_poses=tuple(n for _, n in heard),
+                     born=born)
 
 
 stats = st.builds(_stats,
@@ -33,7 +34,8 @@ stats = st.builds(_stats,
                   st.integers(0, 10**6), st.integers(0, 10**6), hist, hist, st.booleans(),
                   st.builds(msg.Health, *[st.integers(0, 10**9)] * 6, st.floats(0, 1e5)),
                   st.dictionaries(st.integers(0, 1000), st.floats(0, 2e9), max_size=3),
-                  st.dictionaries(st.integers(0, 1000), st.floats(0, 2e9), max_size=3))
+                  st.dictionaries(st.integers(0, 1000), st.floats(0, 2e9), max_size=3),
+                  born=st.one_of(st.none(), st.floats(0, 2e9)))
 messages = st.one_of(
     poses,
     st.builds(msg.Prey, st.integers(0, 2**40), st.floats(0, 2e9), st.integers(-1, 10**6), finite, finite,

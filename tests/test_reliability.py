@@ -74,6 +74,7 @@ def test_router_restart_mid_run(tmp_path):
     assert gaps[outage] > 1.0, (sorted(gaps)[-3:], s["departures"], s["pose_gaps"])
     # and said why every agent seemed to go at once: the world itself lost the router
     assert sum("cut off from its router" in e for e in recorded_events(record)) == 1, recorded_events(record)
+    assert s["departures"] and {d["how"] for d in s["departures"]} == {"world cut off"}, s["departures"]
     after = frames[outage + 1:]
     complete = [k for k, f in enumerate(after) if set(f.ids.tolist()) == {0, 1, 2}]
     assert complete and after[complete[0]].t - after[0].t < 3.0  # every agent is back within 3 s

@@ -57,7 +57,9 @@ class Census:
     alive: set[int] = field(default_factory=set)
     cut_off: set[int] = field(default_factory=set)  # gone while the world had no router: their tokens went with it
     arrivals: list[dict[str, Any]] = field(default_factory=list)
-    departures: list[dict[str, Any]] = field(default_factory=list)  # each with "how": "crashed" or "left"
+    # each with "how": "left", "crashed", "unreachable" (it came back: :meth:`World.tell_unreachable`) or
+    # "world cut off" (the world's link went, and the tokens with it)
+    departures: list[dict[str, Any]] = field(default_factory=list)
     pending: dict[int, dict[str, Any]] = field(default_factory=dict)  # gone, not yet told apart
     stopped_at_end: list[int] = field(default_factory=list)  # agents that stopped because the run ended
     all_alive_after: float | None = None  # wall seconds from the world's start
@@ -233,6 +235,7 @@ class World:
             else:
                 if not connected(self.session):  # the token went with the world's own link
                     c.cut_off.add(who)
+                    event["world_cut_off"] = True
                 if c.cut_off and not self.said_cut_off:
                     self.said_cut_off = True
                     self.event(f"world: cut off from its router at t = {self.clock.t:.2f} s: the agents' tokens "
@@ -260,13 +263,26 @@ class World:
         for who, event in list(c.pending.items()):
             if only is not None and who != only:
                 continue
-            how = how_gone(self.stats.final(who), now - event["seen"], settle=force)
+            how = "world cut off" if event.get("world_cut_off") else \
+                how_gone(self.stats.final(who), now - event["seen"], settle=force)
             if how == "going":
                 continue
             del c.pending[who]
-            c.departures.append({k: v for k, v in event.items() if k != "seen"} | {"how": how})
-            self.event(f"agent {who} {how} at t = {event['t']:.2f} s"
-                       + ("" if how == "left" else " (no final report: killed or failed)"))
+            c.departures.append({k: v for k, v in event.items() if k not in ("seen", "world_cut_off")} | {"how": how})
+            self.event(f"agent {who} {how} at t = {event['t']:.2f} s" + {
+                "left": "", "world cut off": " (its token went with the world's link)"}.get(
+                how, " (no final report: killed or failed)"))
+
+    def tell_unreachable(self) -> None:
+        """A departure taken for a crash, whose agent's final report came from a process that started
+        before it went, was no crash: that process lived on, frozen or cut off from its router for longer
+        than its link's lease (Zenoh's, 10 s), and came back (docs/experiments.md)."""
+        for d in self.census.departures:
+            st = self.stats.get(d["id"]) if d["how"] == "crashed" else None
+            if st is not None and st.final and st.born is not None and st.born < self.started_wall + d["wall"] - 1.0:
+                d["how"] = "unreachable"
+                self.event(f"agent {d['id']} was unreachable from t = {d['t']:.2f} s, not crashed: the process "
+                           "that reported at the end had started before (frozen, or cut off from its router)")
 
     def answer_positions(self, _params: dict[str, str]) -> list[tuple[str, bytes]]:
         """The queryable ``keys.positions`` (on a Zenoh thread): where each live agent was last observed,
@@ -479,6 +495,7 @@ class World:
         result["messages_sent"] += self.sent
         result["messages_received"] += self.received
         self.settle_departures(force=True)
+        self.tell_unreachable()
         if self.ending:  # an agent that sent its final report is stopping with the run, token or not yet
             self.census.stopped_at_end += [w for w in sorted(self.census.alive)
                                            if self.stats.final(w) and w not in self.census.stopped_at_end]

@@ -177,6 +177,7 @@ class Stats:
     departed: dict[int, float] | None = None  # id -> wall time it first dropped that neighbour
     returned: dict[int, float] | None = None  # id -> wall time a dropped neighbour was first heard again
     heard_poses: tuple[int, ...] = ()  # how many poses of each id in ``heard`` it took in (same order)
+    born: float | None = None  # wall time the reporting process started (it may have outlived a departure)
 
 
 Message = Union[Pose, Prey, Tick, Obstacles, Stats]
@@ -293,7 +294,8 @@ def encode(msg: Message) -> bytes:
                       "ages": dict(msg.age_hist), "lat": dict(msg.latency_hist), "f": msg.final,
                       "x": {name: getattr(health, name) for name in HEALTH_FIELDS}, "h": list(msg.heard[:MAX_HEARD]),
                       "hn": list(msg.heard_poses[:MAX_HEARD]),
-                      "dep": dict(msg.departed or {}), "ret": dict(msg.returned or {})})
+                      "dep": dict(msg.departed or {}), "ret": dict(msg.returned or {}),
+                      **({} if msg.born is None else {"b": msg.born})})
     raise TypeError(f"cannot encode {type(msg).__name__}")
 
 
@@ -488,5 +490,6 @@ def _other(obj: dict, kind: Any) -> Message:
                      _int(obj, "late"), _int(obj, "ticks"),
                      _bins(ages), _bins(lat), bool(obj.get("f", False)),
                      health, tuple(heard),
-                     _times(obj.get("dep", {}), "dep"), _times(obj.get("ret", {}), "ret"), tuple(heard_n))
+                     _times(obj.get("dep", {}), "dep"), _times(obj.get("ret", {}), "ret"), tuple(heard_n),
+                     None if obj.get("b") is None else _float(obj["b"], "b", 1e11))
     raise DecodeError("kind", f"unknown kind {kind!r}")
