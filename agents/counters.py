@@ -31,7 +31,7 @@ class Counters:
     heard: dict[int, int] = field(default_factory=dict)  # id -> poses of it taken in
     seq_received: int = 0
     seq_lost: int = 0
-    born: float = field(default_factory=time.time)  # wall time its first process started (a taker-over carries it)
+    born: float = field(default_factory=time.time, compare=False)  # wall time its first process started (a taker-over carries it)
     departed: dict[int, float] = field(default_factory=dict)
     returned: dict[int, float] = field(default_factory=dict)
     # since the last stats message: the longest inbound queue seen at a tick, and the latest tick start
