@@ -102,12 +102,46 @@ LONGEST_FIRST = (
 )
 
 
+#: The second tier (``-m deep``, which ``.ci/run`` runs after the README's command): process tests that
+#: hold at length what a cheaper test of the first tier holds, and the optional extras. Whole modules, or
+#: single tests (by name, with or without their parameters).
+DEEP_MODULES = {
+    "test_cluster",  # Ray clusters in network namespaces: the cluster extra
+    "test_secure_options",  # each option again under --secure: test_security holds TLS and the access control
+    "test_install",  # a wheel installed elsewhere: CI's own install of the package does the same
+    "test_netns",  # hosts in network namespaces (root)
+    "test_render",  # the real Rerun viewer, headless
+    "test_study",  # the guideline study's table
+}
+DEEP_TESTS = {
+    "test_the_grown_set_passes_the_design_checks_at_that_size[large-swarm-1000]",  # N = 100 holds the check
+    "test_an_interrupted_tune_resumes_to_the_same_result_losing_no_evaluation",  # tune's resume, at length
+    "test_a_tune_that_does_not_beat_the_start_keeps_the_start_and_says_so",
+    "test_interrupted_distributed_sweep_resumes",  # the simulated sweep's resume holds it
+    "test_random_scenario_files_are_run_or_refused_in_one_line_leaving_nothing_behind",  # the listed mistakes hold it
+    "test_flood_of_hostile_messages_changes_nothing",  # test_forged_pose and the decoder's fuzzing hold it
+    # 3-D as processes again: test_distributed's 3-D lockstep run holds it
+    "test_the_3d_demo_runs_as_processes_and_catches_the_prey",
+    "test_faults_a_crash_a_2d_stranger_and_the_monitor_in_3d",
+    "test_the_3d_demo_recording_opens_in_a_3d_view",
+    # a world replaced: test_world_killed_at_once_is_replaced_and_the_run_still_adds_up holds it
+    "test_world_killed_and_restarted_continues_the_run_in_a_new_segment",
+    # the same plumbing for other interactions and a static goal: the simulators' tests hold those
+    "test_lockstep_swarm_reproduces_the_reference_and_catches_the_prey[static-goal-15.0-paper-point-off]",
+    "test_lockstep_swarm_reproduces_the_reference_and_catches_the_prey[moving-prey-10.0-mean+gate-point-barrier]",
+    "test_lockstep_swarm_reproduces_the_reference_and_catches_the_prey[moving-prey-6.0-mean+gate+swirl-point-barrier]",
+}
+
+
 def pytest_collection_modifyitems(config, items) -> None:
-    """The ``procs`` marker: ``-m "not procs"`` is the quick tier (the math, the messages, the checks).
+    """The ``procs`` marker: ``-m "not procs"`` is the quick tier (the math, the messages, the checks);
+    the ``deep`` marker: the second tier (:data:`DEEP_MODULES`, :data:`DEEP_TESTS`).
     The order: :data:`LONGEST_FIRST`, then the rest (a stable sort: tests keep their order in a module)."""
     for item in items:
         if item.module.__name__ in PROCESS_MODULES or "cli" in getattr(item, "fixturenames", ()):
             item.add_marker(pytest.mark.procs)
+        if item.module.__name__ in DEEP_MODULES or item.name in DEEP_TESTS or item.originalname in DEEP_TESTS:
+            item.add_marker(pytest.mark.deep)
     rank = {name: k for k, name in enumerate(LONGEST_FIRST)}
     items.sort(key=lambda item: rank.get(item.module.__name__, len(LONGEST_FIRST)))
 
