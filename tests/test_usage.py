@@ -136,6 +136,8 @@ CASES = [
     (["-m", "zswarm", "run", "--agents", "0"], "expected a number of agents >= 1"),
     (["-m", "zswarm", "sweep", "--out", "{junk}"], "is a file"),
     ([LAUNCH, "sweep", "--out", "{dir}/s", "--scenario", "nope"], "unknown scenario"),
+    ([LAUNCH, "sweep", "--out", "{dir}/s", "--pause", "agent-10@1:1"], "a sweep's run has a world, a router and agents 0-9"),
+    ([LAUNCH, "sweep", "--out", "{dir}/s", "--pause", "world@1:1", "--sim-only"], "not with --sim-only"),
     ([LAUNCH, "sweep", "--out", "{dir}/s", "--latency", "1ms,x"], "expected a duration"),
     ([LAUNCH, "sweep", "--out", "{dir}/s", "--latency", "0,100"], "'100' needs a unit: 100ms or 100s"),
     ([LAUNCH, "sweep", "--out", "{dir}/s", "--dropout", "1.5"], "expected a loss probability in [0, 1)"),

@@ -87,8 +87,8 @@ def main(argv: Sequence[str] | None, prog: str = "zswarm sweep") -> int:
     scenario = get_scenario(args.scenario, args.overrides)
     control_step([scenario], probe=True)  # a bad scenario, set or law stops here
     for pause in args.pause:  # each cell's run would refuse it: once, here
-        if pause.what.startswith("agent-") and int(pause.what.split("-")[1]) >= scenario.n_agents or \
-                pause.what.startswith("router-"):
+        if pause.what.startswith("router-") or (
+                pause.what.startswith("agent-") and int(pause.what.split("-")[1]) >= scenario.n_agents):
             raise UsageError(f"--pause {pause}: a sweep's run has a world, a router and agents 0-{scenario.n_agents - 1}")
     if args.pause and args.sim_only:
         raise UsageError("--pause freezes a process of each distributed run: not with --sim-only")

@@ -101,7 +101,7 @@ def check(kill: tuple[int, float] | None, restart_after: float | None, world_out
             raise UsageError(f"--pause {p}: this machine runs no {p.what} (its processes: {have})")
         if p.at >= wall_s:
             raise UsageError(f"--pause {p}: {p.at:g} s is after the run's end: {end}")
-        if p.what != "agent" and not p.what.startswith("agent-") and p.length > WORLD_AWAY_MAX_S:
+        if not p.what.startswith("agent-") and p.length > WORLD_AWAY_MAX_S:
             raise UsageError(f"--pause {p}: the agents leave a world they have not heard for {WORLD_SILENT_S:g} s, "
                              f"so the world or a router may be paused {WORLD_AWAY_MAX_S:g} s at most "
                              f"(give S <= {WORLD_AWAY_MAX_S:g})")
