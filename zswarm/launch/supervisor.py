@@ -73,7 +73,7 @@ class Launch:
         self.pending: list[Event] = schedule(plan.kill, plan.restart_after, world_crash=plan.world_crash,
                                              pauses=plan.pauses)
         self.staged: list[dict] = []  # each fault as it was staged, for the summary
-        self.paused: dict[str, Child] = {}  # frozen now: let go before anything is stopped
+        self.paused: dict[str, Child] = {}  # frozen now, by name: each is let go at its time (and by any stop)
         self.rng = np.random.default_rng([self.spec.seed, 0xC0FFEE])
         self.killed: list[int] = []
         self.expected_exits: set[str] = set()  # children chaos killed on purpose
