@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from zswarm.bench.measure import CpuWindow, pss_mb, rss_mb
-from zswarm.design.guidelines import verdict
+from zswarm.launch.plan import judge_design
 from zswarm.launch.world_watch import wait_for_start
 from zswarm.swarm.faults import FaultModel
 from zswarm.host.local import LocalHost
@@ -41,10 +41,10 @@ def start_routers(host: LocalHost, k: int) -> list[str]:
 
 
 def judged(spec: RunSpec) -> list[str]:
-    """The world's ``--design`` with the set's verdict, judged here as ``zswarm run`` judges it before it
-    starts anything. A world left to judge it spends a core for over a second beside its starting swarm:
+    """The world's ``--design`` with the set's verdict, judged here by ``zswarm run``'s own judge before
+    anything starts. A world left to judge it spends a core for over a second beside its starting swarm:
     on 2 cores that doubled the start-up and the pose latency p99 of 50 agents (docs/benchmarks.md)."""
-    return ["--design", json.dumps(verdict(spec.scenario.params, spec.scenario.dt, spec.safety))]
+    return ["--design", json.dumps(judge_design(spec, required=False))]
 
 
 def start_field(kids: Children, spec: RunSpec, summary_path: Path, routers: int = 1) -> tuple[str, Child, list[Child]]:

@@ -86,9 +86,11 @@ def main(argv: Sequence[str] | None, prog: str = "zswarm sweep") -> int:
     args.overrides = {**parse_assignments(args.assignments), **({"n_agents": args.agents} if args.agents is not None else {})}
     scenario = get_scenario(args.scenario, args.overrides)
     control_step([scenario], probe=True)  # a bad scenario, set or law stops here
+    from zswarm.launch.plan import process_names
+
+    names = process_names(("router", "world", "agents"), 1, range(scenario.n_agents))  # each cell's one run
     for pause in args.pause:  # each cell's run would refuse it: once, here
-        if pause.what.startswith("router-") or (
-                pause.what.startswith("agent-") and int(pause.what.split("-")[1]) >= scenario.n_agents):
+        if pause.what not in names:
             raise UsageError(f"--pause {pause}: a sweep's run has a world, a router and agents 0-{scenario.n_agents - 1}")
     if args.pause and args.sim_only:
         raise UsageError("--pause freezes a process of each distributed run: not with --sim-only")
