@@ -134,3 +134,36 @@ def test_the_world_sends_the_prey_as_data_and_only_ticks_ahead_of_it():
     assert heard["w/tick"] == (True, zenoh.Priority.INTERACTIVE_HIGH, zenoh.CongestionControl.BLOCK)
     assert heard["w/again"] == (True, zenoh.Priority.DATA, zenoh.CongestionControl.DROP)
     assert world.sent == 3
+
+
+def test_tokens_that_go_just_before_the_worlds_own_link_go_with_it():
+    """A router that stops closes its clients' links in turn: the world can hear an agent's token go a
+    moment before it loses its own link. That agent is cut off with the rest, not crashed (a real
+    router session, closed under a real client world)."""
+    import time
+
+    from world.recorder import WorldRecorder
+    from world.world import World
+    from zswarm.host.procs import free_port
+    from zswarm.net.config import connected, open_session, zenoh_config
+    from zswarm.net.runspec import RunSpec
+
+    spec = RunSpec(run="cutoff", scenario_name="moving-prey", overrides=(("n_agents", 3),))
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    router = open_session(zenoh_config("router", listen=[endpoint]), "router")
+    with open_session(zenoh_config("client", connect=[endpoint]), "world", retry_for=10.0) as session:
+        world = World(spec, session, WorldRecorder(None, None, None, 3, spec.scenario.dt), [])
+        for who in range(3):
+            world._on_liveliness(who, deleted=False)
+        assert connected(session)
+        world._on_liveliness(0, deleted=True)  # the router closed agent 0's link first
+        router.close()
+        deadline = time.monotonic() + 10.0
+        while connected(session) and time.monotonic() < deadline:
+            time.sleep(0.01)
+        world._on_liveliness(1, deleted=True)
+        world._on_liveliness(2, deleted=True)
+        world.settle_departures(force=True)
+    assert {d["id"]: d["how"] for d in world.census.departures} == {0: "world cut off", 1: "world cut off",
+                                                                     2: "world cut off"}
+    assert world.census.cut_off == {0, 1, 2}

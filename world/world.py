@@ -48,6 +48,9 @@ STALL = 1.0  # seconds behind its clock at which the world logs a stall event
 TICK_QOS = {"congestion_control": zenoh.CongestionControl.BLOCK, "priority": zenoh.Priority.INTERACTIVE_HIGH,
             "express": True}
 RESENT_QOS = {"express": True}  # a repeated final tick: at once, and dropped where a link is full
+#: A token that went this long before the world found its own link gone went with that link: a router
+#: that stops closes its clients' links one after another, the world's among them.
+LINKS_CLOSE_WITHIN_S = 0.5
 
 
 @dataclass
@@ -233,7 +236,12 @@ class World:
                 if who not in c.stopped_at_end:  # a token seen going twice (it came back between) counts once
                     c.stopped_at_end.append(who)
             else:
-                if not connected(self.session):  # the token went with the world's own link
+                if not connected(self.session):  # the token went with the world's own link, and so did
+                    now = time.monotonic()  # those that went just before (a stopping router closes its links in turn)
+                    for other, gone in c.pending.items():
+                        if now - gone["seen"] < LINKS_CLOSE_WITHIN_S:
+                            c.cut_off.add(other)
+                            gone["world_cut_off"] = True
                     c.cut_off.add(who)
                     event["world_cut_off"] = True
                 if c.cut_off and not self.said_cut_off:
