@@ -84,15 +84,13 @@ class Agent:
     def move(self, goal: tuple[float, ...], step: int | None = None) -> None:
         """One control step (:meth:`zswarm.control.step.ControlStep.one`) from what it senses: its law's
         command, through the safety filter, and its body's step under it, or, beside a robot, the command
-        sent to the robot as a Twist (a silent robot is stopped and the agent leaves:
+        sent to the robot as a Twist (a silent robot is held stopped, and one silent too long makes the agent leave:
         :meth:`agents.robot_link.RobotLink.check`). ``step``: the lockstep step whose poses it steers on
         (None: free, the newest). A law that raises or answers with something other than a velocity
         leaves the agent braking (:attr:`law_failure` says why, in one line; the clock loops end the
         process on it)."""
-        if self.robot is not None:
-            self.robot.check(time.time())
-            if not self.follow_robot():
-                return
+        if self.robot is not None and not (self.robot.check(time.time()) and self.follow_robot()):
+            return
         filtered = self.control.filter is not None
         late = step is None and filtered and self.late_world()
         neighbours, guarded = self.sensing.sense(step, self.staleness, self.spec.time_scale, self.dt,

@@ -30,7 +30,7 @@ from zswarm.net.bridge import Bridge, Deliver, Inbound, teardown
 from zswarm.net.config import add_zenoh_args, config_from_args, connected, open_session
 from zswarm.net.injector import FaultInjector
 from zswarm.net.rings import CELL_CAPACITY
-from zswarm.net.runspec import WORLD_SILENT_S, RunSpec, add_run_args, spec_from_args
+from zswarm.net.runspec import LEASE_S, WORLD_SILENT_S, RunSpec, add_run_args, spec_from_args
 from zswarm.stopping import stop_on_signals
 
 #: An agent puts its final report again every FINAL_RESEND_S until the world says it holds it
@@ -78,8 +78,11 @@ def build_parser() -> Parser:
                              "its clock started: it ended or died without a final tick heard here (default "
                              f"{WORLD_SILENT_S:g} s)")
     parser.add_argument("--odom-timeout", type=seconds, default=1.0,
-                        help="with a robot: stop it and leave the swarm when its odometry stops this long "
-                             "(default 1 s)")
+                        help="with a robot: hold it stopped while its odometry has stopped this long, until it "
+                             "comes back (default 1 s)")
+    parser.add_argument("--odom-lost", type=seconds, default=LEASE_S, metavar="S",
+                        help="with a robot: stop it and leave the swarm when its odometry has stopped S seconds "
+                             f"(default {LEASE_S:g} s: as long as a pause may be)")
     add_run_args(parser)
     add_zenoh_args(parser)
     return parser
@@ -143,7 +146,7 @@ class Process:
             from agents.robot_link import RobotLink
 
             link = RobotLink(robot, robots.route, self.session, p.swarm.v_max, p.body.lookahead,
-                             sensing.counters.rejections, args.odom_timeout, args.id)
+                             sensing.counters.rejections, args.odom_timeout, args.id, args.odom_lost)
         injector = (FaultInjector(spec.faults, args.id, loop, sensing.handle, sensing.fault_source)
                     if spec.faults.active else None)
         self.bridge = Bridge(self.session, loop, inbound_chain(sensing, injector, link), batch=loop is None,
@@ -358,6 +361,9 @@ def robots_file(args: argparse.Namespace, spec: RunSpec) -> RobotsFile | None:
 
     if not 0.0 < args.odom_timeout <= 60.0:
         raise UsageError(f"--odom-timeout must be in (0, 60] s (got {args.odom_timeout})")
+    if not args.odom_timeout < args.odom_lost <= 600.0:
+        raise UsageError(f"--odom-lost must be above --odom-timeout ({args.odom_timeout:g} s) and at most 600 s "
+                         f"(got {args.odom_lost:g})")
     return robots_for_run(args.robots, spec.scenario.name, spec.scenario.dimensions, spec.clock, spec.time_scale)
 
 

@@ -8,21 +8,24 @@ the robot's limits or the scenario's v_max. On rmw_zenoh every command carries t
 subscriber needs (:class:`zswarm.ros.wire.Attachment`).
 
 Safety at the boundary: a sample that does not decode is counted by reason and dropped; a robot whose
-odometry stops for ``odom_timeout`` seconds is sent a zero Twist and its agent leaves the swarm; an
-agent that stops (cleanly or not) leaves its robot stopped: it sends a zero Twist when it can, and the
-robot's own command timeout stops it when it cannot.
+odometry stops for ``odom_timeout`` seconds is held (sent a zero Twist each tick) until its odometry
+comes back, and its agent leaves the swarm once it has been silent ``odom_lost`` seconds; an agent that
+stops (cleanly or not) leaves its robot stopped: it sends a zero Twist when it can, and the robot's own
+command timeout stops it when it cannot. docs/robots.md says why.
 """
 
 from __future__ import annotations
 
 import math
 import os
+import sys
 import time
 
 import numpy as np
 
 from zswarm.errors import Failure
 from zswarm.control import body as bodies
+from zswarm.net.runspec import LEASE_S
 from zswarm.ros import graph
 from zswarm.ros.motion import Odom, read_pose, twist
 from zswarm.ros.robots import TWIST, Robot
@@ -35,9 +38,11 @@ class RobotLink:
     subscription to :attr:`odom_key` that the agent's process declares (:mod:`agents.main`)."""
 
     def __init__(self, robot: Robot, route: Route, session, v_max: float, lookahead: float, rejections,
-                 odom_timeout: float = 1.0, agent_id: int = 0) -> None:
+                 odom_timeout: float = 1.0, agent_id: int = 0, odom_lost: float = LEASE_S) -> None:
         self.robot, self.route, self.session, self.rejections = robot, route, session, rejections
-        self.odom_timeout = odom_timeout
+        self.odom_timeout, self.odom_lost = odom_timeout, odom_lost
+        self.held_since: float | None = None  # wall time of the last odometry before a silence it is held for
+        self.regained = 0  # silences its odometry came back from
         self.spec = bodies.BodySpec("unicycle", min(robot.max_linear, v_max), robot.max_angular, lookahead)
         self.odom_key = route.key(robot.odom, robot.pose_type)
         self.publisher = session.declare_publisher(route.key(robot.cmd_vel, TWIST))
@@ -68,12 +73,30 @@ class RobotLink:
         self.pose = Odom(x, y, yaw, odom.u, odom.omega, odom.stamp)
         self.heard_at = received
 
-    def check(self, now: float) -> None:
-        """A robot silent for longer than ``odom_timeout`` is stopped, and its agent leaves (:class:`Failure`)."""
-        if now - self.heard_at > self.odom_timeout and self.pose is not None:
+    def check(self, now: float) -> bool:
+        """Whether the robot may be driven: its odometry is fresh. One silent for ``odom_timeout`` seconds
+        is held (a zero Twist; False) until its odometry comes back, each said once on stderr; one silent
+        for ``odom_lost`` seconds is stopped and its agent leaves (:class:`Failure`)."""
+        if self.pose is None:  # none heard yet: the agent waits for the first
+            return True
+        silent, name = now - self.heard_at, self.robot.namespace
+        if silent > self.odom_lost:
             self.stop()
-            raise Failure(f"robot {self.robot.namespace} sent no odometry for {self.odom_timeout:g} s: "
+            raise Failure(f"robot {name} sent no odometry for {self.odom_lost:g} s: "
                           f"sent it a zero Twist and left the swarm")
+        if silent > self.odom_timeout:
+            if self.held_since is None:
+                self.held_since = self.heard_at
+                print(f"robot {name}: no odometry for {self.odom_timeout:g} s: stopped it, waiting "
+                      f"(its agent leaves after {self.odom_lost:g} s)", file=sys.stderr, flush=True)
+            self.stop()
+            return False
+        if self.held_since is not None:
+            print(f"robot {name}: odometry back after {self.heard_at - self.held_since:.2f} s: driving it again",
+                  file=sys.stderr, flush=True)
+            self.held_since = None
+            self.regained += 1
+        return True
 
     def drive(self, v_d: tuple[float, ...]) -> tuple[float, float]:
         """Send the Twist that tracks the desired velocity ``v_d`` from the robot's heading."""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -14,6 +15,37 @@ import pytest
 from zswarm.process import one_blas_thread
 
 ROOT = Path(__file__).resolve().parents[1]
+
+
+#: What the running test's processes printed, for its report should it fail (:func:`pytest_runtest_makereport`):
+#: (title, text) or (title, path of a log file); the test's processes (:func:`swarm_procs.processes`) and
+#: its commands (:func:`run_cli`) add to it, and it is cleared after each test.
+PROCESS_LOGS: list[tuple[str, str | Path]] = []
+#: The lines of each that a failing test's report keeps, the last ones.
+LOG_TAIL = 200
+
+
+def tail(text: str, lines: int = LOG_TAIL) -> str:
+    kept = text.splitlines()[-lines:]
+    return "\n".join(kept)
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    """A failing test's report ends with the last :data:`LOG_TAIL` lines of what each process it started
+    printed (one section each); the logs are let go after the test."""
+    outcome = yield
+    report = outcome.get_result()
+    if report.failed:
+        for title, log in PROCESS_LOGS:
+            text = log if isinstance(log, str) else log.read_text(errors="replace") if log.is_file() else ""
+            if title and text.strip():
+                report.sections.append((f"last {LOG_TAIL} lines of {title}", tail(text)))
+    if call.when == "teardown":
+        for _, log in PROCESS_LOGS:
+            if isinstance(log, Path) and log.is_dir():
+                shutil.rmtree(log, ignore_errors=True)
+        PROCESS_LOGS.clear()
 
 
 #: This worker's idle fork servers (:class:`forked_cli.ForkServer`): one, or more while tests run commands
@@ -34,8 +66,9 @@ def run_cli(*args: str, timeout: float = 120.0, cwd: Path | None = None,
 
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     if fresh:
-        return subprocess.run([sys.executable, *args], capture_output=True, text=True, timeout=timeout,
-                              cwd=cwd or ROOT, env=env)
+        res = subprocess.run([sys.executable, *args], capture_output=True, text=True, timeout=timeout,
+                             cwd=cwd or ROOT, env=env)
+        return _logged(res)
     with _FORKS_LOCK:
         server = _FORKS.pop() if _FORKS else None
     if server is None:
@@ -49,6 +82,13 @@ def run_cli(*args: str, timeout: float = 120.0, cwd: Path | None = None,
         server.close()
         raise
     _idle(server)
+    return _logged(res)
+
+
+def _logged(res: subprocess.CompletedProcess) -> subprocess.CompletedProcess:
+    """``res``'s output, kept for the test's report (:data:`PROCESS_LOGS`)."""
+    what = " ".join(map(str, res.args[1:5]))  # the command without the interpreter
+    PROCESS_LOGS.append((f"{what} (exit {res.returncode})", f"{res.stdout or ''}{res.stderr or ''}"))
     return res
 
 

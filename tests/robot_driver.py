@@ -1,8 +1,7 @@
-"""Stand-in robots for ``tests/test_robots.py``, in a process of their own: driven from a thread of a busy
-pytest worker under load, they let every robot's odometry lapse for over a second, and every agent,
-rightly, left its silent robot. ``python tests/robot_driver.py ENDPOINT ROBOTS.toml N`` drives them at
-50 Hz; a line ``silent K`` on stdin silences robot K's odometry, ``stop`` (or the end of stdin) ends it;
-then each robot's command count and rejections are printed as one JSON line."""
+"""Stand-in robots for ``tests/test_robots.py``, in a process of their own, so that a test can freeze
+them (SIGSTOP) as a starved machine would. ``python tests/robot_driver.py ENDPOINT ROBOTS.toml N`` drives
+them at 50 Hz; ``stop`` on stdin (or its end) ends it; then each robot's command count and rejections
+are printed as one JSON line."""
 from __future__ import annotations
 
 import json
@@ -28,10 +27,7 @@ def main() -> int:
 
     def orders() -> None:
         for line in sys.stdin:
-            word = line.split()
-            if word[:1] == ["silent"]:
-                robots[int(word[1])].silent = True
-            elif word[:1] == ["stop"]:
+            if line.split()[:1] == ["stop"]:
                 break
         stop.set()
 

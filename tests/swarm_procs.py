@@ -10,23 +10,47 @@ import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 from typing import Iterator
 
 from zswarm.host.local import LocalHost
-from zswarm.host.procs import Children, agent_argv
+from zswarm.host.procs import Child, Children, agent_argv
 from zswarm.net.runspec import RunSpec, add_run_args, spec_from_args
+
+from conftest import PROCESS_LOGS
+
+
+class LoggedChildren(Children):
+    """Children whose output, where the caller does not take it, goes to a log file of its own in
+    ``folder``: a failing test's report shows its end (conftest's ``PROCESS_LOGS``)."""
+
+    def __init__(self, folder: Path) -> None:
+        super().__init__()
+        self.folder = folder
+
+    def spawn(self, name: str, args, stdout=None, stderr=None, **kw) -> Child:
+        if stdout is not None and stderr is not None:
+            return super().spawn(name, args, stdout=stdout, stderr=stderr, **kw)
+        path = self.folder / f"{len(PROCESS_LOGS):03d}-{name}.log"
+        PROCESS_LOGS.append((name, path))
+        with open(path, "wb") as log:
+            return super().spawn(name, args, stdout=log if stdout is None else stdout,
+                                 stderr=log if stderr is None else stderr, **kw)
 
 
 @contextlib.contextmanager
 def processes() -> Iterator[Children]:
-    kids = Children()
+    """Children for a test, all stopped and reaped at its end; their logs live until the test's report is made."""
+    folder = Path(tempfile.mkdtemp(prefix="zswarm-logs-"))
+    kids = LoggedChildren(folder)
     try:
         yield kids
     finally:
         kids.stop_all(grace=3.0)
         _HOSTS.pop(id(kids), None)
+        PROCESS_LOGS.append(("", folder))  # (a folder: removed with the test's logs)
 
 
 def split_spec(run: str, scenario: str, *args: str) -> tuple[RunSpec, list[str]]:

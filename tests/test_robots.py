@@ -50,7 +50,9 @@ def agent_pid(run: str, agent: int) -> int:
 def test_six_robots_catch_the_prey_and_fail_safely(tmp_path):
     """6 stand-in robots on rmw_zenoh (jazzy) and ``launch.py --robots``: the swarm catches the prey on
     moving-prey with no collision and records the robots' headings; then a killed agent's robot stops
-    within 0.5 s, and a robot whose odometry goes silent takes its agent out while the rest carry on."""
+    within 0.5 s. The robots frozen for 2 s 5 s into the run (SIGSTOP, as a starved machine freezes them):
+    every agent holds its robot stopped, drives it again when its odometry comes back, and says so;
+    none leaves."""
     path = robots_file(tmp_path)
     fleet = load_robots(path)
     record, run = tmp_path / "robots.rrd", "robots"
@@ -69,6 +71,11 @@ def test_six_robots_catch_the_prey_and_fail_safely(tmp_path):
                             stdout=subprocess.DEVNULL, stderr=(said := Spool()))
         try:
             with Watch(endpoint, run) as watch:
+                watch.reach_step(100, timeout=90)
+                watch.until(lambda: len(watch.alive) == N, 10, "every agent up")
+                os.kill(driver.proc.pid, signal.SIGSTOP)  # the staged fault: the robots frozen 2 s
+                time.sleep(2.0)
+                os.kill(driver.proc.pid, signal.SIGCONT)
                 try:
                     watch.reach_step(300, timeout=90)  # 15 s: the reference catches the prey at 11.2 s
                 except AssertionError as exc:  # say why: the launcher's last lines
@@ -90,10 +97,7 @@ def test_six_robots_catch_the_prey_and_fail_safely(tmp_path):
                 for payload in (b"not cdr at all", b"\x00\x01\x00\x00 short"):  # foreign and truncated
                     junk.put(payload)
                 junk.undeclare()
-                driver.proc.stdin.write(b"silent 4\n")  # robot 4's odometry stops
-                driver.proc.stdin.flush()
-                watch.until(lambda: 4 not in watch.alive, 5, "agent 4 leaving after its robot went silent")
-                assert {0, 1, 3, 5} <= watch.alive
+                assert watch.alive == {0, 1, 3, 4, 5}
             assert wait_exit(launch, 60) == 0, said.text()[-2000:]
             robots = json.loads(driver.proc.communicate(b"stop\n", timeout=30)[0].splitlines()[-1])
         finally:
@@ -102,14 +106,58 @@ def test_six_robots_catch_the_prey_and_fail_safely(tmp_path):
             session.close()
     s = load_summary(record.with_suffix(".json"))
     assert s["capture_time"] is not None and s["collisions"] == 0 and s["obstacle_collisions"] == 0, s
-    assert {d["id"]: d["how"] for d in s["departures"]} == {2: "crashed", 4: "crashed"}
-    assert s["stopped_at_end"] == [0, 1, 3, 5]
+    assert {d["id"]: d["how"] for d in s["departures"]} == {2: "crashed"}
+    assert s["stopped_at_end"] == [0, 1, 3, 4, 5]
+    held = said.text()
+    assert held.count("no odometry for 1 s: stopped it") == N and held.count("driving it again") == N, held[-3000:]
     assert s["rejected_by_reason"] == {"ros-header": 1, "ros-cdr": 1}  # counted and dropped by agent 1
     assert all(r["commands"] > 100 and not r["rejected"] for r in robots), robots
     rerun_verify(record)
     frames = load_run(record).frames
     assert all(f.headings is not None and np.isfinite(f.headings).all() for f in frames[1:])  # the robots' yaw
     assert max(u for _, u, _ in heard[0]) > 0.2  # the robots drove
+
+
+def test_a_silent_robot_is_held_stopped_driven_again_and_given_up_only_after_the_lease(tmp_path, capsys):
+    """RobotLink.check: odometry silent for --odom-timeout holds the robot (a zero Twist, the agent stays);
+    odometry back drives it again; silent for --odom-lost (Zenoh's lease) stops it and the agent leaves.
+    Each said once. A real session carries the Twists to a stand-in robot."""
+    from agents.robot_link import RobotLink
+    from zswarm.errors import Failure
+    from zswarm.net.runspec import LEASE_S
+    from zswarm.net.poses import Rejections
+    from zswarm.ros.robot_sim import SimRobot, start_pose
+
+    fleet = load_robots(robots_file(tmp_path))
+    robot = fleet.robots[0]
+    sim = SimRobot(robot, fleet.route, start_pose(robot, (0.0, 0.0), (5.0, 0.0)))
+    with open_session(zenoh_config("peer", scout=False), "t") as session:
+        session.declare_subscriber(fleet.route.key(robot.cmd_vel, TWIST),
+                                   lambda sample: sim.take(sample.payload.to_bytes(), time.time()))
+        link = RobotLink(robot, fleet.route, session, 1.0, 0.1, Rejections("t", lambda text: None))
+        assert link.odom_lost == LEASE_S
+
+        def commanded(moving: bool) -> bool:
+            deadline = time.monotonic() + 5.0
+            while (sim.command[0] != 0.0) != moving and time.monotonic() < deadline:
+                time.sleep(0.01)
+            return (sim.command[0] != 0.0) == moving
+
+        link.take(sim.odometry()[0], 100.0)
+        assert link.check(100.5)
+        link.drive((0.5, 0.0))
+        assert commanded(moving=True)
+        assert not link.check(101.2) and commanded(moving=False)  # held: stopped, and its agent stays
+        assert not link.check(105.0) and link.held_since == 100.0
+        link.drive((0.5, 0.0))  # (the agent sends nothing while held; should it, the next check stops it)
+        link.take(sim.odometry()[0], 105.5)
+        assert link.check(105.6) and link.regained == 1 and link.held_since is None
+        with pytest.raises(Failure, match=f"no odometry for {LEASE_S:g} s"):
+            link.check(105.5 + LEASE_S + 0.1)
+        assert commanded(moving=False)
+    said = capsys.readouterr().err.splitlines()
+    assert said == [f"robot /robot0: no odometry for 1 s: stopped it, waiting (its agent leaves after {LEASE_S:g} s)",
+                    "robot /robot0: odometry back after 5.50 s: driving it again"]
 
 
 def test_the_shipped_robots_file_drives_six_agents_and_the_launcher_says_which():

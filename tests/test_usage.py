@@ -173,6 +173,7 @@ CASES = [
     (["-m", "agents", "--id", "0", "--scenario", "nope"], "unknown scenario"),
     (["-m", "agents", "--id", "0", "--clock", "lockstep", "--takeover"], "free clock only"),
     (["-m", "agents", "--id", "0", "--node", "70000"], "--node must be in 0..65535"),
+    (["-m", "agents", "--id", "0", "--robots", "{junk}", "--odom-lost", "0.5"], "--odom-lost must be above --odom-timeout (1 s)"),
     (["-m", "agents", "--id", "0", "--connect", "tcp/127.0.0.1:1", "--connect-timeout", "1"],
      "cannot reach the router at tcp/127.0.0.1:1 within 1 s"),
     (["-m", "agents", "--id", "0", "--start", "1;2"], "--start expects X,Y"),

@@ -32,6 +32,9 @@ from zswarm.net.keys import Keys, check_run_id
 #: (``--world-timeout``; a world still waiting for its agents sends nothing): the world ended or died and
 #: no final tick reached it. A world fault the launcher stages is shorter.
 WORLD_SILENT_S = 30.0
+#: Zenoh's lease: a process silent this long is taken for gone by its router, and its liveliness token goes
+#: (a pause shorter than this is a pause: docs/experiments.md). An agent gives up a robot silent as long.
+LEASE_S = 10.0
 
 Clock = Literal["free", "lockstep"]
 CLOCKS: tuple[Clock, ...] = ("free", "lockstep")

@@ -43,7 +43,6 @@ class SimRobot:
     commands: int = 0
     gid: bytes = field(default_factory=lambda: os.urandom(16))
     sequence: int = 0
-    silent: bool = False  # its odometry stopped (a failure to rehearse): it publishes none
     lock: threading.Lock = field(default_factory=threading.Lock)
 
     def take(self, payload: bytes, now: float) -> None:
@@ -122,11 +121,10 @@ def run(session, route: Route, robots: list[SimRobot], rate: float, stop: StopSi
                     return f"no command for {idle_exit:g} s: the run that drove the robots has ended"
             for r, pub in zip(robots, publishers):
                 r.step(period, now)
-                if not r.silent:
-                    payload, attachment = r.odometry()
-                    pub.put(payload, attachment=attachment)
+                payload, attachment = r.odometry()
+                pub.put(payload, attachment=attachment)
             ticked = time.monotonic()
-            if ticked - next_tick > PAUSE_SAID_S:  # its agents may have taken the pause for silent odometry
+            if ticked - next_tick > PAUSE_SAID_S:  # its agents hold their robots until odometry comes back
                 print(f"robot-sim: starved of CPU, the robots paused {ticked - next_tick:.2f} s", file=sys.stderr,
                       flush=True)
             # starved of CPU, the robots pause rather than leap: steps made up in a burst would move an
