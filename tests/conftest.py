@@ -170,6 +170,18 @@ DEEP_TESTS = {
     "test_lockstep_swarm_reproduces_the_reference_and_catches_the_prey[static-goal-15.0-paper-point-off]",
     "test_lockstep_swarm_reproduces_the_reference_and_catches_the_prey[moving-prey-10.0-mean+gate-point-barrier]",
     "test_lockstep_swarm_reproduces_the_reference_and_catches_the_prey[moving-prey-6.0-mean+gate+swirl-point-barrier]",
+    # the 30 s chase: the 8 s goal-near-obstacle, 3-D, unicycle and double-integrator lockstep runs hold it
+    "test_lockstep_swarm_reproduces_the_reference_and_catches_the_prey[moving-prey-30.0-paper-point-barrier]",
+    # test_killed_agent_leaves_neighbour_sets_within_a_second_and_a_restarted_one_returns holds it
+    "test_killing_one_agent_leaves_the_others_running_and_is_recorded",
+    "test_three_meshed_routers_carry_one_swarm_that_catches_the_prey",  # the secure three-router run holds it
+    # the monitor against a summary (test_monitor) and a secure run (test_security) hold it
+    "test_the_monitor_command_a_secure_run_prints_works_as_printed",
+    "test_the_grown_set_passes_the_design_checks_at_that_size[moving-prey-100]",  # bench-field at N = 100 holds it
+    "test_prop1_bound_flips_goal_reachability[0.2]",  # the same flip at 0.1 holds it
+    # a handoff's failures: test_agents_move_between_routers_as_the_swarm_moves_and_nothing_is_lost holds the move
+    "test_a_handoff_the_taker_never_confirms_leaves_the_report_with_the_running_process",
+    "test_a_look_the_world_does_not_answer_is_said_and_counted",
 }
 
 
