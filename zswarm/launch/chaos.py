@@ -20,6 +20,8 @@ from zswarm.net.runspec import WORLD_SILENT_S
 WORLD_AWAY_MAX_S = WORLD_SILENT_S - 10.0
 
 Action = Literal["kill_world", "resume_world", "kill_agents", "restart_agents", "pause", "unpause"]
+#: The actions that start a fault (the others end one: resume_world, restart_agents, unpause).
+FAULT_STARTS = ("kill_world", "kill_agents", "pause")
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,7 @@ import numpy as np
 
 from zswarm.laws.bound import EXIT_LAW_FAILED
 from zswarm.errors import UsageError
-from zswarm.launch.chaos import Event, schedule
+from zswarm.launch.chaos import FAULT_STARTS, Event, schedule
 from zswarm.launch.configs import agent_config_args, role_configs
 from zswarm.launch.ending import finish_recording
 from zswarm.launch.local_runs import announce, forget
@@ -74,6 +74,7 @@ class Launch:
                                              pauses=plan.pauses)
         self.staged: list[dict] = []  # each fault as it was staged, for the summary
         self.paused: dict[str, Child] = {}  # frozen now, by name: each is let go at its time (and by any stop)
+        self.began: dict[str, float] = {}  # a fault started, by what it names: the wall seconds it began late
         self.rng = np.random.default_rng([self.spec.seed, 0xC0FFEE])
         self.killed: list[int] = []
         self.expected_exits: set[str] = set()  # children chaos killed on purpose
@@ -179,7 +180,8 @@ class Launch:
         args = self.configs.get("world", []) if "world" in self.plan.roles else self._agent_config(self.plan.ids[0])
         config = Path(args[args.index("--config") + 1]) if "--config" in args else None
         timeout = self.plan.connect_timeout if self.plan.connect_timeout is not None else 15.0
-        self.watch = WorldWatch(self.spec.keys, self.endpoint, config, timeout)
+        self.watch = WorldWatch(self.spec.keys, self.endpoint, config, timeout,
+                                 tick_dt=self.spec.scenario.dt if self.spec.clock == "lockstep" else None)
         self.world_started = self.watch.started
         if self.world is None and not self.plan.quiet:
             _say("faults are timed from the world's start, when this machine hears it", err=False)
@@ -299,8 +301,8 @@ class Launch:
         while True:
             if t0 is None and self.world_started.is_set():
                 t0 = time.monotonic()  # chaos times count from the start of the world's clock
-            while t0 is not None and self.pending and time.monotonic() - t0 >= self.pending[0].at:
-                self._stage(self.pending.pop(0), time.monotonic() - t0)
+            if t0 is not None:
+                self._stage_due(time.monotonic() - t0)
             run_t = None if t0 is None else (time.monotonic() - t0) * self.spec.time_scale
             if (run_t is not None and self.migration is not None and self.world is not None and self.world.alive()
                     and self.migration.due(run_t)
@@ -323,7 +325,9 @@ class Launch:
                 self.kids.stop_all()
                 self._finish_recording()
                 return 1
-            time.sleep(0.1)
+            # lockstep runs its clock as fast as its agents answer: a fault due on it is looked for more often
+            time.sleep(0.02 if self.pending and self.spec.clock == "lockstep" else 0.1)
+        self._let_go(None if t0 is None else time.monotonic() - t0)
         Children.stop(self.kids.named("agent"), 5.0)  # they end on the world's final tick; this reaps them
         code = self.world.proc.returncode
         self._finish_recording()
@@ -360,13 +364,43 @@ class Launch:
                 and all(c.name in self.crashed for c in agents if c.name not in self.expected_exits)
                 and any(c.name in self.crashed for c in agents))
 
+    def _stage_due(self, wall: float) -> None:
+        """Stage each event that has fallen due, ``wall`` seconds after the world's clock started. A fault
+        starts at its time on the run's clock: the wall time, or, in lockstep (a run as fast as its agents
+        answer), the world's last tick; it ends (unpause, restart, resume) as many wall seconds after it
+        started as it was asked to last."""
+        lockstep = self.spec.clock == "lockstep" and self.watch is not None
+        for event in list(self.pending):
+            key = event.what or event.action.rsplit("_", 1)[1]  # what a fault's start and its end share
+            if event.action in FAULT_STARTS:
+                due = (self.watch.run_t / self.spec.time_scale if lockstep else wall) >= event.at
+                if due:
+                    self.began[key] = wall - event.at  # (free: about 0)
+            else:
+                due = key in self.began and wall >= event.at + self.began[key]
+            if due:
+                self.pending.remove(event)
+                self._stage(event, wall)
+
+    def _let_go(self, wall: float | None) -> None:
+        """The run is over: a process still paused is let go now, and a fault that never began is said."""
+        for event in list(self.pending):
+            if event.action == "unpause" and event.what in self.paused:
+                self.pending.remove(event)
+                self._stage(event, wall or 0.0)
+        if self.pending:
+            _say("the run ended before " + ", ".join(f"{e.action.replace('_', ' ')} {e.what}".strip() + f" at {e.at:g} s"
+                                                    for e in self.pending) + ": not staged")
+
     def _stage(self, event: Event, t: float) -> None:
         """Carry out one scheduled event (world events only where this machine runs the world); each one
         staged goes into the summary's ``staged``, at the wall time since the world's clock started."""
         world = self.world
         if world is not None or event.action in ("kill_agents", "restart_agents", "pause", "unpause"):
             self.staged.append({"at_s": round(t, 3), "action": event.action, **({"what": event.what} if event.what else {}),
-                                **({"count": event.count} if event.count else {})})
+                                **({"count": event.count} if event.count else {}),
+                                **({"run_s": round(self.watch.run_t, 3)} if self.spec.clock == "lockstep" and self.watch
+                                   else {})})
         if event.action == "kill_agents":
             alive = [c for c in self.kids.named("agent") if c.alive()]
             chosen = self.rng.choice(len(alive), size=min(event.count, len(alive)), replace=False)

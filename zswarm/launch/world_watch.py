@@ -20,9 +20,14 @@ class WorldWatch:
     """A client session that waits for the world's token; ``started`` is set once it is heard (at
     once, if the world had started before)."""
 
-    def __init__(self, keys: Keys, endpoint: str, config: Path | None = None, retry_for: float = 15.0) -> None:
+    def __init__(self, keys: Keys, endpoint: str, config: Path | None = None, retry_for: float = 15.0,
+                 tick_dt: float | None = None) -> None:
+        """``tick_dt``: also follow a lockstep world's ticks, each ``tick_dt`` seconds of the run's clock
+        (:attr:`run_t`; such a world runs as fast as its agents answer)."""
         self.started = threading.Event()
+        self.run_t, self.tick_dt = 0.0, tick_dt  # the run's clock at the last tick heard (``tick_dt`` only)
         self.session = open_session(zenoh_config("client", [endpoint], config=config), retry_for=retry_for)
+        self.ticks = self.session.declare_subscriber(keys.tick, self._tick) if tick_dt else None
 
         def heard(sample: zenoh.Sample) -> None:  # on a Zenoh thread: only sets an event
             if sample.kind == zenoh.SampleKind.PUT:
@@ -30,6 +35,16 @@ class WorldWatch:
 
         self.subscriber = self.session.liveliness().declare_subscriber(keys.world_started, history=True,
                                                                        handler=heard)
+
+    def _tick(self, sample: zenoh.Sample) -> None:
+        from zswarm.net import messages as msg
+
+        try:
+            tick = msg.decode(sample.payload.to_bytes())
+        except msg.DecodeError:
+            return
+        if isinstance(tick, msg.Tick):
+            self.run_t = max(self.run_t, tick.step * self.tick_dt)
 
     def positions(self, key: str, timeout: float = 2.0):
         """Where the world last saw each live agent: (t, ids, positions), or None when it did not answer
@@ -45,6 +60,8 @@ class WorldWatch:
     def close(self) -> None:
         try:
             self.subscriber.undeclare()
+            if self.ticks is not None:
+                self.ticks.undeclare()
         finally:
             self.session.close()
 
