@@ -182,6 +182,12 @@ DEEP_TESTS = {
     # a handoff's failures: test_agents_move_between_routers_as_the_swarm_moves_and_nothing_is_lost holds the move
     "test_a_handoff_the_taker_never_confirms_leaves_the_report_with_the_running_process",
     "test_a_look_the_world_does_not_answer_is_said_and_counted",
+    # one law, one tutorial law, one signal, one clock hold the same plumbing: the laws' own tests hold the rest
+    "test_lockstep_processes_run_each_law_as_the_reference_does[vasarhelyi]",
+    "test_lockstep_processes_run_each_law_as_the_reference_does[olfati-saber]",
+    "test_the_tutorials_laws_run_as_lockstep_processes[seek-moving-prey]",
+    "test_launch_stopped_by_a_signal_leaves_a_valid_recording_and_reaps_everyone[SIGTERM]",
+    "test_an_agent_whose_world_vanished_leaves_in_one_line[lockstep]",
 }
 
 
