@@ -89,18 +89,21 @@ def test_every_process_paused_at_every_length_and_moment_loses_nothing(tmp_path)
     from zswarm.host.procs import free_port
 
     for length in LENGTHS:
-        endpoint = f"tcp/127.0.0.1:{free_port()}"
-        with processes() as kids:
+        endpoint, said = f"tcp/127.0.0.1:{free_port()}", tmp_path / f"robot-sim-{length:g}.log"
+        with processes() as kids, open(said, "w") as log:
             kids.spawn("robot-sim", ["-m", "zswarm", "robot-sim", "--robots", str(robots), "--set", f"n_agents={N}",
-                                     "--connect", endpoint, "--stop-after", "120"], stdout=subprocess.DEVNULL)
+                                     "--connect", endpoint, "--idle-exit", "30", "--stop-after", "120"],
+                       stdout=subprocess.DEVNULL, stderr=log)
             cell = run(tmp_path, f"robot-{length:g}", length, ("agent-0",) * 3, ("--robots", str(robots),
                                                                                  "--listen", endpoint))
-        held = cell.get("stderr", "").count("robot /robot0: odometry back")
-        if length > 1.0 and held != 3:  # frozen longer than --odom-timeout: held, then driven again, each time
-            cell["failures"].append(f"said its robot's odometry came back {held} times of 3")
+        stops = said.read_text().count("robot-sim: /robot0 stopped: no command")
+        if stops < 3:  # each freeze of its bridge outlasts the robot's command timeout (0.25 s): it stops
+            cell["failures"].append(f"the robot stopped {stops} times for want of commands, of 3 freezes")
+        cell["robot_stops"] = stops
         cells.append(cell)
     grid = "\n".join(f"{c['run']:>16}  {' '.join(c['pauses']):<44} collisions {c.get('collisions', '-')}, "
                      f"reports {c.get('reports', '-')}/{N}, departures {c.get('departures', '-')}"
+                     f"{', robot stopped ' + str(c['robot_stops']) + ' times' if 'robot_stops' in c else ''}"
                      f"{'  FAILED: ' + '; '.join(c['failures']) if c['failures'] else ''}" for c in cells)
     print("\n" + grid)
     assert not any(c["failures"] for c in cells), grid

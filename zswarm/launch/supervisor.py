@@ -388,6 +388,8 @@ class Launch:
             if event.action == "unpause" and event.what in self.paused:
                 self.pending.remove(event)
                 self._stage(event, wall or 0.0)
+            elif event.action == "unpause" and event.what in self.began:  # its pause found nothing to freeze
+                self.pending.remove(event)
         if self.pending:
             _say("the run ended before " + ", ".join(f"{e.action.replace('_', ' ')} {e.what}".strip() + f" at {e.at:g} s"
                                                     for e in self.pending) + ": not staged")
@@ -434,7 +436,7 @@ class Launch:
     def _pause(self, what: str, t: float) -> None:
         """Freeze the process named ``what`` (its newest, where an agent has moved), as a machine that
         stops scheduling it would."""
-        live = [c for c in self.kids.children if c.name == what and c.alive()]
+        live = [c for c in self.kids.children if (c.name == what or c.name.startswith(f"{what}-m")) and c.alive()]
         if not live:
             self.staged[-1]["not_running"] = True
             _say(f"{what} is not running at {t:.1f} s: nothing to pause")

@@ -41,6 +41,8 @@ class SimRobot:
     command: tuple[float, float, float] = (0.0, 0.0, -math.inf)  # (u, omega, wall time received)
     rejected: dict[str, int] = field(default_factory=dict)
     commands: int = 0
+    stops: int = 0  # times its commands stopped for cmd_timeout and it stopped
+    idle: bool = False  # stopped so now
     gid: bytes = field(default_factory=lambda: os.urandom(16))
     sequence: int = 0
     lock: threading.Lock = field(default_factory=threading.Lock)
@@ -62,7 +64,12 @@ class SimRobot:
         its limits and its wheels'; zero once commands stopped."""
         u, omega, at = self.command
         if now - at > self.cmd_timeout:
+            if at > -math.inf and not self.idle:  # said once a silence, as a base controller logs it
+                self.idle, self.stops = True, self.stops + 1
+                print(f"robot-sim: {self.robot.namespace} stopped: no command for {self.cmd_timeout:g} s",
+                      file=sys.stderr, flush=True)
             return 0.0, 0.0
+        self.idle = False
         r = self.robot
         u = max(-r.max_linear, min(r.max_linear, u))
         omega = max(-r.max_angular, min(r.max_angular, omega))
