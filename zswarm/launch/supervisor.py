@@ -374,8 +374,8 @@ class Launch:
             key = event.what or event.action.rsplit("_", 1)[1]  # what a fault's start and its end share
             if event.action in FAULT_STARTS:
                 due = (self.watch.run_t / self.spec.time_scale if lockstep else wall) >= event.at
-                if due:
-                    self.began[key] = wall - event.at  # (free: about 0)
+                if due:  # (free: its end keeps its own time, so that faults given in turn stay in turn)
+                    self.began[key] = wall - event.at if lockstep else 0.0
             else:
                 due = key in self.began and wall >= event.at + self.began[key]
             if due:
