@@ -41,8 +41,7 @@ class SimRobot:
     command: tuple[float, float, float] = (0.0, 0.0, -math.inf)  # (u, omega, wall time received)
     rejected: dict[str, int] = field(default_factory=dict)
     commands: int = 0
-    stops: int = 0  # times its commands stopped for cmd_timeout and it stopped
-    idle: bool = False  # stopped so now
+    idle: bool = False  # stopped for want of commands, and said so
     gid: bytes = field(default_factory=lambda: os.urandom(16))
     sequence: int = 0
     lock: threading.Lock = field(default_factory=threading.Lock)
@@ -65,7 +64,7 @@ class SimRobot:
         u, omega, at = self.command
         if now - at > self.cmd_timeout:
             if at > -math.inf and not self.idle:  # said once a silence, as a base controller logs it
-                self.idle, self.stops = True, self.stops + 1
+                self.idle = True
                 print(f"robot-sim: {self.robot.namespace} stopped: no command for {self.cmd_timeout:g} s",
                       file=sys.stderr, flush=True)
             return 0.0, 0.0
