@@ -29,6 +29,10 @@ class Membership:
         # token is asked about again (agents.outreach.Outreach.check_members)
         self.doubted: set[int] = set()
         self.listening: set[tuple[int, ...]] = set()  # the cells it listens to (agents.cell_view)
+        # the member keys of cells it listens to whose "who is here" ask got no reply: asked again
+        # (agents.outreach); a frozen or stalled router let a neighbour already there go unknown, and,
+        # once that neighbour fell silent, unguarded
+        self.unanswered: set[str] = set()
 
     def token(self, who: int, deleted: bool, received: float) -> None:
         """Agent ``who``'s liveliness token came (or went) at ``received``."""
@@ -58,6 +62,13 @@ class Membership:
             self.members.setdefault(who, set()).add(cell)
         else:
             self._not_in(who, {cell})
+
+    def unanswered_ask(self, key: str) -> None:
+        """Nobody answered its ask of who sits in the cell of member key ``key``: it is asked again while
+        the agent listens to that cell."""
+        parsed = self.keys.member_of(key.removesuffix("*") + "0")  # the cell's members: ".../in/CELL/*"
+        if parsed is not None and parsed[0] in self.listening:
+            self.unanswered.add(key)
 
     def member_gone(self, key: str, asked: float) -> None:
         """The member token ``key`` was asked about at ``asked`` and nobody holds it: it is no longer in

@@ -56,13 +56,18 @@ class Outreach:
         point, last = s.body.position, self.followed_at
         self.followed_at = point
         new, left = self.cell_view.move()
+        unanswered = s.membership.unanswered
+        if unanswered:  # a cell's ask that no reply came to: asked again, or who sits there is never known
+            for key in unanswered:
+                self.bridge.tokens_into_inbox(key, "in-now", 1.0, unanswered="in-unanswered")
+            unanswered.clear()
         if not new and not left:
             return  # most ticks
         s.membership.listen_to(new, left)
         ask = ask or last is None or math.dist(point, last) > 2.0 * s.v_max * s.dt
         for cell in new:
             # who sits in it already (its live member tokens were subscribed first: Sensing._member)
-            self.bridge.tokens_into_inbox(self.keys.cell_members(cell), "in-now", 1.0)
+            self.bridge.tokens_into_inbox(self.keys.cell_members(cell), "in-now", 1.0, unanswered="in-unanswered")
             if ask:
                 self.asking.add(cell)
                 self.bridge.get_into_inbox(self.keys.cell_poses(cell), "pose", 1.0,

@@ -141,6 +141,9 @@ class Sensing:
         if tag == "in-gone":
             self.membership.member_gone(key, asked=received)
             return
+        if tag == "in-unanswered":
+            self.membership.unanswered_ask(key)
+            return
         self.counters.received += 1
         m = self._decoded(payload)
         if m is None:

@@ -120,3 +120,49 @@ def test_a_ring_channels_memory_grows_to_its_capacity_so_an_agents_channels_are_
             for name, capacity in (("cell", CELL_CAPACITY), ("wide", WIDE_CAPACITY))}
     assert grew["wide"] > 2.0, grew  # the effect is there, and this measures it
     assert grew["cell"] < 1.0, grew
+
+
+def test_an_ask_of_who_sits_in_a_cell_that_no_reply_came_to_is_said_and_asked_again(tmp_path):
+    """A frozen (or stalled) router answers no "who is here" ask: an agent that entered a cell then never
+    knew the neighbour already there, and stopped guarding it once it fell silent (docs/experiments.md).
+    The unanswered ask is told apart from an empty cell (whose answer comes at once) and asked again."""
+    import signal
+    import subprocess
+
+    from swarm_procs import processes
+    from zswarm.host.procs import start_router
+    from zswarm.net.keys import Keys
+    from agents.membership import Membership
+
+    keys = Keys("unanswered", 1.0)
+    with processes() as kids:
+        endpoint = start_router(kids)
+        router = kids.get("router")
+        with zenoh.open(zenoh_config("client", connect=[endpoint])) as there, \
+                zenoh.open(zenoh_config("client", connect=[endpoint])) as here:
+            token = there.liveliness().declare_token(keys.member((0, 0), 2))  # agent 2 sits in cell (0, 0)
+            bridge = Bridge(here, None, deliver=lambda item: None, batch=True)
+            membership = Membership(keys, 4)
+            membership.listen_to([(0, 0), (1, 0)], [])
+            bridge.tokens_into_inbox(keys.cell_members((1, 0)), "in-now", 1.0, unanswered="in-unanswered")
+            time.sleep(0.5)  # an empty cell's answer came at once: no "unanswered"
+            assert not any(item[0] == "in-unanswered" for item in bridge.inbox)
+            router.proc.send_signal(signal.SIGSTOP)
+            try:
+                bridge.tokens_into_inbox(keys.cell_members((0, 0)), "in-now", 0.5, unanswered="in-unanswered")
+                wait_until(lambda: any(item[0] == "in-unanswered" for item in bridge.inbox), 5.0, "the unanswered ask")
+            finally:
+                router.proc.send_signal(signal.SIGCONT)
+            said = [item for item in bridge.inbox if item[0] == "in-unanswered"]
+            assert [item[1] for item in said] == [keys.cell_members((0, 0))]
+            membership.unanswered_ask(said[0][1])
+            assert membership.unanswered == {keys.cell_members((0, 0))} and 2 not in membership.members
+            bridge.inbox.clear()
+            for key in membership.unanswered:  # asked again, as agents.outreach does the next tick
+                bridge.tokens_into_inbox(key, "in-now", 1.0, unanswered="in-unanswered")
+            wait_until(lambda: any(item[0] == "in-now" for item in bridge.inbox), 5.0, "the answer")
+            for tag, key, _, deleted, _ in list(bridge.inbox):
+                membership.member(key, deleted, live=False)
+            assert membership.members == {2: {(0, 0)}}
+            token.undeclare()
+            bridge.close()

@@ -197,15 +197,21 @@ class Bridge:
         self.session.get(selector, on_reply if done is None else zenoh.handlers.Callback(on_reply, done),
                          timeout=timeout, **ASK_QOS)
 
-    def tokens_into_inbox(self, key: str, tag: str, timeout: float) -> None:
+    def tokens_into_inbox(self, key: str, tag: str, timeout: float, unanswered: str | None = None) -> None:
         """Ask which liveliness tokens match ``key`` now and return at once; each one joins the inbox
-        as a ``tag`` sample (batch mode)."""
-        append, now = self.inbox.append, time.time
+        as a ``tag`` sample (batch mode). ``unanswered``: a query that ran out its time with no reply
+        (its router frozen or stalled: an empty answer comes at once) joins it as such a sample, ``key``."""
+        append, now, asked, heard = self.inbox.append, time.time, time.monotonic(), []
 
         def on_reply(reply: Any) -> None:
             if not self.closed and reply.ok is not None:
+                heard.append(True)
                 append((tag, str(reply.ok.key_expr), b"", False, now()))
-        self.session.liveliness().get(key, on_reply, timeout=timeout)
+
+        def on_done() -> None:
+            if unanswered is not None and not self.closed and not heard and time.monotonic() - asked >= 0.9 * timeout:
+                append((unanswered, key, b"", False, now()))
+        self.session.liveliness().get(key, zenoh.handlers.Callback(on_reply, on_done), timeout=timeout)
 
     def token_absent_into_inbox(self, key: str, tag: str, timeout: float) -> None:
         """Ask whether anybody holds the liveliness token ``key`` and return at once; if nobody answered
