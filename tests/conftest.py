@@ -170,11 +170,24 @@ DEEP_TESTS = {
     "test_lockstep_swarm_reproduces_the_reference_and_catches_the_prey[static-goal-15.0-paper-point-off]",
     "test_lockstep_swarm_reproduces_the_reference_and_catches_the_prey[moving-prey-10.0-mean+gate-point-barrier]",
     "test_lockstep_swarm_reproduces_the_reference_and_catches_the_prey[moving-prey-6.0-mean+gate+swirl-point-barrier]",
-    # the 30 s chase: the 8 s goal-near-obstacle, 3-D, unicycle and double-integrator lockstep runs hold it
+    # the 30 s chase: the 3-D and double-integrator lockstep runs hold it
     "test_lockstep_swarm_reproduces_the_reference_and_catches_the_prey[moving-prey-30.0-paper-point-barrier]",
+    # the mixed swarm's lockstep run holds unicycles as processes (test_mixed); the simulators hold the trap
+    "test_lockstep_swarm_reproduces_the_reference_and_catches_the_prey[moving-prey-5.0-paper-unicycle-barrier]",
+    "test_lockstep_swarm_reproduces_the_reference_and_catches_the_prey[goal-near-obstacle-8.0-paper-point-barrier]",
+    # the free-running run ends 2 s after its capture (--end-after-capture); the simulator's rule: test_sim
+    "test_a_run_ends_the_time_asked_after_the_capture",
+    # test_every_law_runs_in_a_batch_as_alone_with_faults_and_a_law_without_a_batched_form holds it
+    "test_each_run_matches_its_run_alone_at_every_step",
+    # the swarm check at N = 100 and beyond: test_the_swarm_check_runs_the_law_in_use_at_30 holds the check
+    "test_the_swarm_check_knows_what_n_it_cannot_reach",
+    # a sweep with and without the filter: test_a_users_law_runs_in_a_sweep_and_collides_only_without_the_filter
+    "test_a_sweep_puts_the_safety_filter_beside_the_law_alone",
+    # TLS and access control: test_secure_swarm_never_sees_an_intruder; three meshed routers: test_migration
+    "test_a_secure_run_over_three_routers_says_so_in_its_summary",
     # test_killed_agent_leaves_neighbour_sets_within_a_second_and_a_restarted_one_returns holds it
     "test_killing_one_agent_leaves_the_others_running_and_is_recorded",
-    "test_three_meshed_routers_carry_one_swarm_that_catches_the_prey",  # the secure three-router run holds it
+    "test_three_meshed_routers_carry_one_swarm_that_catches_the_prey",  # test_migration's three routers hold it
     # the monitor against a summary (test_monitor) and a secure run (test_security) hold it
     "test_the_monitor_command_a_secure_run_prints_works_as_printed",
     "test_the_grown_set_passes_the_design_checks_at_that_size[moving-prey-100]",  # bench-field at N = 100 holds it
@@ -215,6 +228,24 @@ WORKERS = 4
 def pytest_xdist_auto_num_workers(config) -> int | None:
     """``-n auto``: :data:`WORKERS` workers; ``PYTEST_XDIST_AUTO_NUM_WORKERS``, where set, decides."""
     return None if os.environ.get("PYTEST_XDIST_AUTO_NUM_WORKERS") else WORKERS
+
+
+#: How many workers may run the tests of :data:`PROCESS_MODULES` (swarms, routers, launches) at once: one
+#: a core. A free-running swarm paces itself by the wall clock; two of them on one core each ran late
+#: and moved less than asked. The other workers meanwhile run the tests that start no swarm.
+SWARM_WORKERS = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config, log):
+    """``--dist loadfile``: modules whole to a worker, as pytest-xdist hands them out, but a module of
+    :data:`PROCESS_MODULES` only while fewer than :data:`SWARM_WORKERS` workers hold one
+    (:class:`swarm_schedule.SwarmCapped`)."""
+    if config.getvalue("dist") != "loadfile":
+        return None
+    from swarm_schedule import SwarmCapped
+
+    return SwarmCapped(config, log, swarm=lambda scope: Path(scope).stem in PROCESS_MODULES, cap=SWARM_WORKERS)
 
 
 def pytest_configure(config) -> None:

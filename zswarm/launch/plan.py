@@ -141,7 +141,10 @@ def plan_from_args(args: argparse.Namespace, cores: int | None = None, memory_mi
                          "(--spawn and --serve live in the world process)")
     if args.secure is not None:
         check_secure_dir(args.secure, args.role, ids)
-    design = None  # after every flag is checked: the swarm check simulates for half a second
+    if "agents" in args.role and spec.clock == "free" and \
+            pace_load(len(ids), spec.scenario.dt, spec.time_scale, cores) > HOPELESS:
+        raise UsageError(pace_warning(len(ids), spec.scenario.dt, spec.time_scale, cores, refused=True, where=where))
+    design = None  # after every flag is checked: the swarm check simulates for a second or more
     if "world" in args.role or args.require_design:
         design = judge_design(spec, args.require_design)
     notes = [files_note] if files_note else []
@@ -152,9 +155,6 @@ def plan_from_args(args: argparse.Namespace, cores: int | None = None, memory_mi
     if args.secure is None:
         notes.append(OPEN_RUN)
     if "agents" in args.role and spec.clock == "free":  # last: a usage error above comes alone
-        if pace_load(len(ids), spec.scenario.dt, spec.time_scale, cores) > HOPELESS:
-            raise UsageError(pace_warning(len(ids), spec.scenario.dt, spec.time_scale, cores, refused=True,
-                                          where=where))
         line = pace_warning(len(ids), spec.scenario.dt, spec.time_scale, cores, where=where)
         if line:
             print(f"warning: {line}", file=sys.stderr, flush=True)
