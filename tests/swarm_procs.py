@@ -105,6 +105,27 @@ def with_reference(summary_path: Path, run: str, scenario: str, *extra: str) -> 
     return add_reference(summary_path, split_spec(run, scenario, *extra)[0])
 
 
+def freeze(pid: int, timeout: float = 10.0) -> None:
+    """SIGSTOP ``pid`` and return once every thread of it has stopped. The signal stops a process only
+    when one of its threads takes it; on a loaded machine its other threads went on for a while after
+    ``kill`` returned (a frozen router answered an ask sent just after: tests/test_bridge.py)."""
+    import os
+
+    os.kill(pid, signal.SIGSTOP)
+    deadline = time.monotonic() + timeout
+    while True:
+        states = []
+        for task in Path(f"/proc/{pid}/task").iterdir():
+            try:
+                states.append((task / "stat").read_text().rsplit(")", 1)[1].split()[0])
+            except (OSError, IndexError):
+                continue  # a thread that ended
+        if states and all(state in "tT" for state in states):
+            return
+        assert time.monotonic() < deadline, f"process {pid} not stopped after {timeout:g} s: {states}"
+        time.sleep(0.005)
+
+
 def wait_exit(child, timeout: float) -> int:
     try:
         return child.proc.wait(timeout=timeout)

@@ -7,7 +7,7 @@ import signal
 import subprocess
 import time
 
-from swarm_procs import processes
+from swarm_procs import freeze, processes
 from zswarm.host.procs import start_router
 from zswarm.net.config import open_session, zenoh_config
 
@@ -52,7 +52,7 @@ def test_an_asker_that_stops_reading_stalls_nobody_elses_traffic():
             asker = kids.spawn("asker", ["-c", ASKER, endpoint], stdout=subprocess.PIPE)
             assert asker.proc.stdout.readline().strip() == b"ready"
             time.sleep(1.0)  # answers flowing
-            os.kill(asker.proc.pid, signal.SIGSTOP)
+            freeze(asker.proc.pid)
             stopped = time.monotonic()
             time.sleep(8.0)  # longer than the 5 s the router held everything back under "block"
             sub.undeclare()

@@ -129,7 +129,7 @@ def test_an_ask_of_who_sits_in_a_cell_that_no_reply_came_to_is_said_and_asked_ag
     import signal
     import subprocess
 
-    from swarm_procs import processes
+    from swarm_procs import freeze, processes
     from zswarm.host.procs import start_router
     from zswarm.net.keys import Keys
     from agents.membership import Membership
@@ -147,7 +147,7 @@ def test_an_ask_of_who_sits_in_a_cell_that_no_reply_came_to_is_said_and_asked_ag
             bridge.tokens_into_inbox(keys.cell_members((1, 0)), "in-now", 1.0, unanswered="in-unanswered")
             time.sleep(0.5)  # an empty cell's answer came at once: no "unanswered"
             assert not any(item[0] == "in-unanswered" for item in bridge.inbox)
-            router.proc.send_signal(signal.SIGSTOP)
+            freeze(router.proc.pid)
             try:
                 bridge.tokens_into_inbox(keys.cell_members((0, 0)), "in-now", 0.5, unanswered="in-unanswered")
                 wait_until(lambda: any(item[0] == "in-unanswered" for item in bridge.inbox), 5.0, "the unanswered ask")

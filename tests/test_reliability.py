@@ -22,6 +22,7 @@ from conftest import ROOT, run_cli
 from spool import Spool
 from swarm_procs import (
     Watch,
+    freeze,
     load_summary,
     our_processes,
     processes,
@@ -146,7 +147,7 @@ def test_a_stopped_router_stops_even_with_a_client_that_no_longer_reads():
         assert wait_for_port("127.0.0.1", port, 10.0, router)
         reader = kids.spawn("reader", ["-c", FROZEN_READER % endpoint], stdout=subprocess.PIPE)
         assert reader.proc.stdout.readline().strip() == b"ready"
-        reader.proc.send_signal(signal.SIGSTOP)
+        freeze(reader.proc.pid)
         flood = kids.spawn("flood", ["-c", FLOOD % endpoint], stdout=subprocess.PIPE)
         assert flood.proc.stdout.readline().strip() == b"sent"
         told = time.monotonic()
