@@ -233,8 +233,8 @@ def pytest_xdist_auto_num_workers(config) -> int | None:
 
 
 #: How many workers may run the tests of :data:`PROCESS_MODULES` (swarms, routers, launches) at once: one
-#: a core. A free-running swarm paces itself by the wall clock; two of them on one core each ran late
-#: and moved less than asked. The other workers meanwhile run the tests that start no swarm.
+#: a core. A free-running swarm paces itself by the wall clock and lags when it gets less than a core
+#: (docs/benchmarks.md, "The suite"). The other workers meanwhile run the tests that start no swarm.
 SWARM_WORKERS = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
