@@ -6,6 +6,7 @@ import argparse
 import contextlib
 import functools
 import json
+import os
 import shutil
 import signal
 import subprocess
@@ -109,8 +110,6 @@ def freeze(pid: int, timeout: float = 10.0) -> None:
     """SIGSTOP ``pid`` and return once every thread of it has stopped. The signal stops a process only
     when one of its threads takes it; on a loaded machine its other threads went on for a while after
     ``kill`` returned (a frozen router answered an ask sent just after: tests/test_bridge.py)."""
-    import os
-
     os.kill(pid, signal.SIGSTOP)
     deadline = time.monotonic() + timeout
     while True:
