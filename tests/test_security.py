@@ -16,9 +16,8 @@ from zswarm.args import UsageError
 from zswarm.net import messages as msg
 from zswarm.net.config import open_session, zenoh_config
 from zswarm.net.keys import Keys
-from zswarm.host.procs import free_port, start_router
+from zswarm.host.procs import Child, free_port, start_router, wait_for_port
 from zswarm.net.security import write_secure_dir
-from zswarm.ports import port_in_use
 
 from conftest import ROOT, run_cli
 from swarm_procs import load_summary, processes
@@ -222,7 +221,7 @@ def test_secure_swarm_never_sees_an_intruder(per_agent, tmp_path):
         alive: set[int] = set()
         prey: list[bytes] = []
         # the launcher judges the design before it starts the router: seconds on a loaded machine
-        assert until(lambda: launch.poll() is not None or port_in_use("127.0.0.1", port), 90) and launch.poll() is None, said.text()
+        assert wait_for_port("127.0.0.1", port, 90.0, Child("launch", launch)), said.text()
         with session(per_agent, "world", endpoint) as observer:  # rights to listen: when is the swarm up?
             subs = [observer.liveliness().declare_subscriber(keys.all_alive, lambda s: (
                         alive.discard if s.kind == zenoh.SampleKind.DELETE else alive.add)(Keys.agent_of(str(s.key_expr))),
