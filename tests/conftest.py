@@ -232,22 +232,19 @@ def pytest_xdist_auto_num_workers(config) -> int | None:
     return None if os.environ.get("PYTEST_XDIST_AUTO_NUM_WORKERS") else WORKERS
 
 
-#: How many workers may run the tests of :data:`PROCESS_MODULES` (swarms, routers, launches) at once: one
-#: a core. A free-running swarm paces itself by the wall clock and lags when it gets less than a core
-#: (docs/benchmarks.md, "The suite"). The other workers meanwhile run the tests that start no swarm.
-SWARM_WORKERS = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-
-
 @pytest.hookimpl(optionalhook=True)
 def pytest_xdist_make_scheduler(config, log):
     """``--dist loadfile``: modules whole to a worker, as pytest-xdist hands them out, but a module of
-    :data:`PROCESS_MODULES` only while fewer than :data:`SWARM_WORKERS` workers hold one
-    (:class:`swarm_schedule.SwarmCapped`)."""
+    :data:`PROCESS_MODULES` (swarms, routers, launches) only while fewer workers hold one than the
+    machine has cores (:class:`swarm_schedule.SwarmCapped`). A free-running swarm paces itself by the
+    wall clock and lags when it gets less than a core (docs/benchmarks.md, "The suite"); the other
+    workers meanwhile run the tests that start no swarm."""
     if config.getvalue("dist") != "loadfile":
         return None
     from swarm_schedule import SwarmCapped
+    from zswarm.launch.plan import available_cores
 
-    return SwarmCapped(config, log, swarm=lambda scope: Path(scope).stem in PROCESS_MODULES, cap=SWARM_WORKERS)
+    return SwarmCapped(config, log, swarm=lambda scope: Path(scope).stem in PROCESS_MODULES, cap=available_cores())
 
 
 def pytest_configure(config) -> None:
