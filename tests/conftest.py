@@ -100,6 +100,13 @@ def _idle(server) -> None:
 def pytest_unconfigure(config) -> None:
     while _FORKS:
         _FORKS.pop().close()
+    if not hasattr(config, "workerinput") and _CACHE:
+        shutil.rmtree(_CACHE.pop(), ignore_errors=True)
+
+
+#: The suite's own cache of results (:mod:`zswarm.cache`), shared by its workers and what they start, made
+#: empty for each session and removed after it: the user's cache is neither read nor written.
+_CACHE: list[str] = []
 
 
 @pytest.fixture
@@ -255,11 +262,18 @@ def pytest_configure(config) -> None:
     pytest-xdist hands modules out largest first (by test count) unless told not to; the suite's own
     order (:data:`LONGEST_FIRST`, by time) is the one kept. And a suite started where SIGINT is ignored
     (``nohup``, ``cmd &`` in a script) would pass that on to every process it starts, which then could
-    not be interrupted as the tests interrupt them: SIGINT is given its Python default back."""
+    not be interrupted as the tests interrupt them: SIGINT is given its Python default back. The
+    session's cache of results is a folder of its own (:data:`_CACHE`)."""
     if not hasattr(config, "workerinput"):  # once, in the process that starts the workers
         compile_tree()
         rewrite_tests_once(config)
         one_blas_thread(os.environ)  # the workers and what they start, as zswarm's own processes do
+        import tempfile
+
+        from zswarm.cache import ENV
+
+        _CACHE.append(tempfile.mkdtemp(prefix="zs-cache-"))
+        os.environ[ENV] = _CACHE[0]
     if hasattr(config.option, "loadscopereorder"):
         config.option.loadscopereorder = False
     if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:

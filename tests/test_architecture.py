@@ -16,7 +16,7 @@ through others (a circle).
     control        the control step: law, filter, body             laws, paper
     laws           the law contract, the built-in laws, loading   paper
     paper          the paper's mathematics and parameters         base
-    base           zswarm.errors, args, files, provenance, ports,  nothing of zswarm
+    base           zswarm.errors, args, files, cache, provenance, ports,  nothing of zswarm
                    stopping, process
 """
 
@@ -30,7 +30,7 @@ import pytest
 
 from conftest import ROOT
 
-BASE = {"zswarm", "zswarm.errors", "zswarm.args", "zswarm.files", "zswarm.provenance", "zswarm.ports",
+BASE = {"zswarm", "zswarm.errors", "zswarm.args", "zswarm.files", "zswarm.cache", "zswarm.provenance", "zswarm.ports",
         "zswarm.stopping", "zswarm.process"}
 ALLOWED: dict[str, set[str]] = {
     "base": {"base"},

@@ -50,13 +50,15 @@ def run_sim(args: argparse.Namespace) -> int:
     from zswarm.net.runspec import faults_from_args, safety_mode
     from zswarm.record.live import viewer_from_args
     from zswarm.sim.simulator import cost_note, simulate
-
     from zswarm.args import UsageError
     from zswarm.control.step import control_step
     from zswarm.design.guidelines import judged
+    from zswarm.files import check_writable
 
     if args.record is not None and args.record.is_file() and not args.force:
         raise UsageError(f"{args.record} exists; give another path or --force")
+    record = args.record and check_writable(args.record, (".rrd",))  # the file and the viewer before the design
+    viewer = viewer_from_args(args)
     agents = {"n_agents": args.agents} if args.agents is not None else {}
     scenario = get_scenario(args.scenario, {**parse_assignments(args.assignments), **agents})
     note = cost_note(scenario, args.duration if args.duration is not None else scenario.duration)  # or refused
@@ -69,11 +71,9 @@ def run_sim(args: argparse.Namespace) -> int:
                           safety_mode(scenario, args.safety))
     if line is not None:
         print(line, file=sys.stderr, flush=True)
-    faults = faults_from_args(args)
-    safety = safety_mode(scenario, args.safety)
-    viewer = viewer_from_args(args)
+    faults, safety = faults_from_args(args), safety_mode(scenario, args.safety)
     result = simulate(scenario, args.seed, combination=args.potential, duration=args.duration,
-                      record=args.record, record_every=args.record_every,
+                      record=record, record_every=args.record_every,
                       sensing_discs=args.sensing_discs, faults=faults, viewer=viewer,
                       sensing_graph={"auto": None, "on": True, "off": False}[args.sensing_graph], safety=safety)
     result.summary["design"] = design

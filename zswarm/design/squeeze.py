@@ -13,11 +13,12 @@ obstacle come during the run.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from functools import lru_cache
 
 import numpy as np
 
+from zswarm.cache import kept
 from zswarm.control.step import BodyState, Stepped, control_step
 from zswarm.laws.contract import Observations
 from zswarm.paper.neighbours import ObstacleIndex, pairs_within
@@ -118,13 +119,21 @@ class _Pressed:
 @lru_cache(maxsize=512)
 def squeeze(params: Params, n: int, seed: int = 2006, duration: float = 60.0, dt: float = 0.05) -> Squeeze:
     """``n`` agents of the set ``params`` (its potentials, sensing radius, speed and interaction) pressed
-    against the obstacle (:func:`squeeze_scenario`): the one step loop and tally of every simulation."""
+    against the obstacle (:func:`squeeze_scenario`): the one step loop and tally of every simulation, kept on
+    disk between commands (:mod:`zswarm.cache`)."""
     scenario = squeeze_scenario(params, n, seed, duration, dt)
-    engine = _Pressed(scenario)
-    tally = OutcomeTally(1, n, dt, np.array([scenario.capture_radius]), np.array([params.swarm.robot_radius]))
-    drive(engine, scenario.steps, tally)
-    o = tally.outcomes(engine.safety_counts())[0]
-    return Squeeze(n_agents=n, min_pair_distance=o.min_pair_distance,
-                   min_obstacle_distance=o.min_obstacle_clearance if o.min_obstacle_clearance is not None else math.inf,
-                   final_median_nearest=o.final_median_nearest if o.final_median_nearest is not None else math.inf,
-                   final_groups=o.final_components)
+
+    def run() -> dict:
+        engine = _Pressed(scenario)
+        tally = OutcomeTally(1, n, dt, np.array([scenario.capture_radius]), np.array([params.swarm.robot_radius]))
+        drive(engine, scenario.steps, tally)
+        o = tally.outcomes(engine.safety_counts())[0]
+        return asdict(Squeeze(
+            n_agents=n, min_pair_distance=float(o.min_pair_distance),
+            min_obstacle_distance=math.inf if o.min_obstacle_clearance is None else float(o.min_obstacle_clearance),
+            final_median_nearest=math.inf if o.final_median_nearest is None else float(o.final_median_nearest),
+            final_groups=int(o.final_components)))
+
+    # what the run depends on: the scenario (its set, the law and body fixed above, the starts) and the steps
+    key = repr((scenario.params, scenario.starts, scenario.steps, dt))
+    return Squeeze(**kept("squeeze", key, run))

@@ -144,14 +144,11 @@ def plan_from_args(args: argparse.Namespace, cores: int | None = None, memory_mi
     if "agents" in args.role and spec.clock == "free" and \
             pace_load(len(ids), spec.scenario.dt, spec.time_scale, cores) > HOPELESS:
         raise UsageError(pace_warning(len(ids), spec.scenario.dt, spec.time_scale, cores, refused=True, where=where))
-    design = None  # after every flag is checked: the swarm check simulates for a second or more
+    robots = None if args.robots is None else robots_note(check_robots(args.robots, spec), args.robots, ids)
+    design = None  # after every flag and file is checked: the swarm check simulates for a second or more
     if "world" in args.role or args.require_design:
         design = judge_design(spec, args.require_design)
-    notes = [files_note] if files_note else []
-    if pace_note:
-        notes.append(pace_note)
-    if args.robots is not None:
-        notes.append(robots_note(check_robots(args.robots, spec), args.robots, ids))
+    notes = [note for note in (files_note, pace_note, robots) if note]
     if args.secure is None:
         notes.append(OPEN_RUN)
     if "agents" in args.role and spec.clock == "free":  # last: a usage error above comes alone
