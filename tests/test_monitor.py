@@ -17,9 +17,10 @@ from spool import Spool
 from zswarm.net.messages import ENCODING, POSE_ENCODING
 
 
-def _stock_subscriber(endpoint: str, run: str, until: float) -> tuple[dict[str, set[str]], dict[int, int]]:
+def _stock_subscriber(endpoint: str, run: str, agents: int, until: float) -> tuple[dict[str, set[str]], dict[int, int]]:
     """What a plain zenoh-python subscriber (z_sub) sees: the encoding of each kind of key; and, asked
-    once the run is under way (z_liveliness), how many member tokens each agent holds."""
+    once the run is under way and again until every agent has come up (agents start one by one; the
+    deadline is only for failing), how many member tokens each agent holds (z_liveliness)."""
     conf = zenoh.Config.from_json5(json.dumps({"mode": "client", "connect": {"endpoints": [endpoint]},
                                                "scouting": {"multicast": {"enabled": False}}}))
     seen: dict[str, set[str]] = {}
@@ -38,12 +39,15 @@ def _stock_subscriber(endpoint: str, run: str, until: float) -> tuple[dict[str, 
                     break
             time.sleep(0.05)
         sub.undeclare()
-        tokens: dict[int, int] = {}
-        for reply in session.liveliness().get(f"zswarm/{run}/in/**", timeout=5.0):
-            if reply.ok is not None:
-                who = int(str(reply.ok.key_expr).rsplit("/", 1)[1])
-                tokens[who] = tokens.get(who, 0) + 1
-    return seen, tokens
+        while True:
+            tokens: dict[int, int] = {}
+            for reply in session.liveliness().get(f"zswarm/{run}/in/**", timeout=5.0):
+                if reply.ok is not None:
+                    who = int(str(reply.ok.key_expr).rsplit("/", 1)[1])
+                    tokens[who] = tokens.get(who, 0) + 1
+            if len(tokens) >= agents or time.monotonic() > until:
+                return seen, tokens
+            time.sleep(0.1)
 
 
 def test_monitor_matches_the_runs_summary_and_payloads_name_their_encoding(tmp_path):
@@ -56,7 +60,7 @@ def test_monitor_matches_the_runs_summary_and_payloads_name_their_encoding(tmp_p
                              start_new_session=True)
     try:
         wait_for_port(port)
-        seen, tokens = _stock_subscriber(endpoint, run, time.monotonic() + 20)
+        seen, tokens = _stock_subscriber(endpoint, run, 10, time.monotonic() + 20)
         # the live view with no --duration: it ends with the run, in one line
         live = subprocess.Popen([sys.executable, "-m", "zswarm", "monitor", "--run", run, "--connect", endpoint],
                                 cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
