@@ -362,6 +362,21 @@ def test_serve_on_a_taken_port_is_refused_before_anything_starts(tmp_path):
             assert len(res.stderr.strip().splitlines()) == 1 and not any(tmp_path.iterdir())
 
 
+def test_a_file_viewer_or_robots_mistake_is_refused_before_the_design_check(tmp_path, monkeypatch):
+    """The swarm check simulates for a second or more: a mistake found without it is said first, and the
+    check never runs (the cache of its results, a folder of this test's own, stays empty)."""
+    kept = tmp_path / "cache"
+    monkeypatch.setenv("ZSWARM_CACHE", str(kept))
+    for argv, said in ((["-m", "zswarm", "sim", "--record", str(tmp_path)], "is a directory"),
+                       (["-m", "zswarm", "sim", "--viewer", "rerun+http://127.0.0.1:1/proxy"], "no Rerun viewer"),
+                       ([LAUNCH, "--robots", str(tmp_path / "missing.toml")], "does not exist")):
+        res = run_cli(*argv, timeout=60, cwd=tmp_path)
+        assert res.returncode == 2 and said in res.stderr, res.stderr
+        assert not kept.exists() or not any(kept.iterdir()), argv  # no squeeze was run
+    res = run_cli("-m", "zswarm", "sim", "--set", "c_o=2.5", "--require-design", timeout=60, cwd=tmp_path)
+    assert res.returncode == 2 and len(list(kept.glob("squeeze-*.json"))) == 1  # what a judged set leaves
+
+
 def test_sweep_help_shows_every_default():
     res = run_cli("-m", "zswarm", "sweep", "--help", timeout=60)
     assert res.returncode == 0
