@@ -132,20 +132,27 @@ PROCESS_MODULES = {
     "test_secure_options", "test_stopping", "test_asks",
 }
 
+#: Of those, the modules whose tests run swarms (a world and its agents, free-running or lockstep): at most
+#: one worker a core runs them at once (:func:`pytest_xdist_make_scheduler`). The others start routers,
+#: commands that refuse a mistake, or a swarm simulated in the test's own process.
+SWARM_MODULES = PROCESS_MODULES - {"test_usage", "test_tune", "test_asks", "test_api", "test_stopping", "test_export"}
 
-#: The modules that take longest, longest first: the worker-seconds each took in a suite run alone on 2 cores
-#: (5 workers, 2026-12-05). Under ``--dist loadfile`` each module goes whole to one worker, in this order,
-#: to whichever worker is free: the long ones first, so that what is handed out last, when the workers
-#: run out of work unevenly, is short. Modules not named (a few seconds or less) keep their order, after
-#: these. A long module left out of it is handed out late and becomes the suite's tail.
+
+#: The modules that take longest, longest first: first the second tier's own (by the worker-seconds each
+#: took alone on 2 cores, 2026-12-05), then the first tier's (2026-12-07, a slow hour: the wall each
+#: took in the README's command). Under ``--dist loadfile`` each module goes whole to one worker, in this
+#: order, to whichever worker is free: the long ones first, so that what is handed out last, when the
+#: workers run out of work unevenly, is short. Modules not named (a few seconds or less) keep their order,
+#: after these. A long module left out of it is handed out late and becomes the suite's tail.
 LONGEST_FIRST = (
-    "test_cluster", "test_distributed", "test_reliability", "test_design", "test_space_procs", "test_experiments",
-    "test_security", "test_migration", "test_usage", "test_secure_options", "test_scaling", "test_install",
-    "test_render", "test_netns", "test_tune", "test_hostile", "test_robots", "test_sim", "test_design_swarm",
-    "test_law_processes", "test_study", "test_batch", "test_routers", "test_faults", "test_messages", "test_monitor",
-    "test_forged_pose", "test_mixed", "test_live", "test_bridge", "test_space", "test_safety", "test_pose_batch",
-    "test_law_loading", "test_body", "test_export", "test_bench", "test_architecture", "test_bench_laws",
-    "test_control_step", "test_cells",
+    "test_cluster", "test_space_procs", "test_secure_options", "test_install", "test_render", "test_netns",
+    "test_hostile", "test_study", "test_routers",
+    "test_distributed", "test_reliability", "test_design", "test_experiments", "test_sim", "test_security",
+    "test_usage", "test_messages", "test_robots", "test_mixed", "test_law_processes", "test_migration",
+    "test_law_loading", "test_body", "test_forged_pose", "test_tune", "test_monitor", "test_scaling", "test_faults",
+    "test_pose_batch", "test_pki_travel", "test_bench_laws", "test_fleet", "test_space", "test_safety", "test_live",
+    "test_bridge", "test_design_swarm", "test_one_law", "test_batch", "test_architecture", "test_bench", "test_asks",
+    "test_control_step", "test_potentials", "test_cells",
 )
 
 
@@ -242,16 +249,16 @@ def pytest_xdist_auto_num_workers(config) -> int | None:
 @pytest.hookimpl(optionalhook=True)
 def pytest_xdist_make_scheduler(config, log):
     """``--dist loadfile``: modules whole to a worker, as pytest-xdist hands them out, but a module of
-    :data:`PROCESS_MODULES` (swarms, routers, launches) only while fewer workers hold one than the
-    machine has cores (:class:`swarm_schedule.SwarmCapped`). A free-running swarm paces itself by the
-    wall clock and lags when it gets less than a core (docs/benchmarks.md, "The suite"); the other
-    workers meanwhile run the tests that start no swarm."""
+    :data:`SWARM_MODULES` only while fewer workers hold one than the machine has cores
+    (:class:`swarm_schedule.SwarmCapped`). A free-running swarm paces itself by the wall clock and lags
+    when it gets less than a core (docs/benchmarks.md, "The suite"); the other workers meanwhile run the
+    tests that start no swarm."""
     if config.getvalue("dist") != "loadfile":
         return None
     from swarm_schedule import SwarmCapped
     from zswarm.launch.plan import available_cores
 
-    return SwarmCapped(config, log, swarm=lambda scope: Path(scope).stem in PROCESS_MODULES, cap=available_cores())
+    return SwarmCapped(config, log, swarm=lambda scope: Path(scope).stem in SWARM_MODULES, cap=available_cores())
 
 
 def pytest_configure(config) -> None:
