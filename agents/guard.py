@@ -3,7 +3,8 @@
 One pass over the poses it holds (:class:`zswarm.net.poses.PoseTable`), by its liveliness and member
 tokens (:mod:`agents.membership`): the law takes the members heard recently enough; the filter keeps
 clear of every neighbour that may be within the sensing radius by now, including the silent ones that
-cannot have left, with the age of what it knows of each (docs/safety.md).
+cannot have left and the bodies of the departed ones, with the age of what it knows of each
+(docs/safety.md).
 """
 
 from __future__ import annotations
@@ -39,7 +40,8 @@ def choose(s: Sensing, step: int | None, staleness: float, time_scale: float = 1
     announced itself and fell silent is no member of the swarm (a hostile peer's made-up agent
     would hold an agent braking beside it). Of those, the ones whose newest pose may
     be within the sensing radius by now (no farther beyond it than v_max times its age), less the
-    ones that have gone quiet and can have left (:meth:`_guarded`).
+    ones that have gone quiet and can have left (:meth:`_guarded`); and where each departed neighbour's
+    body holds (:func:`_remains`).
 
     Lockstep: the step-k poses, exact for step k (age 0). Free: the newest pose, its age from its
     stamp scaled by ``time_scale``, plus one control period ``period`` (a neighbour on its own timer
@@ -71,9 +73,26 @@ def choose(s: Sensing, step: int | None, staleness: float, time_scale: float = 1
                 lag = nb.received - pose.stamp
                 heard.append((pose, age, quiet, d, lag))
                 quiet_min, age_min, lag_min = min(quiet_min, quiet), min(age_min, age), min(lag_min, lag)
+    kept = _remains(s, step, period, lookahead) if guard else []
     if not heard:
-        return near, []
-    return near, _guarded(s, heard, (quiet_min, age_min, lag_min), step, staleness, lookahead)
+        return near, kept
+    return near, _guarded(s, heard, (quiet_min, age_min, lag_min), step, staleness, lookahead) + kept
+
+
+def _remains(s: Sensing, step: int | None, period: float,
+             lookahead: float) -> list[tuple[tuple[float, ...], float, float]]:
+    """The safety filter's rows for the departed neighbours within the sensing radius: a neighbour whose
+    liveliness token went is no member of the swarm, but its body has not gone with it. Its process is
+    gone or frozen (a body moves only when its agent ticks; a robot stops at its command timeout), or
+    cut off, and then its own filter, hearing nobody, brakes it: it holds at its newest pose, one control
+    period old, until it is heard again (docs/safety.md)."""
+    out = []
+    for pose in s.remains.values():
+        if s.body.distance(pose) <= s.radius:
+            look = lookahead if pose.heading is not None else 0.0
+            age = 0.0 if step is not None else period
+            out.append((tracked_point(pose.position, pose.heading, lookahead), age, look))
+    return out
 
 def _guarded(s: Sensing, heard: list, least: tuple[float, float, float], step: int | None, staleness: float,
          lookahead: float) -> list[tuple[tuple[float, ...], float, float]]:

@@ -83,6 +83,8 @@ class Sensing:
         self.counters = Counters(Rejections(f"agent {agent_id}"))
         self.membership = Membership(self.keys, agent_id)  # who is there: the liveliness and member tokens
         self.last_seq: dict[int, int] = {}
+        # a departed neighbour's newest pose: where its body holds until it is heard again (agents.guard)
+        self.remains: dict[int, msg.Pose] = {}
         self.prey: tuple[float, ...] | None = None
         self.prey_stamp: float | None = None  # when the world sent the newest prey position heard
         self.world_heard: float | None = None  # when the newest prey or tick arrived (None: its clock not started)
@@ -127,9 +129,13 @@ class Sensing:
                 return
             self.membership.token(who, deleted, received)
             if not deleted:
+                self.remains.pop(who, None)  # a member again: guarded by its poses
                 return
-            if self.neighbours.forget(who) is not None:  # departed: forget it at once
+            gone = self.neighbours.forget(who)
+            if gone is not None:  # departed: no neighbour of the law's now, but its body is still guarded
                 self.counters.departed.setdefault(who, received)
+                if gone.latest is not None:
+                    self.remains[who] = gone.latest
             self.last_seq.pop(who, None)
             return
         if tag == "probe":
@@ -221,6 +227,8 @@ class Sensing:
             return
         if nb is None and who in c.departed:
             c.returned.setdefault(who, now)
+        if who in self.remains:  # heard again before its token: its body is where its newest pose says
+            self.remains[who] = pose
         if self.wake_on_pose:
             self.pose_arrived.set()
 

@@ -276,8 +276,21 @@ def test_an_agent_guards_against_late_neighbours_and_quiet_ones_that_cannot_have
     assert (0.3, 0.0) in {p for p, _, _ in guarded}
     assert (0.3, 0.0) not in positions  # the law waits for its token
     assert (0.3, 0.0) not in [p for p, _, _ in sensing.sense(None, 0.5, guard=False)[0]]
-    sensing.handle(("alive", spec.keys.alive(1), b"", True, time.time()))  # it departed: not a neighbour
-    assert (0.3, 0.0) not in {p for p, _, _ in sensing.sense(None, 0.5, 1.0, 0.05)[1]}
+    # it departed (its token went): no neighbour of the law's, but its body holds at its newest pose, one
+    # control period old, however long ago that pose was sent, until it is heard again
+    for who in (1, 4):  # 4: beyond the sensing radius, not guarded
+        sensing.handle(("alive", spec.keys.alive(who), b"", True, time.time()))
+    time.sleep(0.05)
+    poses, guarded = sensing.sense(None, 0.5, 1.0, 0.05)
+    assert (0.3, 0.0) not in [p for p, _, _ in poses]
+    assert [a for p, a, _ in guarded if p == (0.3, 0.0)] == [0.05] and (3.0, 0.0) not in {p for p, _, _ in guarded}
+    back = msg.encode(msg.Pose(1, 2, time.time(), -1, 0.35, 0.0, 0.0, 0.0))
+    sensing.handle(("pose", spec.keys.pose((0, 0), 1), back, False, time.time()))
+    guarded = {p for p, _, _ in sensing.sense(None, 0.5, 1.0, 0.05)[1]}
+    assert (0.35, 0.0) in guarded and (0.3, 0.0) not in guarded  # heard again, before its token: where it is
+    sensing.handle(("alive", spec.keys.alive(1), b"", False, time.time()))  # a member again: by its poses
+    poses, guarded = sensing.sense(None, 0.5, 1.0, 0.05)
+    assert [p for p, _, _ in guarded].count((0.35, 0.0)) == 1 and (0.35, 0.0) in [p for p, _, _ in poses]
     # lockstep: the step's poses, exact for that step
     assert sensing.sense(7, 0.5, 1.0, 0.05)[1] == []
 
