@@ -6,11 +6,12 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import tempfile
 from collections.abc import Callable
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
+
+from zswarm.files import write_json
 
 #: ``ZSWARM_CACHE``: the folder (default ``$XDG_CACHE_HOME/zswarm``, else ``~/.cache/zswarm``), or ``off``.
 ENV = "ZSWARM_CACHE"
@@ -58,10 +59,7 @@ def kept(kind: str, key: str, compute: Callable[[], dict[str, Any]]) -> dict[str
     value = compute()
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{kind}-", suffix=".tmp")
-        with os.fdopen(fd, "w") as out:
-            json.dump({"key": key, "value": value}, out)
-        os.replace(tmp, path)  # whole or not at all, whoever writes the same result at the same time
+        write_json(path, {"key": key, "value": value})  # whole, whoever writes the same result at once
         _prune(folder)
     except OSError:
         pass
