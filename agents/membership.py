@@ -33,6 +33,9 @@ class Membership:
         # (agents.outreach); a frozen or stalled router let a neighbour already there go unknown, and,
         # once that neighbour fell silent, unguarded
         self.unanswered: set[str] = set()
+        # the cells it listens to whose "who is here" answer it has taken in: until every one has, a silent
+        # neighbour whose member token it has not heard may sit in one of them, and is not let go
+        self.known: set[tuple[int, ...]] = set()
 
     def token(self, who: int, deleted: bool, received: float) -> None:
         """Agent ``who``'s liveliness token came (or went) at ``received``."""
@@ -64,11 +67,26 @@ class Membership:
             self._not_in(who, {cell})
 
     def unanswered_ask(self, key: str) -> None:
-        """Nobody answered its ask of who sits in the cell of member key ``key``: it is asked again while
+        """Nobody answered its ask of who sits in the cell of members key ``key``: it is asked again while
         the agent listens to that cell."""
-        parsed = self.keys.member_of(key.removesuffix("*") + "0")  # the cell's members: ".../in/CELL/*"
-        if parsed is not None and parsed[0] in self.listening:
+        cell = self._cell_of(key)
+        if cell in self.listening:
             self.unanswered.add(key)
+
+    def answered(self, key: str) -> None:
+        """Its ask of who sits in the cell of members key ``key`` is answered, every token in it taken in."""
+        cell = self._cell_of(key)
+        if cell in self.listening:
+            self.known.add(cell)
+
+    @property
+    def settled(self) -> bool:
+        """Whether it knows who sits in every cell it listens to (each one's answer taken in)."""
+        return self.listening <= self.known
+
+    def _cell_of(self, key: str) -> tuple[int, ...] | None:
+        parsed = self.keys.member_of(key.removesuffix("*") + "0")  # the cell's members: ".../in/CELL/*"
+        return None if parsed is None else parsed[0]
 
     def member_gone(self, key: str, asked: float) -> None:
         """The member token ``key`` was asked about at ``asked`` and nobody holds it: it is no longer in
@@ -89,6 +107,7 @@ class Membership:
             return
         gone = set(left)
         self.listening -= gone
+        self.known -= gone
         self.member_news = {(who, cell) for who, cell in self.member_news if cell not in gone}
         self.member_live_at = {k: t for k, t in self.member_live_at.items() if k[1] not in gone}
         for who in list(self.members):

@@ -59,7 +59,8 @@ class Outreach:
         unanswered = s.membership.unanswered
         if unanswered:  # a cell's ask that no reply came to: asked again, or who sits there is never known
             for key in unanswered:
-                self.bridge.tokens_into_inbox(key, "in-now", 1.0, unanswered="in-unanswered")
+                self.bridge.tokens_into_inbox(key, "in-now", 1.0, unanswered="in-unanswered",
+                                              answered="in-answered")
             unanswered.clear()
         if not new and not left:
             return  # most ticks
@@ -67,7 +68,8 @@ class Outreach:
         ask = ask or last is None or math.dist(point, last) > 2.0 * s.v_max * s.dt
         for cell in new:
             # who sits in it already (its live member tokens were subscribed first: Sensing._member)
-            self.bridge.tokens_into_inbox(self.keys.cell_members(cell), "in-now", 1.0, unanswered="in-unanswered")
+            self.bridge.tokens_into_inbox(self.keys.cell_members(cell), "in-now", 1.0, unanswered="in-unanswered",
+                                          answered="in-answered")
             if ask:
                 self.asking.add(cell)
                 self.bridge.get_into_inbox(self.keys.cell_poses(cell), "pose", 1.0,

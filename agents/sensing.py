@@ -150,6 +150,9 @@ class Sensing:
         if tag == "in-unanswered":
             self.membership.unanswered_ask(key)
             return
+        if tag == "in-answered":
+            self.membership.answered(key)
+            return
         self.counters.received += 1
         m = self._decoded(payload)
         if m is None:

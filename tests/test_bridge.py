@@ -122,12 +122,13 @@ def test_a_ring_channels_memory_grows_to_its_capacity_so_an_agents_channels_are_
     assert grew["cell"] < 1.0, grew
 
 
-def test_an_ask_of_who_sits_in_a_cell_that_no_reply_came_to_is_said_and_asked_again(tmp_path):
-    """A frozen (or stalled) router answers no "who is here" ask: an agent that entered a cell then never
-    knew the neighbour already there, and stopped guarding it once it fell silent (docs/experiments.md).
-    The unanswered ask is told apart from an empty cell (whose answer comes at once) and asked again."""
+def test_an_ask_that_no_reply_came_to_is_said_asked_again_and_lets_no_neighbour_go(tmp_path):
+    """A frozen (or stalled) router answers no ask: an agent that entered a cell then never knew the
+    neighbour already there, and stopped guarding it once it fell silent (docs/experiments.md). An
+    unanswered "who is here" ask is told apart from an empty cell (whose answer comes at once) and asked
+    again; the cell is known only once an answer came, after its tokens. An ask of whether a doubted
+    neighbour's member token is held that no reply came to lets nobody go; one answered empty does."""
     import signal
-    import subprocess
 
     from swarm_procs import freeze, processes
     from zswarm.host.procs import start_router
@@ -135,6 +136,8 @@ def test_an_ask_of_who_sits_in_a_cell_that_no_reply_came_to_is_said_and_asked_ag
     from agents.membership import Membership
 
     keys = Keys("unanswered", 1.0)
+    tags = lambda *wanted: [item for item in bridge.inbox if item[0] in wanted]  # noqa: E731
+    ask = dict(unanswered="in-unanswered", answered="in-answered")
     with processes() as kids:
         endpoint = start_router(kids)
         router = kids.get("router")
@@ -144,25 +147,35 @@ def test_an_ask_of_who_sits_in_a_cell_that_no_reply_came_to_is_said_and_asked_ag
             bridge = Bridge(here, None, deliver=lambda item: None, batch=True)
             membership = Membership(keys, 4)
             membership.listen_to([(0, 0), (1, 0)], [])
-            bridge.tokens_into_inbox(keys.cell_members((1, 0)), "in-now", 1.0, unanswered="in-unanswered")
-            time.sleep(0.5)  # an empty cell's answer came at once: no "unanswered"
-            assert not any(item[0] == "in-unanswered" for item in bridge.inbox)
+            bridge.tokens_into_inbox(keys.cell_members((1, 0)), "in-now", 1.0, **ask)
+            wait_until(lambda: tags("in-answered"), 5.0, "the empty cell's answer")
+            assert [item[1] for item in tags("in-answered", "in-unanswered")] == [keys.cell_members((1, 0))]
+            membership.answered(keys.cell_members((1, 0)))
+            assert membership.known == {(1, 0)} and not membership.settled
+            bridge.inbox.clear()
             freeze(router.proc.pid)
             try:
-                bridge.tokens_into_inbox(keys.cell_members((0, 0)), "in-now", 0.5, unanswered="in-unanswered")
-                wait_until(lambda: any(item[0] == "in-unanswered" for item in bridge.inbox), 5.0, "the unanswered ask")
+                bridge.token_absent_into_inbox(keys.member((0, 0), 2), "in-gone", 0.5)
+                bridge.tokens_into_inbox(keys.cell_members((0, 0)), "in-now", 0.5, **ask)
+                wait_until(lambda: tags("in-unanswered"), 5.0, "the unanswered ask")
             finally:
                 router.proc.send_signal(signal.SIGCONT)
-            said = [item for item in bridge.inbox if item[0] == "in-unanswered"]
-            assert [item[1] for item in said] == [keys.cell_members((0, 0))]
+            said = tags("in-unanswered")
+            assert [item[1] for item in said] == [keys.cell_members((0, 0))] and not tags("in-answered")
             membership.unanswered_ask(said[0][1])
             assert membership.unanswered == {keys.cell_members((0, 0))} and 2 not in membership.members
-            bridge.inbox.clear()
             for key in membership.unanswered:  # asked again, as agents.outreach does the next tick
-                bridge.tokens_into_inbox(key, "in-now", 1.0, unanswered="in-unanswered")
-            wait_until(lambda: any(item[0] == "in-now" for item in bridge.inbox), 5.0, "the answer")
+                bridge.tokens_into_inbox(key, "in-now", 1.0, **ask)
+            bridge.token_absent_into_inbox(keys.member((1, 0), 7), "in-gone", 1.0)  # nobody holds it
+            wait_until(lambda: tags("in-answered") and tags("in-gone"), 5.0, "the answers")
+            assert [item[0] for item in tags("in-now", "in-answered")] == ["in-now", "in-answered"]  # tokens first
+            # the frozen router's absent check ran out long before: it said nothing
+            assert [item[1] for item in tags("in-gone")] == [keys.member((1, 0), 7)]
             for tag, key, _, deleted, _ in list(bridge.inbox):
-                membership.member(key, deleted, live=False)
-            assert membership.members == {2: {(0, 0)}}
+                if tag == "in-now":
+                    membership.member(key, deleted, live=False)
+                elif tag == "in-answered":
+                    membership.answered(key)
+            assert membership.members == {2: {(0, 0)}} and membership.settled
             token.undeclare()
             bridge.close()

@@ -197,10 +197,12 @@ class Bridge:
         self.session.get(selector, on_reply if done is None else zenoh.handlers.Callback(on_reply, done),
                          timeout=timeout, **ASK_QOS)
 
-    def tokens_into_inbox(self, key: str, tag: str, timeout: float, unanswered: str | None = None) -> None:
+    def tokens_into_inbox(self, key: str, tag: str, timeout: float, unanswered: str | None = None,
+                          answered: str | None = None) -> None:
         """Ask which liveliness tokens match ``key`` now and return at once; each one joins the inbox
-        as a ``tag`` sample (batch mode). ``unanswered``: a query that ran out its time with no reply
-        (its router frozen or stalled: an empty answer comes at once) joins it as such a sample, ``key``."""
+        as a ``tag`` sample (batch mode). Then ``key`` joins it once more: as an ``unanswered`` sample
+        where the query ran out its time with no reply (its router frozen or stalled: an empty answer
+        comes at once), else as an ``answered`` one, after every token (where each is given)."""
         append, now, asked, heard = self.inbox.append, time.time, time.monotonic(), []
 
         def on_reply(reply: Any) -> None:
@@ -209,27 +211,36 @@ class Bridge:
                 append((tag, str(reply.ok.key_expr), b"", False, now()))
 
         def on_done() -> None:
-            if unanswered is not None and not self.closed and not heard and time.monotonic() - asked >= 0.9 * timeout:
-                append((unanswered, key, b"", False, now()))
+            if self.closed:
+                return
+            said = unanswered if not heard and _ran_out(asked, timeout) else answered
+            if said is not None:
+                append((said, key, b"", False, now()))
         self.session.liveliness().get(key, zenoh.handlers.Callback(on_reply, on_done), timeout=timeout)
 
     def token_absent_into_inbox(self, key: str, tag: str, timeout: float) -> None:
-        """Ask whether anybody holds the liveliness token ``key`` and return at once; if nobody answered
-        by the end of the query, a ``tag`` sample (deleted, stamped with the time it was asked) joins
-        the inbox."""
-        asked, held = time.time(), []
+        """Ask whether anybody holds the liveliness token ``key`` and return at once; if the answer came
+        and held no token, a ``tag`` sample (deleted, stamped with the time it was asked) joins the
+        inbox. A query that ran out its time with no reply says nothing: its router did not answer."""
+        asked, started, held = time.time(), time.monotonic(), []
 
         def on_reply(reply: Any) -> None:
             if reply.ok is not None:
                 held.append(True)
 
         def on_done() -> None:
-            if not self.closed and not held:
+            if not self.closed and not held and not _ran_out(started, timeout):
                 self.inbox.append((tag, key, b"", True, asked))
         self.session.liveliness().get(key, zenoh.handlers.Callback(on_reply, on_done), timeout=timeout)
 
     def close(self) -> None:
         self.closed = True
+
+
+def _ran_out(asked: float, timeout: float) -> bool:
+    """A query asked at monotonic time ``asked`` ended by its timeout (an answer, even an empty one,
+    comes at once from a router that is running)."""
+    return time.monotonic() - asked >= 0.9 * timeout
 
 
 def teardown(bridge: Bridge, declared: list[Any], session: zenoh.Session) -> None:
