@@ -38,6 +38,11 @@ an obstacle's D_o by l_i (:func:`widening`; the Robotarium's unicycle mapping).
   the closest command that satisfies every row is kept; u = 0 is always among the candidates. No
   iteration, nothing stopped early: a returned command satisfies its rows to rounding.
 
+A body with inertia (a double integrator, acceleration bound A) guards the velocity v' it will have
+after the period instead (S4): D'_j grows by its own braking distance |v_i|^2/(2A) and its neighbour's,
+each row's a by v_i/(A T) and b by |v_i|^2/(A T) - rho^2/(2 A T), and the rows are solved about the
+command that brakes it, which satisfies them all (``docs/safety.md``, "Bodies with inertia").
+
 Everything is vectorized: rows are a flat list (row r belongs to agent ``agent[r]``), for one agent,
 a swarm or a batch of swarms flattened.
 """
@@ -109,43 +114,128 @@ def safety_for(params, dt: float, lookahead: float = 0.0) -> Safety:
 
 class Rows(NamedTuple):
     """The constraints a . u <= b: row r belongs to agent ``agent[r]``; ``stale`` marks agents that
-    must brake (a neighbour older than the guarantee's bound that could bind)."""
+    must brake (a neighbour older than the guarantee's bound that could bind). With inertia (S4):
+    ``held`` (N, D), the command that brakes each agent (0 for a body without inertia), which satisfies
+    each of its rows unless it must brake; ``reach`` (N,), how far from its velocity ``velocity`` (N, D)
+    its command may be, and ``cap`` the speed limit."""
 
     agent: np.ndarray  # (R,)
     a: np.ndarray  # (R, D)
     b: np.ndarray  # (R,)
     stale: np.ndarray  # (N,) bool
+    held: np.ndarray | None = None
+    velocity: np.ndarray | None = None
+    reach: np.ndarray | None = None
+    cap: float = math.inf
+
+
+class Inertia(NamedTuple):
+    """Agents with inertia (S4): each one's velocity now (N, D) and largest acceleration (N,; inf or 0:
+    a body that stops at once); ``stop`` (R,): each pair's neighbour's braking distance (its bound from
+    its velocity and age: :func:`neighbour_stop`)."""
+
+    velocity: np.ndarray
+    accel: np.ndarray
+    stop: np.ndarray | float = 0.0
+
+
+def stopping(speed: np.ndarray | float, accel: np.ndarray | float) -> np.ndarray:
+    """s^2 / (2A): how far a body at speed s goes braking at A (no farther in the Euler steps of
+    :mod:`zswarm.control.body`); 0 for a body that stops at once (A inf or 0)."""
+    accel = np.asarray(accel, dtype=float)
+    finite = np.isfinite(accel) & (accel > 0)
+    return np.where(finite, np.asarray(speed, dtype=float) ** 2 / (2.0 * np.where(finite, accel, 1.0)), 0.0)
+
+
+def neighbour_stop(velocity: np.ndarray, age: np.ndarray, accel: np.ndarray | float, v_max: float) -> np.ndarray:
+    """A neighbour's braking distance now, from its velocity (..., D) heard ``age`` seconds ago: its speed
+    has grown by at most A tau since, and is at most v_max (S4)."""
+    speed = np.minimum(np.linalg.norm(velocity, axis=-1) + np.asarray(accel, dtype=float) * np.asarray(age), v_max)
+    return stopping(speed, accel)
 
 
 def rows(safety: Safety, n: int, agent: np.ndarray, psi: np.ndarray, age: np.ndarray,
          obstacle_agent: np.ndarray, psi_o: np.ndarray, radius_o: np.ndarray,
-         widen: np.ndarray | float = 0.0, widen_o: np.ndarray | float = 0.0) -> Rows:
+         widen: np.ndarray | float = 0.0, widen_o: np.ndarray | float = 0.0, inertia: Inertia | None = None) -> Rows:
     """(S2) for every pair (``agent``, ``psi`` = P_i - P_j as believed, ``age`` tau_j) and (S3) for every
     sensed obstacle (``obstacle_agent``, ``psi_o`` = P_i - C_o, ``radius_o``), of n agents. ``widen``,
     ``widen_o``: what each row adds to D_s and D_o (a unicycle steered at its point ahead of its axle:
-    l_i + l_j for a pair, l_i for an obstacle; :func:`widening`)."""
+    l_i + l_j for a pair, l_i for an obstacle; :func:`widening`). ``inertia``: (S4), for agents that
+    cannot stop at once and neighbours that cannot."""
     rate, v = safety.kappa / safety.period, safety.v_max
     age = np.asarray(age, dtype=float)
+    if inertia is not None:  # each braking distance is kept as well: the agent's own and its neighbour's
+        own = stopping(np.linalg.norm(inertia.velocity, axis=-1), inertia.accel)
+        widen = widen + own[agent] + inertia.stop
+        widen_o = widen_o + own[obstacle_agent]
     d = np.linalg.norm(psi, axis=-1)
     b = 0.5 * rate * np.maximum(d - safety.margin(age) - widen, 0.0)
     spread = np.minimum(np.divide(v * age, d, out=np.ones_like(d), where=d > 0), 1.0)  # s_j
     cos = np.sqrt(1.0 - spread**2)
     unit = _unit(psi, d)
-    a, owner, bb = [-unit], [agent], [cos * b]
+    dist_o = np.linalg.norm(psi_o, axis=-1)
+    b_o = rate * np.maximum(dist_o - radius_o - safety.clearance - widen_o, 0.0)
     tilted = spread > 0
-    for e in _tangent_signs(unit[tilted]):  # one row per sign pattern, where the data have an age
-        a.append(-(cos[tilted, None] * unit[tilted] - spread[tilted, None] * e))
+    rims = _tangent_signs(unit[tilted])
+    if inertia is None:
+        gain = extra = held = reach = None
+    else:
+        gain, extra, held, reach = _own_terms(safety, n, inertia, agent, b, obstacle_agent, b_o)
+    a, owner, bb = [-unit + _scaled(gain, agent, cos)], [agent], [cos * (b + _at(extra, agent))]
+    for e in rims:  # one row per sign pattern, where the data have an age
+        a.append(-(cos[tilted, None] * unit[tilted] - spread[tilted, None] * e) + _scaled(gain, agent[tilted]))
         owner.append(agent[tilted])
-        bb.append(b[tilted])
-    norm_a = np.sqrt(1.0 + (psi.shape[-1] - 2) * spread**2)  # |c n - s e|: 1 in 2-D, with |e|^2 = 2 in 3-D
-    could_bind = cos * b < v * norm_a  # a row with b >= |a| v_max never binds a command no longer than v_max
+        bb.append(b[tilted] + _at(extra, agent[tilted]))
+    if inertia is None:
+        norm_a = np.sqrt(1.0 + (psi.shape[-1] - 2) * spread**2)  # |c n - s e|: 1 in 2-D, with |e|^2 = 2 in 3-D
+        could_bind = cos * b < v * norm_a  # a row with b >= |a| v_max never binds a command no longer than v_max
+    else:  # any of the pair's rows, as they are
+        could_bind = bb[0] < v * np.linalg.norm(a[0], axis=-1)
+        for a_e, b_e in zip(a[1:], bb[1:]):
+            could_bind[tilted] |= b_e < v * np.linalg.norm(a_e, axis=-1)
     old = ((age > safety.max_age - np.asarray(widen) / v) | (v * age >= d)) & could_bind
     stale = np.zeros(n, dtype=bool)
     stale[agent[old]] = True
-    dist_o = np.linalg.norm(psi_o, axis=-1)
-    b_o = rate * np.maximum(dist_o - radius_o - safety.clearance - widen_o, 0.0)
     return Rows(np.concatenate([*owner, obstacle_agent]).astype(np.intp),
-                np.concatenate([*a, -_unit(psi_o, dist_o)]), np.concatenate([*bb, b_o]), stale)
+                np.concatenate([*a, -_unit(psi_o, dist_o) + _scaled(gain, obstacle_agent)]),
+                np.concatenate([*bb, b_o + _at(extra, obstacle_agent)]), stale, held,
+                None if inertia is None else np.asarray(inertia.velocity, dtype=float), reach, v)
+
+
+def _own_terms(safety: Safety, n: int, inertia: Inertia, agent: np.ndarray, b: np.ndarray,
+               obstacle_agent: np.ndarray, b_o: np.ndarray) -> tuple[np.ndarray, ...]:
+    """(S4)'s terms of each agent's own velocity v and acceleration bound A: the gain v / (A T) its rows
+    add to a, what they add to b, |v|^2 / (A T) - rho^2 / (2 A T), the command that brakes it, v - min(|v|,
+    T A) v / |v|, and rho, how far from v its command may be: T A, less where its least share of a gap
+    (``b``, ``b_o``) could not pay for that much (at low speed, near the edge: a body at rest keeps
+    sqrt(kappa A gap) to move away)."""
+    T = safety.period
+    vel = np.asarray(inertia.velocity, dtype=float)
+    accel = np.broadcast_to(np.asarray(inertia.accel, dtype=float), (n,))
+    finite = np.isfinite(accel) & (accel > 0)
+    A = np.where(finite, accel, 1.0)
+    speed2 = np.einsum("nd,nd->n", vel, vel)
+    least = np.full(n, np.inf)
+    np.minimum.at(least, agent, b)
+    np.minimum.at(least, obstacle_agent, b_o)
+    step = (T * A) ** 2
+    rho2 = np.where(np.isfinite(least), np.minimum(step, 2.0 * A * T * least + 2.0 * speed2), step)
+    gain = np.where(finite[:, None], vel / (A * T)[:, None], 0.0)
+    extra = np.where(finite, (speed2 - 0.5 * rho2) / (A * T), 0.0)
+    speed = np.sqrt(speed2)
+    slow = np.divide(np.minimum(speed, T * A), speed, out=np.ones_like(speed), where=speed > 0)
+    held = np.where(finite[:, None], vel * (1.0 - slow)[:, None], 0.0)
+    return gain, extra, held, np.where(finite, np.sqrt(rho2), np.inf)
+
+
+def _scaled(gain: np.ndarray | None, agent: np.ndarray, by: np.ndarray | None = None) -> np.ndarray | float:
+    if gain is None:
+        return 0.0
+    return gain[agent] if by is None else by[:, None] * gain[agent]
+
+
+def _at(values: np.ndarray | None, agent: np.ndarray) -> np.ndarray | float:
+    return 0.0 if values is None else values[agent]
 
 
 def _tangent_signs(unit: np.ndarray) -> list[np.ndarray]:
@@ -186,12 +276,51 @@ class Filtered(NamedTuple):
 
 def apply(u_hat: np.ndarray, r: Rows, detour: bool = True) -> Filtered:
     """(S1) for every agent: the exact projection of its command, braking where ``r.stale`` says; with
-    ``detour``, a stalled agent takes the detour where it goes farther (:func:`take_detour`)."""
+    ``detour``, a stalled agent takes the detour where it goes farther (:func:`take_detour`). With
+    inertia (``r.held``): :func:`apply_inertia`."""
+    if r.held is not None:
+        return apply_inertia(u_hat, r)
     u = project(u_hat, r.agent, r.a, r.b)
     if detour:
         u = take_detour(u_hat, u, r)
     u[r.stale] = 0.0
     return judged(u_hat, u, r.stale.copy())
+
+
+def apply_inertia(u_hat: np.ndarray, r: Rows) -> Filtered:
+    """(S4): the law's velocity as the body reaches it in one period (at most T A from its velocity), then
+    the exact projection onto the rows about the braking command, which satisfies all of them (u - held
+    is projected: the rows hold 0 there); an agent for which braking does not satisfy a row (at low speed
+    near the edge, or data the bound cannot cover) brakes. The result is brought back along the segment
+    from braking, within ``reach`` of its velocity and the speed limit (both hold at either end)."""
+    held, vel, reach = r.held, r.velocity, r.reach
+    step = np.where(np.isfinite(reach), reach, 0.0)
+    free = ~np.isfinite(reach)  # a body that stops at once: the command as the law gave it
+    gap = u_hat - vel
+    norm = np.linalg.norm(gap, axis=-1)
+    scale = np.where(free, 1.0, np.minimum(1.0, np.divide(step, norm, out=np.ones_like(norm), where=norm > 0)))
+    wanted = np.where(free[:, None], u_hat, vel + gap * scale[:, None])
+    shifted = r.b - np.einsum("rd,rd->r", r.a, held[r.agent])
+    must = r.stale.copy()
+    must[r.agent[shifted < -TOL]] = True
+    u = held + project(wanted - held, r.agent, r.a, np.maximum(shifted, 0.0))
+    u = _within(held, u, vel, np.where(free, np.inf, reach), r.cap)
+    u[must] = held[must]
+    return judged(wanted, u, must)
+
+
+def _within(start: np.ndarray, end: np.ndarray, centre: np.ndarray, radius: np.ndarray, cap: float) -> np.ndarray:
+    """The farthest point of each segment start -> end within ``radius`` of ``centre`` and ``cap`` of 0
+    (each start is within both)."""
+    w = end - start
+    t = np.ones(len(w))
+    for c, rad in ((centre, radius), (np.zeros_like(centre), np.full(len(w), cap))):
+        q = start - c
+        ww, qw, qq = (np.einsum("nd,nd->n", x, y) for x, y in ((w, w), (q, w), (q, q)))
+        out = np.isfinite(rad) & (ww > 0) & (ww + 2 * qw + qq > rad**2)
+        root = (-qw + np.sqrt(np.maximum(qw**2 - ww * (qq - np.where(np.isfinite(rad), rad, 0.0) ** 2), 0.0)))
+        t = np.where(out, np.minimum(t, np.clip(np.divide(root, ww, out=np.zeros_like(ww), where=ww > 0), 0.0, 1.0)), t)
+    return start + w * t[:, None]
 
 
 def turn_right(u: np.ndarray) -> np.ndarray:
