@@ -89,10 +89,19 @@ def _remains(s: Sensing, step: int | None, period: float,
     out = []
     for pose in s.remains.values():
         if s.body.distance(pose) <= s.radius:
-            look = lookahead if pose.heading is not None else 0.0
-            age = 0.0 if step is not None else period
-            out.append((tracked_point(pose.position, pose.heading, lookahead), age, look))
+            out.append(_row(s, pose, 0.0 if step is not None else period, lookahead))
     return out
+
+def _row(s: Sensing, pose, age: float, lookahead: float) -> tuple:
+    """The filter's row of a neighbour: (its tracked point, age, look-ahead: a unicycle's alone carries a
+    heading), and, where the run has bodies with inertia, its velocity and acceleration bound (by its id's
+    group in the run's scenario, which every agent knows; the least of the run's for an id outside it)."""
+    row = (tracked_point(pose.position, pose.heading, lookahead), age, lookahead if pose.heading is not None else 0.0)
+    if s.accels is None:
+        return row
+    accel = s.accels[pose.id] if 0 <= pose.id < len(s.accels) else min(s.accels)
+    return (*row, pose.velocity, accel)
+
 
 def _guarded(s: Sensing, heard: list, least: tuple[float, float, float], step: int | None, staleness: float,
          lookahead: float) -> list[tuple[tuple[float, ...], float, float]]:
@@ -130,6 +139,5 @@ def _guarded(s: Sensing, heard: list, least: tuple[float, float, float], step: i
             elif s.membership.settled:
                 continue  # its token is in none of the cells it listens to, and who sits in each is known
             # else who sits in a cell it listens to is not all known yet: its token may be there
-        look = lookahead if pose.heading is not None else 0.0  # only a unicycle's pose carries a heading
-        out.append((tracked_point(pose.position, pose.heading, lookahead), age, look))
+        out.append(_row(s, pose, age, lookahead))
     return out

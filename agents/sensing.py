@@ -79,6 +79,8 @@ class Sensing:
         p = spec.scenario.params.swarm
         self.radius, self.v_max, self.dt = p.sensing_radius, p.v_max, spec.scenario.dt
         self.subscription_radius = spec.subscription_radius
+        accel = spec.scenario.accels()  # bodies with inertia: each id's bound, for its rows (agents.guard)
+        self.accels = tuple(accel.tolist()) if np.isfinite(accel).any() else None
         self.neighbours = PoseTable(max_step(spec.scenario), spec.period)
         self.counters = Counters(Rejections(f"agent {agent_id}"))
         self.membership = Membership(self.keys, agent_id)  # who is there: the liveliness and member tokens

@@ -22,12 +22,13 @@ from test_law_conformance import random_observation
 SCENARIO = {2: "moving-prey", 3: "moving-prey-3d"}
 BODIES = {2: ("point", "unicycle", "double-integrator"), 3: ("point", "double-integrator")}
 CASES = [(law, dims, body, safety) for law in BUILTIN for dims in (2, 3) for body in BODIES[dims]
-         for safety in ("off", "barrier") if not (body == "double-integrator" and safety == "barrier")]
+         for safety in ("off", "barrier")]
 
 
-def _guard(rng: np.random.Generator, obs, dims: int) -> list[tuple[tuple[float, ...], float]]:
+def _guard(rng: np.random.Generator, obs, dims: int, inertia: bool = False) -> list[tuple]:
     """What the filter guards against: the law's neighbours (some aged), one more it does not use, and now
-    and then one just ahead, straight in the way (the filter acts, stalls, detours)."""
+    and then one just ahead, straight in the way (the filter acts, stalls, detours). ``inertia``: each
+    with a velocity and an acceleration bound (a double integrator's, or inf: a point among them)."""
     look = lambda: float(rng.choice([0.0, 0.25]))  # noqa: E731 - a point body's, or a unicycle's
     out = [(tuple(n.position.tolist()), float(rng.choice([0.0, 0.0, 0.1, 0.4])), look()) for n in obs.neighbours]
     out.append((tuple((obs.position + rng.uniform(-0.4, 0.4, dims)).tolist()), float(rng.choice([0.0, 0.05])),
@@ -36,6 +37,9 @@ def _guard(rng: np.random.Generator, obs, dims: int) -> list[tuple[tuple[float, 
         ahead = obs.target - obs.position
         out.append((tuple((obs.position + rng.uniform(0.1, 0.14) * ahead / np.linalg.norm(ahead)).tolist()), 0.0,
                     look()))
+    if inertia:
+        out = [(p, age, 0.0, tuple(rng.uniform(-0.6, 0.6, dims).tolist()), float(rng.choice([2.0, np.inf])))
+               for p, age, _ in out]
     return out
 
 
@@ -49,7 +53,7 @@ def disagreement(law: str, dims: int, body: str, safety: str, cases: int = 40) -
     worst, acted = 0.0, 0
     for _ in range(cases):
         obs = random_observation(rng, dims, scenario.params.swarm.sensing_radius, 0)
-        guarded = _guard(rng, obs, dims)
+        guarded = _guard(rng, obs, dims, inertia=body == "double-integrator")
         brake = bool(rng.random() < 0.05)
         heading = float(rng.uniform(-np.pi, np.pi)) if body == "unicycle" else None
         got = one.one(tuple(obs.position.tolist()), tuple(obs.velocity.tolist()), heading,

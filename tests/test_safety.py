@@ -188,8 +188,11 @@ def test_the_design_report_says_what_the_filter_guarantees():
     assert point.safety["holds"] and point.safety["max_age"] == pytest.approx((1.0 - 0.1 * (1 + sf.HAIR)) / 1.0)
     assert "safety" not in point.failures()  # a guarantee of the filter, not a check the set must pass
     assert "Safety     holds" in render(point)
+    # a double integrator: both braking distances at full speed (0.25 each at accel 2) come off the age bound
     drone = check(get_scenario("moving-prey", {"body": "double-integrator"}).params, swarm=False, dt=0.05)
-    assert drone.safety["binding"] is False and "Safety     n/a" in render(drone)
+    assert drone.safety["max_age"] == pytest.approx(point.safety["max_age"] - 0.5) and "Safety     holds" in render(drone)
+    slow = check(get_scenario("moving-prey", {"body": "double-integrator", "accel": 0.9}).params, swarm=False, dt=0.05)
+    assert not slow.safety["holds"] and "leaves -0.2111 beyond both" in slow.safety["detail"]  # 1 - 0.1 - 2 (1/1.8)
 
 
 def test_time_scale_auto_picks_the_pace_the_machine_can_hold(monkeypatch):
@@ -223,11 +226,14 @@ def test_bench_safety_puts_the_filter_beside_the_law_alone():
     from conftest import run_cli
 
     res = run_cli("-m", "zswarm", "bench", "safety", "--scenarios", "goal-near-obstacle", "--seeds", "1",
-                  "--modes", "off,barrier", "--workers", "1", "--json", timeout=120)
+                  "--modes", "off,barrier", "--bodies", "point,double-integrator", "--workers", "1", "--json",
+                  timeout=120)
     assert res.returncode == 0, res.stderr
-    rows = {r["mode"]: r for r in json.loads(res.stdout)["rows"]}
-    assert rows["off"]["collisions"] > 0 and rows["barrier"]["collisions"] == 0
-    assert rows["barrier"]["stalled_ticks"] > 0  # held at the goal against a law that would crush it
+    for body in ("point", "double-integrator"):  # a body with inertia behind its own rows (S4)
+        rows = {r["mode"]: r for r in json.loads(res.stdout)["rows"] if r["body"] == body}
+        assert rows["off"]["collisions"] > 0 and rows["barrier"]["collisions"] == 0
+        assert rows["barrier"]["stalled_ticks"] > 0  # held at the goal against a law that would crush it
+        assert rows["barrier"]["us_per_agent_step"] > 0 and rows["off"]["us_per_agent_step"] > 0
     bad = run_cli("-m", "zswarm", "bench", "safety", "--modes", "rvo3", timeout=60)
     assert bad.returncode == 2 and "--modes are off, barrier, orca" in bad.stderr
 

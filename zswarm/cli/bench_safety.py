@@ -1,10 +1,11 @@
 """``zswarm bench safety``: the safety filter beside the law alone and ORCA, on the same runs.
 
 Each scenario (its own set, ``--set`` overriding every run) on seeds 0..K-1 in the reference
-simulator with fresh data, three ways: ``off`` (the law alone), ``barrier`` (zswarm's filter) and
-``orca`` (RVO2 through ``pyrvo``, where it installs: :mod:`zswarm.bench.orca`): collisions, the closest
-pair, runs that reached the goal or prey and the median time they took, and stalled agent-steps (the
-command cut under a tenth of the law's). 2-D point bodies.
+simulator with fresh data, for each body and law asked, three ways: ``off`` (the law alone), ``barrier``
+(zswarm's filter) and ``orca`` (RVO2 through ``pyrvo``, where it installs: :mod:`zswarm.bench.orca`; 2-D
+point bodies only): collisions, the closest pair, runs that reached the goal or prey and the median time
+they took, stalled agent-steps (the command cut under a tenth of the law's), and the simulator's time
+per agent-step (the filter's cost is the barrier row's less the off row's).
 """
 
 from __future__ import annotations
@@ -13,6 +14,8 @@ import argparse
 import json
 import time
 from typing import Any
+
+import numpy as np
 
 from zswarm.cli.bench_interactions import add_study_arguments, summarize
 from zswarm.errors import UsageError
@@ -26,6 +29,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="comma-separated registered scenarios (default goal-near-obstacle,moving-prey)")
     p.add_argument("--modes", type=lambda t: t.split(","), default=list(MODES),
                    help=f"comma-separated, of {', '.join(MODES)} (default all; orca needs pip install pyrvo)")
+    p.add_argument("--bodies", type=lambda t: t.split(","), default=["point"],
+                   help="comma-separated bodies (default point; orca runs point bodies only)")
+    p.add_argument("--laws", type=lambda t: t.split(","), default=[""],
+                   help="comma-separated laws (default each scenario's own)")
     add_study_arguments(p, "runs per scenario and mode", "n_agents=100")
 
 
@@ -35,7 +42,7 @@ def _run(task: tuple[str, str, int, dict[str, Any]]) -> dict[str, Any]:
 
     name, mode, seed, extra = task
     scenario = get_scenario(name, extra)
-    start = time.time()
+    start = time.process_time()
     if mode == "orca":
         from zswarm.bench.orca import Orca
 
@@ -43,7 +50,9 @@ def _run(task: tuple[str, str, int, dict[str, Any]]) -> dict[str, Any]:
         out = run_outcome(scenario, seed, shield=orca)
     else:
         out = run_outcome(scenario, seed, safety=mode)
-    return {"scenario": name, "mode": mode, "seed": seed, "seconds": time.time() - start, **out.to_dict()}
+    return {"scenario": name, "mode": mode, "seed": seed, "body": scenario.params.body.body,
+            "law": scenario.params.law.law, "us_per_agent_step": (time.process_time() - start) * 1e6
+            / (scenario.steps * scenario.n_agents), **out.to_dict()}
 
 
 def run(args: argparse.Namespace) -> int:
@@ -60,35 +69,41 @@ def run(args: argparse.Namespace) -> int:
     modes = [m for m in args.modes if m != "orca" or available()]
     skipped = [m for m in args.modes if m not in modes]
     extra = parse_assignments(args.assignments)
+    cases = []  # (scenario, its overrides, the modes it runs)
     for name in args.scenarios:
-        scenario = get_scenario(name, extra)  # bad input fails here
-        if scenario.dimensions != 2 or scenario.params.body.body != "point":
-            raise UsageError(f"bench safety compares 2-D point bodies ({name} is not one)")
+        for body in args.bodies:
+            for law in args.laws:
+                sets = {**extra, "body": body, **({"law": law} if law else {})}
+                scenario = get_scenario(name, sets)  # bad input fails here
+                point = scenario.dimensions == 2 and body == "point"
+                cases.append((name, sets, [m for m in modes if m != "orca" or point]))
     start = time.time()
-    tasks = [(name, mode, s, extra) for name in args.scenarios for mode in modes for s in range(args.seeds)]
+    tasks = [(name, mode, s, sets) for name, sets, ms in cases for mode in ms for s in range(args.seeds)]
     with get_context("fork").Pool(args.workers) as pool:
         runs = list(pool.imap_unordered(_run, tasks, chunksize=1))
     rows = []
-    for name in args.scenarios:
-        for mode in modes:
-            mine = [r for r in runs if r["scenario"] == name and r["mode"] == mode]
-            rows.append({"scenario": name, "mode": mode, **summarize(mine),
-                         "stalled_ticks": sum(r["safety_stalled_ticks"] for r in mine),
-                         "seconds_per_run": sum(r["seconds"] for r in mine) / len(mine)})
+    for name, sets, ms in cases:
+        for mode in ms:
+            mine = [r for r in runs if (r["scenario"], r["mode"], r["body"]) == (name, mode, sets["body"])
+                    and (r["law"] == sets["law"] if "law" in sets else True)]
+            rows.append({"scenario": name, "body": mine[0]["body"], "law": mine[0]["law"], "mode": mode,
+                         **summarize(mine), "stalled_ticks": sum(r["safety_stalled_ticks"] for r in mine),
+                         "us_per_agent_step": float(np.median([r["us_per_agent_step"] for r in mine]))})
     out = {"rows": rows, "seeds": args.seeds, "set": extra, "skipped": skipped, "machine": machine(),
            "seconds": time.time() - start}
     if args.json:
         print(json.dumps(out))
         return 0
-    print(f"{'scenario':<20} {'mode':<8} {'collisions':>10} {'closest':>8} {'reached':>7} {'capture':>8} "
-          f"{'stalled':>9} {'s/run':>6}")
+    print(f"{'scenario':<20} {'body':<17} {'law':<12} {'mode':<8} {'collisions':>10} {'closest':>8} {'reached':>7} "
+          f"{'capture':>8} {'stalled':>9} {'us/step':>8}")
     for r in rows:
         cap = r["median_capture_time"]
-        print(f"{r['scenario']:<20} {r['mode']:<8} {r['collisions']:>10} {r['min_pair_distance']:>8.3f} "
-              f"{r['reached']:>3}/{r['runs']:<3} {'-' if cap is None else f'{cap:.1f}':>8} {r['stalled_ticks']:>9} "
-              f"{r['seconds_per_run']:>6.1f}")
+        print(f"{r['scenario']:<20} {r['body']:<17} {r['law']:<12} {r['mode']:<8} {r['collisions']:>10} "
+              f"{r['min_pair_distance']:>8.3f} {r['reached']:>3}/{r['runs']:<3} {'-' if cap is None else f'{cap:.1f}':>8} "
+              f"{r['stalled_ticks']:>9} {r['us_per_agent_step']:>8.1f}")
     if skipped:
         print("skipped: orca (pip install pyrvo)")
     print(f"seeds 0-{args.seeds - 1}" + "".join(f", {k}={v}" for k, v in extra.items())
-          + f"; fresh data; capture in s; stalled in agent-steps; machine: {out['machine']}; {out['seconds']:.0f} s")
+          + "; fresh data; capture in s; stalled in agent-steps; us/step: CPU microseconds per agent-step (median "
+          + f"run); machine: {out['machine']}; {out['seconds']:.0f} s")
     return 0

@@ -68,10 +68,10 @@ def run_sim(args: argparse.Namespace) -> int:
         print(note, file=sys.stderr, flush=True)
     explain = " ".join(["zswarm design --scenario", args.scenario, *(f"--set {a}" for a in args.assignments)])
     design, line = judged(scenario.params, scenario.dt, explain, args.require_design,
-                          safety_mode(scenario, args.safety))
+                          safety_mode(args.safety))
     if line is not None:
         print(line, file=sys.stderr, flush=True)
-    faults, safety = faults_from_args(args), safety_mode(scenario, args.safety)
+    faults, safety = faults_from_args(args), safety_mode(args.safety)
     result = simulate(scenario, args.seed, combination=args.potential, duration=args.duration,
                       record=record, record_every=args.record_every,
                       sensing_discs=args.sensing_discs, faults=faults, viewer=viewer,

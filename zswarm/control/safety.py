@@ -150,8 +150,9 @@ def stopping(speed: np.ndarray | float, accel: np.ndarray | float) -> np.ndarray
 def neighbour_stop(velocity: np.ndarray, age: np.ndarray, accel: np.ndarray | float, v_max: float) -> np.ndarray:
     """A neighbour's braking distance now, from its velocity (..., D) heard ``age`` seconds ago: its speed
     has grown by at most A tau since, and is at most v_max (S4)."""
-    speed = np.minimum(np.linalg.norm(velocity, axis=-1) + np.asarray(accel, dtype=float) * np.asarray(age), v_max)
-    return stopping(speed, accel)
+    accel = np.asarray(accel, dtype=float)
+    grown = np.where(np.isfinite(accel), accel, 0.0) * np.asarray(age)  # a body that stops at once: none kept
+    return stopping(np.minimum(np.linalg.norm(velocity, axis=-1) + grown, v_max), accel)
 
 
 def rows(safety: Safety, n: int, agent: np.ndarray, psi: np.ndarray, age: np.ndarray,
@@ -423,10 +424,16 @@ def guarantee(params, dt: float | None = None) -> dict:
     """What ``--safety barrier`` guarantees for a parameter set (the design report's Safety row): the
     distance it keeps, the oldest data it trusts, the speed limit and the body."""
     body = params.body.body
-    if body == "double-integrator":
-        return {"holds": False, "binding": False, "distance": None, "max_age": None,
-                "detail": "not available for a double-integrator (it cannot stop within a step): runs refuse "
-                          "--safety barrier and default to off"}
+    if body == "double-integrator":  # (S4): both braking distances at full speed within the sensing radius
+        s = safety_for(params, dt or 0.05)
+        stop = float(stopping(s.v_max, params.body.accel))
+        oldest = s.max_age - 2.0 * stop / s.v_max
+        detail = (f"with --safety barrier (the default for runs), centres stay >= {s.distance:.4g} apart and >= "
+                  f"{s.clearance:.4g} off obstacles, each agent keeping its own and each neighbour's braking "
+                  f"distance (v_max^2/(2 accel) = {stop:.4g} at full speed): the sensing radius "
+                  f"{s.sensing_radius:g} leaves {s.sensing_radius - s.distance - 2.0 * stop:.4g} beyond both, "
+                  f"neighbour data up to {max(oldest, 0.0):.3g} s old at full speed; older data: the agent brakes")
+        return {"holds": oldest > 0, "distance": s.distance, "max_age": oldest, "detail": detail}
     lookahead = params.body.lookahead if body == "unicycle" else 0.0
     s = safety_for(params, dt or 0.05, lookahead)
     where = "its look-ahead points" if lookahead else "centres"

@@ -31,7 +31,6 @@ import numpy as np
 
 from zswarm.control import body as bodies
 from zswarm.control import safety as sf
-from zswarm.errors import ParamError
 from zswarm.laws.bound import BoundLaw, LawFailed
 from zswarm.laws.contract import Neighbour, Observation, Observations, Obstacle, _slots
 
@@ -62,25 +61,40 @@ class Guard:
     mask: np.ndarray  # (L..., G) bool
     look: np.ndarray | float = 0.0  # broadcasts against (L..., G)
     brake: np.ndarray | None = None  # (L...) bool
+    # a body with inertia among them: each one's velocity as heard (L..., G, D) and acceleration bound
+    # (broadcasts against (L..., G); inf: a body that stops at once)
+    velocity: np.ndarray | None = None
+    accel: np.ndarray | float = math.inf
 
     @classmethod
     def of_pairs(cls, n: int, agent: np.ndarray, point: np.ndarray, age: np.ndarray,
-                 look: np.ndarray | float = 0.0) -> Guard:
-        """One swarm's guard (leading axes (1, N)) from flat lists: agent i guards against ``point``, ``age``."""
+                 look: np.ndarray | float = 0.0, velocity: np.ndarray | None = None,
+                 accel: np.ndarray | float = math.inf) -> Guard:
+        """One swarm's guard (leading axes (1, N)) from flat lists: agent i guards against ``point``, ``age``
+        (with inertia: ``velocity``, ``accel``)."""
         slot, g = _slots(agent, n)
         pts, ages, looks = np.zeros((1, n, g, point.shape[-1])), np.zeros((1, n, g)), np.zeros((1, n, g))
         mask = np.zeros((1, n, g), dtype=bool)
         pts[0, agent, slot], ages[0, agent, slot], looks[0, agent, slot], mask[0, agent, slot] = point, age, look, True
-        return cls(pts, ages, mask, looks)
+        vel, acc = None, math.inf
+        if velocity is not None:
+            vel, acc = np.zeros_like(pts), np.full((1, n, g), math.inf)
+            vel[0, agent, slot], acc[0, agent, slot] = velocity, accel
+        return cls(pts, ages, mask, looks, velocity=vel, accel=acc)
 
     @classmethod
-    def of_one(cls, guarded: Sequence[tuple[Sequence[float], float, float]], dims: int, brake: bool = False) -> Guard:
-        """One agent's guard (leading axes (1, 1)) from (point, age, look) triples."""
+    def of_one(cls, guarded: Sequence[tuple], dims: int, brake: bool = False) -> Guard:
+        """One agent's guard (leading axes (1, 1)) from (point, age, look) triples, or (point, age, look,
+        velocity, accel) where a body with inertia is among them."""
         g = len(guarded)
-        return cls(np.array([p for p, _, _ in guarded], dtype=float).reshape(1, 1, g, dims),
-                   np.array([a for _, a, _ in guarded], dtype=float).reshape(1, 1, g),
-                   np.ones((1, 1, g), dtype=bool), np.array([k for _, _, k in guarded], dtype=float).reshape(1, 1, g),
-                   np.array([[brake]]))
+        velocity, accel = None, math.inf
+        if any(len(x) > 3 for x in guarded):
+            velocity = np.array([x[3] for x in guarded], dtype=float).reshape(1, 1, g, dims)
+            accel = np.array([x[4] for x in guarded], dtype=float).reshape(1, 1, g)
+        return cls(np.array([x[0] for x in guarded], dtype=float).reshape(1, 1, g, dims),
+                   np.array([x[1] for x in guarded], dtype=float).reshape(1, 1, g),
+                   np.ones((1, 1, g), dtype=bool), np.array([x[2] for x in guarded], dtype=float).reshape(1, 1, g),
+                   np.array([[brake]]), velocity, accel)
 
 
 class Stepped(NamedTuple):
@@ -104,6 +118,12 @@ class Barrier:
 
     groups: tuple[tuple[Any, sf.Safety], ...]
     lookahead: np.ndarray | float = 0.0  # broadcasts against (L...)
+    accel: np.ndarray | float = math.inf  # each body's acceleration bound (inf: it stops at once), as lookahead
+
+    @property
+    def inertial(self) -> bool:
+        """Some body it guards cannot stop at once (S4): the engines hand it each neighbour's velocity."""
+        return bool(np.isfinite(self.accel).any())
 
     def points(self, state: bodies.BodyState) -> np.ndarray:
         """Where each body is steered and guarded (:func:`ahead`)."""
@@ -119,22 +139,38 @@ class Barrier:
         radius = np.broadcast_to(obs.obstacle_radius, obs.lead + obs.obstacle_radius.shape[-1:])
         own = np.broadcast_to(np.asarray(self.lookahead, dtype=float), lead)
         theirs = np.broadcast_to(np.asarray(guard.look, dtype=float), guard.age.shape)
+        inertial = self.inertial or bool(np.isfinite(guard.accel).any())
         for runs, safety in self.groups:
             at = index[runs].reshape(-1)
             n = len(at)
             me, look = points[runs].reshape(n, dims), own[runs].reshape(n)
             ii, kk = np.nonzero(guard.mask[runs].reshape(n, -1))
             io, mo = np.nonzero(obs.obstacle_mask[runs].reshape(n, -1))
+            age = guard.age[runs].reshape(n, -1)[ii, kk]
             r = sf.rows(safety, n, ii, me[ii] - guard.point[runs].reshape(n, -1, dims)[ii, kk],
-                        guard.age[runs].reshape(n, -1)[ii, kk], io, me[io] - centre[runs].reshape(n, -1, dims)[io, mo],
+                        age, io, me[io] - centre[runs].reshape(n, -1, dims)[io, mo],
                         radius[runs].reshape(n, -1)[io, mo], sf.widening(look[ii] + theirs[runs].reshape(n, -1)[ii, kk]),
-                        sf.widening(look[io]))
+                        sf.widening(look[io]), self._inertia(runs, n, dims, state, guard, ii, kk, age, safety)
+                        if inertial else None)
             if guard.brake is not None:
                 r = r._replace(stale=r.stale | guard.brake[runs].reshape(n))
             done = sf.apply(flat[at], r)
             out[at] = done.command
             flags[:, at] = done.acted, done.stalled, done.braked
         return sf.Filtered(out, *flags)
+
+    def _inertia(self, runs: Any, n: int, dims: int, state: bodies.BodyState, guard: Guard, ii: np.ndarray,
+                 kk: np.ndarray, age: np.ndarray, safety: sf.Safety) -> sf.Inertia:
+        """(S4)'s inputs for the agents of ``runs``: each one's velocity and acceleration bound, and each
+        guarded neighbour's braking distance from its velocity as heard (at full speed where unheard)."""
+        lead = state.position.shape[:-1]
+        accel = np.broadcast_to(np.asarray(self.accel, dtype=float), lead)[runs].reshape(n)
+        their = np.broadcast_to(np.asarray(guard.accel, dtype=float), guard.age.shape)[runs].reshape(n, -1)[ii, kk]
+        if guard.velocity is None:
+            stop = sf.stopping(np.full(len(ii), safety.v_max), their)
+        else:
+            stop = sf.neighbour_stop(guard.velocity[runs].reshape(n, -1, dims)[ii, kk], age, their, safety.v_max)
+        return sf.Inertia(state.velocity[runs].reshape(n, dims), accel, stop)
 
 
 @dataclass
@@ -199,6 +235,11 @@ class ControlStep:
         """Some law may read its neighbours' velocities (a law that declares what it needs is taken at its
         word; one that declares nothing may read anything)."""
         return any("neighbour velocities" in g.law.law.needs or not type(g.law.law).needs for g in self.groups)
+
+    @property
+    def guards_inertia(self) -> bool:
+        """Its filter guards a body with inertia: it needs each guarded neighbour's velocity (S4)."""
+        return isinstance(self.filter, Barrier) and self.filter.inertial
 
     def start(self, positions: np.ndarray, facing: np.ndarray) -> bodies.BodyState:
         """Every body at rest at ``positions`` (L..., D); a headed one faces ``facing`` (its first goal)."""
@@ -273,7 +314,9 @@ class ControlStep:
             raise LawFailed.of(law.name, exc, when) from None
         u_hat, acted = (v if type(v) is tuple else tuple(v.tolist())), None
         command = u_hat
-        if safety is not None:
+        if safety is not None and (self.filter.inertial or any(len(x) > 3 for x in guarded)):
+            command, acted = self._inertial_one(position, velocity, heading, u_hat, guarded, obstacles, brake)
+        elif safety is not None:
             if brake:
                 speed = math.hypot(*u_hat)
                 command, acted = (0.0,) * len(u_hat), Acted(speed > 0.0, speed > 0.0, True)
@@ -289,6 +332,22 @@ class ControlStep:
         moved = bodies.step(g.body, state, np.array(command), self.dt)
         return One(command, acted, tuple(moved.position.tolist()), tuple(moved.velocity.tolist()),
                    float(moved.heading) if g.body.headed else None)
+
+
+    def _inertial_one(self, position, velocity, heading, u_hat, guarded, obstacles,
+                      brake: bool) -> tuple[tuple[float, ...], Acted | None]:
+        """The filter of :meth:`one` where a body with inertia is guarded (its own or a neighbour's, S4):
+        the batched filter on a batch of one."""
+        dims = len(position)
+        obs = Observations.stack([[_observation(position, velocity, (), obstacles, position, 0.0, self.dt,
+                                                np.zeros(0))]])
+        state = bodies.BodyState(np.array(position, dtype=float).reshape(1, 1, dims),
+                                 np.array(velocity, dtype=float).reshape(1, 1, dims),
+                                 np.array([[np.nan if heading is None else heading]]))
+        done = self.filter(np.array(u_hat, dtype=float).reshape(1, 1, dims), obs, Guard.of_one(guarded, dims, brake),
+                           state)
+        acted = Acted(bool(done.acted[0]), bool(done.stalled[0]), bool(done.braked[0]))
+        return tuple(done.command[0].tolist()), acted if acted.flag else None
 
 
 def _batch_of_one(position, velocity, neighbours, obstacles, target, v_max: float, dt: float,
@@ -369,7 +428,7 @@ def control_step(scenarios: Sequence, combinations_: Sequence | None = None, saf
             index = _ALL if len(runs) == b and len(cols) == len(ids) else np.ix_(runs, np.array(cols))
             groups.append(Group(law, spec, index, law.start_state((len(runs), len(cols)))))
     filters: dict[sf.Safety, list[int]] = {}
-    lookahead = np.zeros((b, len(ids)))
+    lookahead, accel = np.zeros((b, len(ids))), np.full((b, len(ids)), math.inf)
     for r, s in enumerate(scenarios):
         chosen = safety_of(s, modes[r])
         if chosen is not None:
@@ -378,25 +437,25 @@ def control_step(scenarios: Sequence, combinations_: Sequence | None = None, saf
         for g, (_, body) in enumerate(s.groups()):
             if body == "unicycle":
                 lookahead[r, of == g] = s.params.body.lookahead
+        accel[r] = s.accels()[ids]
     barrier = None
     if filters:
         groups_ = tuple((slice(None) if len(rows) == b else np.array(rows), safety_)
                         for safety_, rows in filters.items())
-        barrier = Barrier(groups_, float(lookahead.max()) if agents is not None else lookahead)
+        one = agents is not None
+        barrier = Barrier(groups_, float(lookahead.max()) if one else lookahead,
+                          (float(accel.min()) if one else accel) if np.isfinite(accel).any() else math.inf)
     return ControlStep(groups, first.dt, barrier)
 
 
 def safety_of(scenario, mode: str) -> sf.Safety | None:
     """The filter a run of ``scenario`` uses under ``mode`` (None: off), one for all its agents whatever
     their bodies (a unicycle's look-ahead widens the rows of its own pairs:
-    :func:`zswarm.control.safety.widening`); raises :class:`ParamError` for a combination the filter cannot
-    keep safe."""
+    :func:`zswarm.control.safety.widening`, a double integrator's braking distance its own and its
+    neighbours' rows: :class:`~zswarm.control.safety.Inertia`)."""
     sf.parse_mode(mode)
     if mode == "off":
         return None
-    if any(body == "double-integrator" for _, body in scenario.groups()):
-        raise ParamError("--safety barrier needs a body that can stop within a step; a double-integrator "
-                         "needs v^2/(2 accel) to stop, which this filter does not model: use --safety off")
     return sf.safety_for(scenario.params, scenario.dt)  # each body's look-ahead widens its own rows (the step)
 
 

@@ -92,7 +92,8 @@ class BatchSimulator:
         self._headed = isinstance(barrier, Barrier) and bool(np.any(barrier.lookahead))  # guarded points ahead
         self.channel = (BatchChannel(self.n, [members[r].faults for r in self.faulty], self.dt,
                                      self.radius[self.faulty], self.v_max[self.faulty], dims=self.dims,
-                                     velocities=self.control.hears_velocities, headings=self._headed)
+                                     velocities=self.control.hears_velocities or self.control.guards_inertia,
+                                     headings=self._headed)
                         if len(self.faulty) else None)
         self.off_diagonal = ~np.eye(self.n, dtype=bool)
         self._geometry: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
@@ -157,7 +158,14 @@ class BatchSimulator:
                 believed = ahead(believed, self.channel.belief_heading, look[f][:, None, :])
             point, mask = point.copy(), mask.copy()
             point[f], age[f], mask[f] = believed, heard_age, heard & self.off_diagonal
-        return obs, Guard(point, age, mask, look[:, None, :])
+        if not (isinstance(barrier, Barrier) and barrier.inertial):
+            return obs, Guard(point, age, mask, look[:, None, :])
+        velocity = np.broadcast_to(v[:, None, :, :], (b, n, n, dims))
+        if self.channel is not None:  # each one's velocity as last heard
+            velocity = velocity.copy()
+            velocity[self.faulty] = self.channel.heard_motion(self.step_index)[0]
+        accel = np.broadcast_to(np.asarray(barrier.accel, dtype=float), (b, n))[:, None, :]
+        return obs, Guard(point, age, mask, look[:, None, :], velocity=velocity, accel=accel)
 
     def command(self) -> Stepped:
         """Every agent's step (:mod:`zswarm.control.step`) from what it senses now."""

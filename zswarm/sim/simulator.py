@@ -64,7 +64,7 @@ class Simulator:
         self.step_index = 0
         self.channel = (FaultyChannel(len(self.positions), faults, scenario.dt, p.swarm.sensing_radius,
                                       p.swarm.v_max, seed=faults.seed, dims=scenario.dimensions,
-                                      velocities=self.control.hears_velocities,
+                                      velocities=self.control.hears_velocities or self.control.guards_inertia,
                                       headings=self.headings is not None and self.control.filter is not None)
                         if faulted else None)
         self.filtered = None  # what the filter did at the last step
@@ -121,15 +121,18 @@ class Simulator:
         if not isinstance(barrier, Barrier):  # another filter (a shield): the exact neighbours
             return obs, Guard.of_pairs(n, i, x[j], np.zeros(len(i)))
         look = np.broadcast_to(np.asarray(barrier.lookahead, dtype=float), (1, n))[0]
+        accel = np.broadcast_to(np.asarray(barrier.accel, dtype=float), (1, n))[0]
         if self.channel is not None:  # the newest each heard, at its point ahead of its axle as heard
             gi, gj, points, age = self.channel.known(k, x)
             if self.channel.headings is not None:
                 points = ahead(points, self.channel.headings[gi, gj], look[gj])
-            return obs, Guard.of_pairs(n, gi, points, age, look[gj])
+            heard = self.channel.heard_motion(k, gi, gj)[0] if barrier.inertial else None
+            return obs, Guard.of_pairs(n, gi, points, age, look[gj], heard, accel[gj])
         points = barrier.points(BodyState(x[None], v[None], self.state.heading[None]))[0]
         if points is not x:
             i, j = pairs_within(points, p.sensing_radius)
-        return obs, Guard.of_pairs(n, i, points[j], np.zeros(len(i)), look[j])
+        return obs, Guard.of_pairs(n, i, points[j], np.zeros(len(i)), look[j], v[j] if barrier.inertial else None,
+                                   accel[j])
 
     def command(self) -> Stepped:
         """Every agent's step from what it senses now (the bodies' next states: :meth:`advance`)."""

@@ -125,6 +125,15 @@ class Scenario:
         edges = np.cumsum([count for count, _, _ in groups_of(self.params.mix.groups)], dtype=np.intp)
         return np.searchsorted(edges, np.asarray(ids), side="right")
 
+    def accels(self) -> np.ndarray:
+        """Each agent's acceleration bound (inf: a body that stops at once), by its group's body: what its
+        neighbours' safety filters keep of its braking (:class:`zswarm.control.safety.Inertia`)."""
+        out = np.full(self.n_agents, math.inf)
+        for ids, _, body in self.members():
+            if body == "double-integrator":
+                out[ids] = self.params.body.accel
+        return out
+
     def members(self) -> list[tuple[np.ndarray, LawChoice, str]]:
         """Each group that has agents: their ids, its law and its body (one group for a plain scenario)."""
         ids = np.arange(self.n_agents)
