@@ -635,3 +635,28 @@ def test_bodies_with_inertia_stay_apart_on_data_of_any_age_and_collide_without_t
     assert least >= -1e-9 and braked > 0
     worst = min(_inertial_loop(dims, 6, 0, seed, braking=False)[0] for seed in range(6))
     assert worst < -0.01, worst
+
+
+@pytest.mark.parametrize("dims", [2, 3])
+def test_double_integrators_behind_the_filter_every_law_and_a_users_in_the_simulators(dims):
+    """(S4) in the engines: 12 double integrators (accel 1.5: 0.33 to stop from full speed) of every
+    registered law and a user's law file, in the reference simulator and in one batch of the batched
+    simulator: no collision behind the filter. The point body's rows alone (no braking distance) let
+    vasarhelyi's collide (the break check), and vasarhelyi's law alone collides."""
+    from pathlib import Path
+
+    from zswarm.laws.registry import BUILTIN
+    from zswarm.sim.batch import Member, simulate_batch
+    from zswarm.sim.simulator import simulate
+
+    mine = str(Path(__file__).resolve().parents[1] / "examples" / "my_law.py") + ":seek"
+    name = "moving-prey" if dims == 2 else "moving-prey-3d"
+    scenarios = [get_scenario(name, {"law": law, "body": "double-integrator", "accel": 1.5, "n_agents": 12})
+                 for law in (*BUILTIN, mine)]
+    for scenario in scenarios:
+        s = simulate(scenario, 0, duration=12.0, safety="barrier").summary
+        assert s["collisions"] == 0, (scenario.params.law.law, s["collisions"])
+    batch = simulate_batch([Member(s, 0, safety="barrier") for s in scenarios], int(12.0 / scenarios[0].dt))
+    assert [o.collisions for o in batch.outcomes] == [0] * len(scenarios)
+    alone = scenarios[list(BUILTIN).index("vasarhelyi")]
+    assert simulate(alone, 0, duration=12.0, safety="off").summary["collisions"] > 0

@@ -1,50 +1,14 @@
 """The safety filter: the command closest to the law's that keeps every agent apart, on data of any age.
 
-Between the law (:mod:`zswarm.paper.field`) and the body, agent i replaces its command u^ by
-
-    u_i = argmin |u - u^|^2   subject to   a_r . u <= b_r  for every row r of agent i          (S1)
-
-one row per sensed neighbour j and per sensed obstacle (a discrete-time barrier, derived in
-``docs/safety.md``; the same rows in 2-D and 3-D):
-
-    neighbour j:  -n_ij . u <= c_j b_ij   and   -(c_j n_ij - s_j e) . u <= b_ij  for each e in E_ij,
-                  b_ij = (kappa / 2T) max(0, |psi_ij| - D'_j),   D'_j = D_s + v tau_j,
-                  s_j = sin theta_j = v tau_j / |psi_ij|,  c_j = cos theta_j                             (S2)
-    obstacle o:   -n_io . u <= (kappa / T)  max(0, |P_i - C_o| - rho_o - D_o)                     (S3)
-
-with psi_ij = P_i - P_j as agent i believes it (P_j heard tau_j seconds ago), n = psi/|psi|, D_s = 2 d^r
-(two bodies touching: the collision distance the metrics count), D_o = d^r, v = v_max, T the control
-period and kappa in (0, 1] the share of the gap the pair may close in one period. Each agent takes half
-of a neighbour's gap (the other agent takes the other half); an obstacle does not move, so the agent
-takes all of it. The distance to a point is convex, so one period of motion can only leave a pair
-farther apart than its first-order change says: with fresh data (S2) keeps |P_i - P_j| >= D_s exactly
-in discrete time. The margin v tau_j covers where j can have gone since its pose was taken; E_ij (the
-two tangents +-t in 2-D, the four +-t1 +-t2 in 3-D) makes the row hold for every direction to j that
-the data allow (within theta_j of n_ij). The least n . u over that cone is on its rim,
-c_j n_ij . u - s_j |u_perp|, which the tilted rows bound (exactly in 2-D, from the safe side in 3-D,
-as |t1.u| + |t2.u| >= |u_perp|), unless -u is inside the cone: then it is -|u|, and the first row
-(|u| <= -n_ij . u / c_j there) bounds it: ``docs/safety.md``. With fresh data s_j = 0 and (S2) is one
-row. An agent on the free clock, whose neighbours tick on their own timers, adds one period T to the age
-it measures. A unicycle is guarded at its point l ahead of its axle: a pair's D_s grows by l_i + l_j and
-an obstacle's D_o by l_i (:func:`widening`; the Robotarium's unicycle mapping).
-
-- Every right side is >= 0, so u = 0 (stop) is always feasible: the set is never empty, and the
-  projection of u^ onto a convex set holding 0 is never longer than u^, so the speed limit holds.
-- A neighbour pose older than ``max_age`` (the age at which D'_j reaches the sensing radius: j may be
-  anywhere the agent senses), or so old that j may be on any side (v tau_j >= |psi_ij|), whose row
-  could bind: the agent brakes (u = 0).
-- (S1) is solved exactly (:func:`project`): the optimum is the projection of u^ onto the affine set of
-  at most D linearly independent active rows (KKT and Caratheodory), so every such set is tried and
-  the closest command that satisfies every row is kept; u = 0 is always among the candidates. No
-  iteration, nothing stopped early: a returned command satisfies its rows to rounding.
-
-A body with inertia (a double integrator, acceleration bound A) guards the velocity v' it will have
-after the period instead (S4): D'_j grows by its own braking distance |v_i|^2/(2A) and its neighbour's,
-each row's a by v_i/(A T) and b by |v_i|^2/(A T) - rho^2/(2 A T), and the rows are solved about the
-command that brakes it, which satisfies them all (``docs/safety.md``, "Bodies with inertia").
-
-Everything is vectorized: rows are a flat list (row r belongs to agent ``agent[r]``), for one agent,
-a swarm or a batch of swarms flattened.
+Agent i replaces the law's command u^ by argmin |u - u^|^2 subject to a_r . u <= b_r (S1): one row per
+sensed neighbour j, (S2), with the margin D'_j = D_s + v tau_j and the cone rows that hold for every
+direction the data's age allows, and one per sensed obstacle, (S3); a unicycle is guarded at its point
+ahead of its axle (:func:`widening`), a body with inertia at its next velocity with both braking
+distances kept, solved about the command that brakes it (S4). Every right side is >= 0 (about the
+braking command, S4), so stopping is always feasible; data older than the bound brakes the agent.
+(S1) is solved exactly by enumerating the active sets (:func:`project`). The derivations and what is
+proven: ``docs/safety.md``. Everything is vectorized: rows are a flat list (row r belongs to agent
+``agent[r]``), for one agent, a swarm or a batch of swarms flattened.
 """
 
 from __future__ import annotations
