@@ -22,7 +22,7 @@ from test_law_conformance import random_observation
 SCENARIO = {2: "moving-prey", 3: "moving-prey-3d"}
 BODIES = {2: ("point", "unicycle", "double-integrator"), 3: ("point", "double-integrator")}
 CASES = [(law, dims, body, safety) for law in BUILTIN for dims in (2, 3) for body in BODIES[dims]
-         for safety in ("off", "barrier")]
+         for safety in ("off", "barrier")] + [(law, dims, "point+inertia", "barrier") for law in BUILTIN for dims in (2, 3)]
 
 
 def _guard(rng: np.random.Generator, obs, dims: int, inertia: bool = False) -> list[tuple]:
@@ -45,7 +45,10 @@ def _guard(rng: np.random.Generator, obs, dims: int, inertia: bool = False) -> l
 
 def disagreement(law: str, dims: int, body: str, safety: str, cases: int = 40) -> tuple[float, int]:
     """The largest difference between the batch of one and the batched form over ``cases`` random steps
-    (two steps made alike, so a law's state evolves alike in both), and how many steps the filter changed."""
+    (two steps made alike, so a law's state evolves alike in both), and how many steps the filter changed.
+    ``body`` "point+inertia": a point body among double integrators (a mixed swarm's)."""
+    among = body == "point+inertia"
+    body = "point" if among else body
     scenario = get_scenario(SCENARIO[dims], {"law": law, "body": body})
     one = control_step([scenario], safety=safety, agents=[0])
     batched = control_step([scenario], safety=safety, agents=[0])
@@ -53,7 +56,7 @@ def disagreement(law: str, dims: int, body: str, safety: str, cases: int = 40) -
     worst, acted = 0.0, 0
     for _ in range(cases):
         obs = random_observation(rng, dims, scenario.params.swarm.sensing_radius, 0)
-        guarded = _guard(rng, obs, dims, inertia=body == "double-integrator")
+        guarded = _guard(rng, obs, dims, inertia=among or body == "double-integrator")
         brake = bool(rng.random() < 0.05)
         heading = float(rng.uniform(-np.pi, np.pi)) if body == "unicycle" else None
         got = one.one(tuple(obs.position.tolist()), tuple(obs.velocity.tolist()), heading,
@@ -94,10 +97,13 @@ def test_a_law_whose_shortcut_disagrees_fails_the_check(monkeypatch):
 
 
 def test_a_filter_whose_shortcut_disagrees_fails_the_check(monkeypatch):
-    """The filter's float shortcut letting every command through: the check sees it."""
+    """The filter's float shortcuts letting every command through: the check sees each."""
     monkeypatch.setattr(control, "_filter_floats", lambda safety, point, u_hat, *rest: (u_hat, None))
     with pytest.raises(AssertionError):
         disagreement("boids", 2, "point", "barrier")
+    monkeypatch.setattr(control, "_filter_inertia_floats", lambda s, p, v, a, u_hat, *rest: (u_hat, None))
+    with pytest.raises(AssertionError):
+        disagreement("boids", 2, "double-integrator", "barrier")
 
 
 @pytest.mark.parametrize("dims", [2, 3])

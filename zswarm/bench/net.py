@@ -28,9 +28,11 @@ from zswarm.net.runspec import RunSpec
 
 
 def field_spec(n_agents: int, run: str, duration: float, scenario: str = "bench-field",
-               faults: FaultModel | None = None, seed: int = 0, safety: str = "barrier", law: str = "apf") -> RunSpec:
+               faults: FaultModel | None = None, seed: int = 0, safety: str = "barrier", law: str = "apf",
+               body: str = "point") -> RunSpec:
     """The benchmark's run: ``scenario`` at N agents for ``duration`` seconds."""
-    return RunSpec(run=run, scenario_name=scenario, overrides=(("n_agents", n_agents), ("law", law)), seed=seed,
+    return RunSpec(run=run, scenario_name=scenario, overrides=(("n_agents", n_agents), ("law", law), ("body", body)),
+                   seed=seed,
                    duration=duration,
                    faults=faults or FaultModel(), safety=safety)
 
@@ -62,14 +64,14 @@ def start_field(kids: Children, spec: RunSpec, summary_path: Path, routers: int 
 
 
 def run(n_agents: int, duration: float, scenario: str = "bench-field", routers: int = 1,
-        safety: str = "barrier", law: str = "apf") -> dict[str, Any]:
+        safety: str = "barrier", law: str = "apf", body: str = "point") -> dict[str, Any]:
     """One swarm run: the transport figures from the world's summary, and what each process cost
     over the middle of the run (from 30 % to 90 % of its duration)."""
     kids = Children()
     with tempfile.TemporaryDirectory() as tmp:
         summary_path = Path(tmp) / "bench.json"
         try:
-            spec = field_spec(n_agents, f"bench{n_agents}", duration, scenario, safety=safety, law=law)
+            spec = field_spec(n_agents, f"bench{n_agents}", duration, scenario, safety=safety, law=law, body=body)
             endpoint, world, agents = start_field(kids, spec, summary_path, routers=routers)
             wait_for_start(spec.keys, endpoint)
             names = {c.name: c.pid for c in kids.children}
@@ -148,11 +150,11 @@ def _one(values: list[float]) -> float | None:
 
 
 def measure(n_agents: int, duration: float, floor: bool, routers: int = 1, repeat: int = 1,
-            safety: str = "barrier", law: str = "apf") -> dict[str, Any]:
+            safety: str = "barrier", law: str = "apf", body: str = "point") -> dict[str, Any]:
     """:func:`measure_once` ``repeat`` times in turn (swarm, floors, swarm, floors, ...): each figure is
     the median over the repeats, and each ratio the median of the repeats' ratios, with every
     repeat's ratios beside it (``*_runs``)."""
-    runs = [measure_once(n_agents, duration, floor, routers, safety, law) for _ in range(repeat)]
+    runs = [measure_once(n_agents, duration, floor, routers, safety, law, body) for _ in range(repeat)]
     if repeat == 1:
         return runs[0]
     out = _medians(runs)
@@ -179,10 +181,10 @@ def _medians(runs: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def measure_once(n_agents: int, duration: float, floor: bool, routers: int = 1,
-                 safety: str = "barrier", law: str = "apf") -> dict[str, Any]:
+                 safety: str = "barrier", law: str = "apf", body: str = "point") -> dict[str, Any]:
     """The swarm at N and, with ``floor``, the bare middleware with the same traffic, right after."""
-    r = run(n_agents, duration, routers=routers, safety=safety, law=law)
-    r["safety"], r["law"] = safety, law
+    r = run(n_agents, duration, routers=routers, safety=safety, law=law, body=body)
+    r["safety"], r["law"], r["body"] = safety, law, body
     if floor:
         r.update(run_floor(n_agents, duration))
         callback = run_floor(n_agents, duration, handler="callback")

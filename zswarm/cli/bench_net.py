@@ -14,6 +14,7 @@ import argparse
 import json
 from pathlib import Path
 
+from zswarm.paper.params import KINDS
 from zswarm.args import agent_counts, law_name, positive_int, router_count, safety_mode_arg, sim_seconds
 from zswarm.bench.figures import figure
 from zswarm.bench.net import measure, record_curves
@@ -41,6 +42,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--safety", type=safety_mode_arg, default="barrier", metavar="off|barrier",
                    help="the agents' safety filter (default barrier, as runs): compare both for its cost")
     p.add_argument("--law", type=law_name, default="apf", help="the agents' control law (default apf; zswarm laws lists them)")
+    p.add_argument("--body", choices=KINDS, default="point", help="the agents' body (default point)")
     p.add_argument("--compare", metavar="REF", default=None,
                    help="also run the agents of git ref REF (a commit, tag or branch of this clone), alternating "
                         "with this tree's, --repeat times each (at least 3), and print both sides' medians")
@@ -72,10 +74,10 @@ def run(args: argparse.Namespace) -> int:
     from zswarm.laws.registry import bind
     from zswarm.swarm.scenarios import get_scenario
 
-    bind(get_scenario("bench-field", {"law": args.law}))  # a law that does not load: refused here, in one line
+    bind(get_scenario("bench-field", {"law": args.law, "body": args.body}))  # a law that does not load: refused here, in one line
     if args.compare is not None:
         return run_compare(args)
-    results = [measure(n, args.duration, args.floor, args.routers, args.repeat, args.safety, args.law)
+    results = [measure(n, args.duration, args.floor, args.routers, args.repeat, args.safety, args.law, args.body)
                for n in args.agents]
     if args.record is not None:
         record_curves(results, args.record, {"agents": args.agents, "duration_s": args.duration, "floor": args.floor,
@@ -85,7 +87,7 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(results[0] if len(results) == 1 else {"runs": results, "machine": machine()}))
         return 0
     for r in results:
-        print(f"N={r['n_agents']:>4}  law {r.get('law')}  safety {r.get('safety')}  latency p50 {r['latency_ms']['p50']} ms  p99 {r['latency_ms']['p99']} ms  "
+        print(f"N={r['n_agents']:>4}  law {r.get('law')}  body {r.get('body')}  safety {r.get('safety')}  latency p50 {r['latency_ms']['p50']} ms  p99 {r['latency_ms']['p99']} ms  "
               f"age at use p99 {r['age_at_use_ms']['p99']} ms  on time {figure(r['on_time_ratio'], '.4f')}  "
               f"received/agent/s {figure(r['received_per_agent_per_s'], '.1f')} (in reach "
               f"{figure(r.get('in_reach_per_agent_per_s'), '.1f')})  startup {figure(r['startup_s'], '.2f')} s")

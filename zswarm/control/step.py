@@ -314,8 +314,10 @@ class ControlStep:
             raise LawFailed.of(law.name, exc, when) from None
         u_hat, acted = (v if type(v) is tuple else tuple(v.tolist())), None
         command = u_hat
-        if safety is not None and (self.filter.inertial or any(len(x) > 3 for x in guarded)):
-            command, acted = self._inertial_one(position, velocity, heading, u_hat, guarded, obstacles, brake)
+        if safety is not None and (self.filter.inertial or any(len(x) > 3 and x[4] < math.inf for x in guarded)):
+            point = bodies.tracked_point(position, heading, look) if look else position
+            command, acted = _filter_inertia_floats(safety, point, velocity, self.filter.accel, u_hat, guarded,
+                                                    obstacles, look, brake)
         elif safety is not None:
             if brake:
                 speed = math.hypot(*u_hat)
@@ -332,22 +334,6 @@ class ControlStep:
         moved = bodies.step(g.body, state, np.array(command), self.dt)
         return One(command, acted, tuple(moved.position.tolist()), tuple(moved.velocity.tolist()),
                    float(moved.heading) if g.body.headed else None)
-
-
-    def _inertial_one(self, position, velocity, heading, u_hat, guarded, obstacles,
-                      brake: bool) -> tuple[tuple[float, ...], Acted | None]:
-        """The filter of :meth:`one` where a body with inertia is guarded (its own or a neighbour's, S4):
-        the batched filter on a batch of one."""
-        dims = len(position)
-        obs = Observations.stack([[_observation(position, velocity, (), obstacles, position, 0.0, self.dt,
-                                                np.zeros(0))]])
-        state = bodies.BodyState(np.array(position, dtype=float).reshape(1, 1, dims),
-                                 np.array(velocity, dtype=float).reshape(1, 1, dims),
-                                 np.array([[np.nan if heading is None else heading]]))
-        done = self.filter(np.array(u_hat, dtype=float).reshape(1, 1, dims), obs, Guard.of_one(guarded, dims, brake),
-                           state)
-        acted = Acted(bool(done.acted[0]), bool(done.stalled[0]), bool(done.braked[0]))
-        return tuple(done.command[0].tolist()), acted if acted.flag else None
 
 
 def _batch_of_one(position, velocity, neighbours, obstacles, target, v_max: float, dt: float,
@@ -492,7 +478,7 @@ def _filter_floats(safety: sf.Safety, point: tuple[float, ...], u_hat: tuple[flo
     distance, hair, oldest = safety.distance, 1.0 + sf.HAIR, safety.max_age
     binding: list[tuple[tuple[float, ...], float]] = []
     violated = stale = False
-    for q, age, theirs in neighbours:
+    for q, age, theirs, *_ in neighbours:  # (a body with inertia's velocity and bound: none here)
         d = math.dist(point, q)
         widen = (look + theirs) * hair
         gap = d - (distance + v * age) - widen  # the order of rows()' arithmetic
@@ -537,6 +523,91 @@ def _filter_floats(safety: sf.Safety, point: tuple[float, ...], u_hat: tuple[flo
     change = math.sqrt(sum((u[k] - u_hat[k]) ** 2 for k in range(dims)))
     acted = change > 1e-9 * max(speed, 1.0)
     return u, Acted(acted, acted and math.sqrt(sum(c * c for c in u)) < sf.STALL_SHARE * speed, False)
+
+
+def _filter_inertia_floats(safety: sf.Safety, point: tuple[float, ...], velocity: tuple[float, ...], accel: float,
+                           u_hat: tuple[float, ...], neighbours: Sequence[tuple], obstacles: Sequence[tuple[float, ...]],
+                           look: float, brake: bool) -> tuple[tuple[float, ...], Acted | None]:
+    """:func:`zswarm.control.safety.apply` of :func:`~zswarm.control.safety.rows` with inertia (S4) for one
+    agent (its own acceleration bound ``accel``, inf for a body that stops at once) and ``neighbours`` as
+    (point, age, look-ahead, velocity, accel): the same rows and the same exact enumeration, in floats."""
+    T, v, dims, hair = safety.period, safety.v_max, len(point), 1.0 + sf.HAIR
+    rate = safety.kappa / T
+    own = math.isfinite(accel) and accel > 0
+    speed2 = sum(c * c for c in velocity)
+    stop = speed2 / (2.0 * accel) if own else 0.0
+    pairs, least, stale = [], math.inf, brake
+    for q, age, theirs, vel_j, acc_j in neighbours:
+        d = math.dist(point, q)
+        grown = acc_j * age if math.isfinite(acc_j) else 0.0
+        s_j = min(math.sqrt(sum(c * c for c in vel_j)) + grown, v)
+        widen = (look + theirs) * hair + stop + (s_j * s_j / (2.0 * acc_j) if math.isfinite(acc_j) and acc_j > 0 else 0.0)
+        b = 0.5 * rate * max(d - (safety.distance + v * age) - widen, 0.0)
+        least = min(least, b)
+        pairs.append((q, age, d, widen, b))
+    obstacle_rows = []
+    for o in obstacles:
+        d = math.dist(point, o[:dims])
+        b = rate * max(d - o[dims] - safety.clearance - look * hair - stop, 0.0)
+        least = min(least, b)
+        obstacle_rows.append((tuple((point[k] - o[k]) / d for k in range(dims)) if d > 0 else (0.0,) * dims, b))
+    if own:
+        step2 = (T * accel) ** 2
+        rho2 = min(step2, 2.0 * accel * T * least + 2.0 * speed2) if math.isfinite(least) else step2
+        gain = tuple(c / (accel * T) for c in velocity)
+        extra = (speed2 - 0.5 * rho2) / (accel * T)
+        speed = math.sqrt(speed2)
+        slow = min(speed, T * accel) / speed if speed > 0 else 1.0
+        held = tuple(c * (1.0 - slow) for c in velocity)
+        reach = math.sqrt(rho2)
+    else:
+        gain, extra, held, reach = (0.0,) * dims, 0.0, (0.0,) * dims, math.inf
+    rows_: list[tuple[tuple[float, ...], float]] = []
+    for q, age, d, widen, b in pairs:
+        spread = min(v * age / d, 1.0) if d > 0 else 1.0
+        cos = math.sqrt(1.0 - spread * spread)
+        unit = [(point[k] - q[k]) / d for k in range(dims)] if d > 0 else [0.0] * dims
+        mine = [(tuple(-unit[k] + cos * gain[k] for k in range(dims)), cos * (b + extra))]
+        if spread > 0:
+            mine += [(tuple(-(cos * unit[k] - spread * e[k]) + gain[k] for k in range(dims)), b + extra)
+                     for e in _tangents(unit)]
+        if (age > safety.max_age - widen / v or v * age >= d) and any(
+                bound < v * math.sqrt(sum(c * c for c in a)) for a, bound in mine):
+            stale = True
+        rows_ += mine
+    rows_ += [(tuple(-n[k] + gain[k] for k in range(dims)), b + extra) for n, b in obstacle_rows]
+    if own:
+        gap = [u_hat[k] - velocity[k] for k in range(dims)]
+        norm = math.sqrt(sum(c * c for c in gap))
+        scale = min(1.0, reach / norm) if norm > 0 else 1.0
+        wanted = tuple(velocity[k] + gap[k] * scale for k in range(dims))
+    else:
+        wanted = u_hat
+    shifted = [(a, b - sum(a[k] * held[k] for k in range(dims))) for a, b in rows_]
+    stale |= any(b < -sf.TOL for _, b in shifted)
+    if stale:
+        u = held
+    else:
+        w = tuple(wanted[k] - held[k] for k in range(dims))
+        shifted = [(a, max(b, 0.0)) for a, b in shifted]
+        if any(sum(a[k] * w[k] for k in range(dims)) - b > sf.TOL for a, b in shifted):
+            size = math.sqrt(sum(c * c for c in w))
+            w = _project(w, [r for r in shifted if r[1] < size * math.sqrt(sum(c * c for c in r[0])) + sf.TOL])
+        u = tuple(held[k] + w[k] for k in range(dims))
+        u = tuple(sf._within(np.array([held]), np.array([u]), np.array([velocity], dtype=float), np.array([reach]),
+                             v)[0].tolist()) if _outside(u, held, velocity, reach, v) else u
+    speed = math.sqrt(sum(c * c for c in wanted))
+    change = math.sqrt(sum((u[k] - wanted[k]) ** 2 for k in range(dims)))
+    acted = stale or change > 1e-9 * max(speed, 1.0)
+    if not acted:
+        return wanted, None
+    stalled = change > 1e-9 * max(speed, 1.0) and math.sqrt(sum(c * c for c in u)) < sf.STALL_SHARE * speed
+    return u, Acted(change > 1e-9 * max(speed, 1.0), stalled, stale)
+
+
+def _outside(u, held, velocity, reach: float, cap: float) -> bool:
+    """Whether ``u`` lies beyond ``reach`` of ``velocity`` or the speed limit (:func:`zswarm.control.safety._within`)."""
+    return (math.isfinite(reach) and math.dist(u, velocity) > reach) or math.sqrt(sum(c * c for c in u)) > cap
 
 
 def _tangents(unit: list[float]) -> list[tuple[float, ...]]:
