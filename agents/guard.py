@@ -73,24 +73,33 @@ def choose(s: Sensing, step: int | None, staleness: float, time_scale: float = 1
                 lag = nb.received - pose.stamp
                 heard.append((pose, age, quiet, d, lag))
                 quiet_min, age_min, lag_min = min(quiet_min, quiet), min(age_min, age), min(lag_min, lag)
-    kept = _remains(s, step, period, lookahead) if guard else []
+    kept = _remains(s, step, period, lookahead, now, time_scale) if guard else []
     if not heard:
         return near, kept
     return near, _guarded(s, heard, (quiet_min, age_min, lag_min), step, staleness, lookahead) + kept
 
 
-def _remains(s: Sensing, step: int | None, period: float,
-             lookahead: float) -> list[tuple[tuple[float, ...], float, float]]:
+def _remains(s: Sensing, step: int | None, period: float, lookahead: float, now: float,
+             time_scale: float) -> list[tuple]:
     """The safety filter's rows for the departed neighbours within the sensing radius: a neighbour whose
-    liveliness token went is no member of the swarm, but its body has not gone with it. Its process is
-    gone or frozen (a body moves only when its agent ticks; a robot stops at its command timeout), or
-    cut off, and then its own filter, hearing nobody, brakes it: it holds at its newest pose, one control
-    period old, until it is heard again (docs/safety.md)."""
+    liveliness token went is no member of the swarm, but its body has not gone with it. One that stopped
+    at its newest pose (sent just before its token went: :data:`agents.sensing.HELD_WITHIN`; its process
+    ended, or a robot at its command timeout) holds there, one control period old, until it is heard
+    again. One heard last long before (it was frozen, or this agent was, or cut off, while the others went
+    on) is guarded with its pose's whole age: this agent brakes near it until it hears again
+    (docs/safety.md)."""
     out = []
     for pose in s.remains.values():
-        if s.body.distance(pose) <= s.radius:
-            out.append(_row(s, pose, 0.0 if step is not None else period, lookahead))
+        if step is not None:
+            age = 0.0
+        elif pose.id in s.held:
+            age = period
+        else:
+            age = max(now - pose.stamp, 0.0) * time_scale + period
+        if s.body.distance(pose) - s.v_max * age <= s.radius:
+            out.append(_row(s, pose, age, lookahead))
     return out
+
 
 def _row(s: Sensing, pose, age: float, lookahead: float) -> tuple:
     """The filter's row of a neighbour: (its tracked point, age, look-ahead: a unicycle's alone carries a

@@ -65,6 +65,12 @@ class Body:
         return math.hypot(pose.x - self.x, pose.y - self.y, (pose.z or 0.0) - self.z)
 
 
+#: A departed neighbour whose newest pose was sent at most this long (s) before its token went has stopped
+#: there (its process ended, or its link closed with it); one heard last longer before (it was frozen, or
+#: this agent was, or cut off, and the others went on meanwhile) may be anywhere its age allows.
+HELD_WITHIN = 2.0
+
+
 class Sensing:
     """``probe_latency``: poses come from ring channels, which carry no arrival time, so the transport
     latency is timed on one neighbour's poses heard a second time through a subscription stamped on
@@ -85,8 +91,10 @@ class Sensing:
         self.counters = Counters(Rejections(f"agent {agent_id}"))
         self.membership = Membership(self.keys, agent_id)  # who is there: the liveliness and member tokens
         self.last_seq: dict[int, int] = {}
-        # a departed neighbour's newest pose: where its body holds until it is heard again (agents.guard)
+        # a departed neighbour's newest pose: where its body holds until it is heard again (agents.guard);
+        # ``held``: those whose newest pose was sent just before their token went (it stopped there)
         self.remains: dict[int, msg.Pose] = {}
+        self.held: set[int] = set()
         self.prey: tuple[float, ...] | None = None
         self.prey_stamp: float | None = None  # when the world sent the newest prey position heard
         self.world_heard: float | None = None  # when the newest prey or tick arrived (None: its clock not started)
@@ -132,12 +140,15 @@ class Sensing:
             self.membership.token(who, deleted, received)
             if not deleted:
                 self.remains.pop(who, None)  # a member again: guarded by its poses
+                self.held.discard(who)
                 return
             gone = self.neighbours.forget(who)
             if gone is not None:  # departed: no neighbour of the law's now, but its body is still guarded
                 self.counters.departed.setdefault(who, received)
                 if gone.latest is not None:
                     self.remains[who] = gone.latest
+                    if received - gone.latest.stamp <= HELD_WITHIN:
+                        self.held.add(who)
             self.last_seq.pop(who, None)
             return
         if tag == "probe":
@@ -232,8 +243,9 @@ class Sensing:
             return
         if nb is None and who in c.departed:
             c.returned.setdefault(who, now)
-        if who in self.remains:  # heard again before its token: its body is where its newest pose says
+        if who in self.remains:  # heard again before its token: its body is where its newest pose says, moving
             self.remains[who] = pose
+            self.held.discard(who)
         if self.wake_on_pose:
             self.pose_arrived.set()
 

@@ -282,14 +282,18 @@ def test_an_agent_guards_against_late_neighbours_and_quiet_ones_that_cannot_have
     assert (0.3, 0.0) in {p for p, _, _ in guarded}
     assert (0.3, 0.0) not in positions  # the law waits for its token
     assert (0.3, 0.0) not in [p for p, _, _ in sensing.sense(None, 0.5, guard=False)[0]]
-    # it departed (its token went): no neighbour of the law's, but its body holds at its newest pose, one
-    # control period old, however long ago that pose was sent, until it is heard again
-    for who in (1, 4):  # 4: beyond the sensing radius, not guarded
+    # it departed (its token went) just after its newest pose: no neighbour of the law's, but its body holds
+    # there, one control period old, however long ago that pose was sent, until it is heard again
+    for who in (1, 4, 3):  # 4: beyond the sensing radius, not guarded; 3: heard last 2 s before it went
         sensing.handle(("alive", spec.keys.alive(who), b"", True, time.time()))
     time.sleep(0.05)
     poses, guarded = sensing.sense(None, 0.5, 1.0, 0.05)
+    took = time.time() - now
     assert (0.3, 0.0) not in [p for p, _, _ in poses]
     assert [a for p, a, _ in guarded if p == (0.3, 0.0)] == [0.05] and (3.0, 0.0) not in {p for p, _, _ in guarded}
+    # one heard last long before its token went (it was frozen, or this agent was, while the others went
+    # on) may be anywhere its age allows: guarded with that whole age
+    assert [aged(a, 2.05, took) for p, a, _ in guarded if p == (-0.4, 0.0)] == [True]
     back = msg.encode(msg.Pose(1, 2, time.time(), -1, 0.35, 0.0, 0.0, 0.0))
     sensing.handle(("pose", spec.keys.pose((0, 0), 1), back, False, time.time()))
     guarded = {p for p, _, _ in sensing.sense(None, 0.5, 1.0, 0.05)[1]}
@@ -297,8 +301,8 @@ def test_an_agent_guards_against_late_neighbours_and_quiet_ones_that_cannot_have
     sensing.handle(("alive", spec.keys.alive(1), b"", False, time.time()))  # a member again: by its poses
     poses, guarded = sensing.sense(None, 0.5, 1.0, 0.05)
     assert [p for p, _, _ in guarded].count((0.35, 0.0)) == 1 and (0.35, 0.0) in [p for p, _, _ in poses]
-    # lockstep: the step's poses, exact for that step
-    assert sensing.sense(7, 0.5, 1.0, 0.05)[1] == []
+    # lockstep: the step's poses, exact for that step (none here), and the departed bodies where they are
+    assert sensing.sense(7, 0.5, 1.0, 0.05)[1] == [((-0.4, 0.0), 0.0, 0.0)]
 
 
 def test_under_a_common_delay_a_quiet_neighbour_deep_inside_stays_guarded_in_agents_and_simulators():

@@ -31,8 +31,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help=f"comma-separated, of {', '.join(MODES)} (default all; orca needs pip install pyrvo)")
     p.add_argument("--bodies", type=lambda t: t.split(","), default=["point"],
                    help="comma-separated bodies (default point; orca runs point bodies only)")
-    p.add_argument("--laws", type=lambda t: t.split(","), default=[""],
-                   help="comma-separated laws (default each scenario's own)")
+    p.add_argument("--laws", default=None, help="comma-separated law names (default: each scenario's own)")
     add_study_arguments(p, "runs per scenario and mode", "n_agents=100")
 
 
@@ -72,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
     cases = []  # (scenario, its overrides, the modes it runs)
     for name in args.scenarios:
         for body in args.bodies:
-            for law in args.laws:
+            for law in args.laws.split(",") if args.laws else [""]:
                 sets = {**extra, "body": body, **({"law": law} if law else {})}
                 scenario = get_scenario(name, sets)  # bad input fails here
                 point = scenario.dimensions == 2 and body == "point"

@@ -423,7 +423,7 @@ def control_step(scenarios: Sequence, combinations_: Sequence | None = None, saf
         for g, (_, body) in enumerate(s.groups()):
             if body == "unicycle":
                 lookahead[r, of == g] = s.params.body.lookahead
-        accel[r] = s.accels()[ids]
+        accel[r] = s.accels(ids)
     barrier = None
     if filters:
         groups_ = tuple((slice(None) if len(rows) == b else np.array(rows), safety_)

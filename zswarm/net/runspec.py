@@ -215,5 +215,7 @@ def spec_from_args(args: argparse.Namespace, run: str | None = None, extra: dict
         raise UsageError("--time-scale auto is for zswarm run, which picks the pace; give a number here")
     spec = RunSpec(run=args.run or run or DEFAULT_RUN, scenario_name=args.scenario,
                    overrides=tuple(overrides.items()), seed=args.seed, potential=args.potential, clock=args.clock,
-                   time_scale=args.time_scale, duration=args.duration, faults=faults_from_args(args))
-    return dataclasses.replace(spec, safety=safety_mode(getattr(args, "safety", None)))
+                   time_scale=args.time_scale, duration=args.duration, faults=faults_from_args(args),
+                   safety=safety_mode(getattr(args, "safety", None)))
+    spec.scenario  # noqa: B018 - built now: a mistake in it is said before anything starts
+    return spec

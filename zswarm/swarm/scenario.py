@@ -125,14 +125,13 @@ class Scenario:
         edges = np.cumsum([count for count, _, _ in groups_of(self.params.mix.groups)], dtype=np.intp)
         return np.searchsorted(edges, np.asarray(ids), side="right")
 
-    def accels(self) -> np.ndarray:
-        """Each agent's acceleration bound (inf: a body that stops at once), by its group's body: what its
-        neighbours' safety filters keep of its braking (:class:`zswarm.control.safety.Inertia`)."""
-        out = np.full(self.n_agents, math.inf)
-        for ids, _, body in self.members():
-            if body == "double-integrator":
-                out[ids] = self.params.body.accel
-        return out
+    def accels(self, ids: np.ndarray | None = None) -> np.ndarray:
+        """The acceleration bound of each agent (of ``ids``, default all; inf: a body that stops at once),
+        by its group's body: what its neighbours' safety filters keep of its braking
+        (:class:`zswarm.control.safety.Inertia`)."""
+        ids = np.arange(self.n_agents) if ids is None else np.asarray(ids)
+        inertial = [g for g, (_, body) in enumerate(self.groups()) if body == "double-integrator"]
+        return np.where(np.isin(self.group_of(ids), inertial), self.params.body.accel, math.inf)
 
     def members(self) -> list[tuple[np.ndarray, LawChoice, str]]:
         """Each group that has agents: their ids, its law and its body (one group for a plain scenario)."""
