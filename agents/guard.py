@@ -130,10 +130,12 @@ def _guarded(s: Sensing, heard: list, least: tuple[float, float, float], step: i
     neighbour whose poses came through no slower a path than the others': one whose newest pose
     arrived later after it was sent than the promptest neighbour's by some extra delay is given that
     extra before its silence counts (a router that reads some senders seconds late made them fall
-    silent while they were there, and neighbours walked into them). Its token is known to be in none
-    of those cells only once the answer to who sits in each has come (a cell just entered, or asked
-    while its router was frozen, may hold it): until then it stays guarded. ``lookahead``: a
-    unicycle's tracked point ahead of its axle, from the heading."""
+    silent while they were there, and neighbours walked into them). One without a member token is let
+    go only on a sign that it left: its token seen to leave the cell it was heard in (a live removal, or
+    an ask that found nobody holds it there), and the answer to who sits in every listened cell in (a
+    cell just entered, or asked while its router was frozen, may hold it); until then it stays guarded
+    and its token in that cell is asked about. ``lookahead``: a unicycle's tracked point ahead of its
+    axle, from the heading."""
     v, cells = s.v_max, s.subscription_radius
     left = least[0] + staleness
     fresh = least[1]  # the delay every pose heard now has come through
@@ -143,10 +145,13 @@ def _guarded(s: Sensing, heard: list, least: tuple[float, float, float], step: i
         # its silence counts only beyond its own path's extra delay: a sender whose poses queue
         # (a router that reads it late) falls silent while it is still there
         if step is None and quiet - max(lag - path, 0.0) > left and d + v * (age - fresh) > cells:
-            if pose.id in s.membership.members:
-                s.membership.doubted.add(pose.id)  # guarded on its member token alone: that token is asked about
-            elif s.membership.settled:
-                continue  # its token is in none of the cells it listens to, and who sits in each is known
-            # else who sits in a cell it listens to is not all known yet: its token may be there
+            m = s.membership
+            if pose.id in m.members:  # guarded on its member token alone: that token is asked about
+                m.doubted[pose.id] = set(m.members[pose.id])
+            else:
+                cell = s.keys.cell(*pose.position)
+                if cell not in m.listening or ((pose.id, cell) in m.left and m.settled):
+                    continue  # it left the cell it was heard in, and is in no other it listens to
+                m.doubted[pose.id] = {cell}  # no sign it left: guarded, and its token there asked about
         out.append(_row(s, pose, age, lookahead))
     return out

@@ -76,15 +76,15 @@ class Outreach:
                                            done=lambda cell=cell: self.asking.discard(cell))
 
     def check_members(self, now: float) -> None:
-        """Ask again about the member tokens on which alone the safety filter guards a silent neighbour
-        (:attr:`agents.membership.Membership.doubted`): one nobody holds any longer is let go
+        """Ask again about the member tokens on which the safety filter's verdict on a silent neighbour
+        rests (:attr:`agents.membership.Membership.doubted`): one nobody holds is a sign it left that cell
         (:meth:`agents.membership.Membership.member_gone`). Each token at most once every
         :data:`MEMBER_CHECK_S` seconds."""
         s = self.sensing.membership
         if not s.doubted:
             return  # most ticks
-        for who in s.doubted:
-            for cell in s.members.get(who, ()):
+        for who, cells in s.doubted.items():
+            for cell in cells:
                 if now - self.member_asked.get((who, cell), -math.inf) >= MEMBER_CHECK_S:
                     self.member_asked[(who, cell)] = now
                     self.bridge.token_absent_into_inbox(self.keys.member(cell, who), "in-gone", 1.0)

@@ -420,6 +420,9 @@ def test_a_quiet_neighbour_whose_member_token_is_in_the_cells_is_guarded_whateve
     assert set(guarded()) == {(0.5, 0.0), (-0.9, 0.0)} and 3 not in sensing.membership.members
     for c in (cell, keys.cell(0.0, 0.0)):  # the answers came: nobody there
         sensing.handle(("in-answered", keys.cell_members(c), b"", False, now))
+    # but no sign that it left the cell it was heard in: still guarded, and its token there asked about
+    assert set(guarded()) == {(0.5, 0.0), (-0.9, 0.0)} and sensing.membership.doubted == {3: {cell}}
+    sensing.handle(("in-gone", keys.member(cell, 3), b"", True, now + 1.0))  # the ask: nobody holds it
     assert set(guarded()) == {(0.5, 0.0)}
     sensing.handle(("in", keys.member(cell, 3), b"", False, now))
     sensing.handle(("in", keys.member(keys.cell(0.0, 0.0), 0), b"", False, now))  # its own: ignored
@@ -556,7 +559,7 @@ def test_a_member_token_nobody_holds_any_longer_is_asked_about_and_let_go():
         for cell in set(cells.values()):
             sensing.handle(("in-answered", keys.cell_members(cell), b"", False, now))
         guarded = lambda: {p for p, _, _ in sensing.sense(None, 0.5, 1.0, 0.05)[1]}  # noqa: E731
-        assert guarded() == {at[1], at[3], at[4]} and sensing.membership.doubted == {3, 4}
+        assert guarded() == {at[1], at[3], at[4]} and set(sensing.membership.doubted) == {3, 4}
         time.sleep(0.5)  # the holder's token has reached the other session
         reach.check_members(time.time())
         deadline = time.monotonic() + 10.0
