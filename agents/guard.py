@@ -150,7 +150,7 @@ def _guarded(s: Sensing, heard: list, least: tuple[float, float, float], step: i
                 m.doubted[pose.id] = set(m.members[pose.id])
             else:
                 cell = s.keys.cell(*pose.position)
-                if cell not in m.listening or ((pose.id, cell) in m.left and m.settled):
+                if cell not in m.listening or ((pose.id, cell) in m.gone_from and m.settled):
                     continue  # it left the cell it was heard in, and is in no other it listens to
                 m.doubted[pose.id] = {cell}  # no sign it left: guarded, and its token there asked about
         out.append(_row(s, pose, age, lookahead))

@@ -31,7 +31,7 @@ class Membership:
         self.doubted: dict[int, set[tuple[int, ...]]] = {}
         # (id, cell): its member token was seen to leave that cell (a live removal, or an ask that found
         # nobody holds it), the one sign a quiet neighbour is let go on (agents.guard)
-        self.left: set[tuple[int, tuple[int, ...]]] = set()
+        self.gone_from: set[tuple[int, tuple[int, ...]]] = set()
         self.listening: set[tuple[int, ...]] = set()  # the cells it listens to (agents.cell_view)
         # the member keys of cells it listens to whose "who is here" ask got no reply: asked again
         # (agents.outreach); a frozen or stalled router let a neighbour already there go unknown, and,
@@ -67,10 +67,10 @@ class Membership:
             return
         if not deleted:
             self.members.setdefault(who, set()).add(cell)
-            self.left.discard((who, cell))
+            self.gone_from.discard((who, cell))
         else:
             self._not_in(who, {cell})
-            self.left.add((who, cell))
+            self.gone_from.add((who, cell))
 
     def unanswered_ask(self, key: str) -> None:
         """Nobody answered its ask of who sits in the cell of members key ``key``: it is asked again while
@@ -104,7 +104,7 @@ class Membership:
         cell, who = parsed
         if self.member_live_at.get((who, cell), -math.inf) < asked and cell in self.listening:
             self._not_in(who, {cell})
-            self.left.add((who, cell))
+            self.gone_from.add((who, cell))
 
     def listen_to(self, new: list[tuple[int, ...]], left: list[tuple[int, ...]]) -> None:
         """It listens to the cells ``new`` now, and no longer to ``left``: what their tokens said no
@@ -117,7 +117,7 @@ class Membership:
         self.known -= gone
         self.member_news = {(who, cell) for who, cell in self.member_news if cell not in gone}
         self.member_live_at = {k: t for k, t in self.member_live_at.items() if k[1] not in gone}
-        self.left = {(who, cell) for who, cell in self.left if cell not in gone}
+        self.gone_from = {(who, cell) for who, cell in self.gone_from if cell not in gone}
         for who in list(self.members):
             self._not_in(who, gone)
 

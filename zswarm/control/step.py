@@ -220,10 +220,12 @@ class ControlStep:
         law = self.groups[0].law
         fast = law.law.floats if dims == 2 else None
         safety = look = None
+        inertial = False
         if self.filter is not None:
             (_, safety), = self.filter.groups
             look = float(self.filter.lookahead)
-        self._single = (fast, law.context.v_max, safety, look)
+            inertial = self.filter.inertial
+        self._single = (fast, law.context.v_max, safety, look, inertial)
         return self._single
 
     @property
@@ -295,7 +297,7 @@ class ControlStep:
         single form in floats, :attr:`zswarm.laws.contract.SwarmLaw.floats`; the filter; the point body)."""
         g = self.groups[0]
         law = g.law
-        fast, v_max, safety, look = self._single or self._single_of(len(position))
+        fast, v_max, safety, look, inertial = self._single or self._single_of(len(position))
         try:
             if fast is not None and law.state_size:  # the law reads the floats, and its state
                 v, kept = fast(position, velocity, target, obstacles, neighbours, v_max, self.dt,
@@ -314,7 +316,9 @@ class ControlStep:
             raise LawFailed.of(law.name, exc, when) from None
         u_hat, acted = (v if type(v) is tuple else tuple(v.tolist())), None
         command = u_hat
-        if safety is not None and (self.filter.inertial or any(len(x) > 3 and x[4] < math.inf for x in guarded)):
+        # its own body has inertia, or a neighbour's has (an agent's rows all carry a bound, or none does)
+        if safety is not None and (inertial or (guarded and len(guarded[0]) > 3
+                                                and any(x[4] < math.inf for x in guarded))):
             point = bodies.tracked_point(position, heading, look) if look else position
             command, acted = _filter_inertia_floats(safety, point, velocity, self.filter.accel, u_hat, guarded,
                                                     obstacles, look, brake)
@@ -595,17 +599,15 @@ def _filter_inertia_floats(safety: sf.Safety, point: tuple[float, ...], velocity
             w = _project(w, [r for r in shifted if r[1] < size * math.sqrt(sum(c * c for c in r[0])) + sf.TOL])
         u = tuple(held[k] + w[k] for k in range(dims))
         u = tuple(sf._within(np.array([held]), np.array([u]), np.array([velocity], dtype=float), np.array([reach]),
-                             v)[0].tolist()) if _outside(u, held, velocity, reach, v) else u
+                             v)[0].tolist()) if _outside(u, velocity, reach, v) else u
     speed = math.sqrt(sum(c * c for c in wanted))
-    change = math.sqrt(sum((u[k] - wanted[k]) ** 2 for k in range(dims)))
-    acted = stale or change > 1e-9 * max(speed, 1.0)
-    if not acted:
+    moved = math.sqrt(sum((u[k] - wanted[k]) ** 2 for k in range(dims))) > 1e-9 * max(speed, 1.0)
+    if not (moved or stale):
         return wanted, None
-    stalled = change > 1e-9 * max(speed, 1.0) and math.sqrt(sum(c * c for c in u)) < sf.STALL_SHARE * speed
-    return u, Acted(change > 1e-9 * max(speed, 1.0), stalled, stale)
+    return u, Acted(moved, moved and math.sqrt(sum(c * c for c in u)) < sf.STALL_SHARE * speed, stale)
 
 
-def _outside(u, held, velocity, reach: float, cap: float) -> bool:
+def _outside(u, velocity, reach: float, cap: float) -> bool:
     """Whether ``u`` lies beyond ``reach`` of ``velocity`` or the speed limit (:func:`zswarm.control.safety._within`)."""
     return (math.isfinite(reach) and math.dist(u, velocity) > reach) or math.sqrt(sum(c * c for c in u)) > cap
 
