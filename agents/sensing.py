@@ -139,9 +139,10 @@ class Sensing:
                 return
             self.membership.token(who, deleted, received)
             if not deleted:
-                self.remains.pop(who, None)  # a member again: guarded by its poses
-                self.held.discard(who)
-                return
+                if who in self.neighbours.entries:  # a member again, heard since: guarded by its poses
+                    self.remains.pop(who, None)
+                    self.held.discard(who)
+                return  # back before any pose of it: its body stays guarded where it was
             gone = self.neighbours.forget(who)
             if gone is not None:  # departed: no neighbour of the law's now, but its body is still guarded
                 self.counters.departed.setdefault(who, received)
@@ -243,9 +244,12 @@ class Sensing:
             return
         if nb is None and who in c.departed:
             c.returned.setdefault(who, now)
-        if who in self.remains:  # heard again before its token: its body is where its newest pose says, moving
-            self.remains[who] = pose
+        if who in self.remains:  # heard again: its body is where its newest pose says, moving
             self.held.discard(who)
+            if who in self.membership.alive:  # its token is back: guarded by its poses
+                del self.remains[who]
+            else:
+                self.remains[who] = pose
         if self.wake_on_pose:
             self.pose_arrived.set()
 

@@ -294,6 +294,9 @@ def test_an_agent_guards_against_late_neighbours_and_quiet_ones_that_cannot_have
     # one heard last long before its token went (it was frozen, or this agent was, while the others went
     # on) may be anywhere its age allows: guarded with that whole age
     assert [aged(a, 2.05, took) for p, a, _ in guarded if p == (-0.4, 0.0)] == [True]
+    # its token back (a link that went and came) before any pose of it: its body is still there
+    sensing.handle(("alive", spec.keys.alive(3), b"", False, time.time()))
+    assert (-0.4, 0.0) in {p for p, _, _ in sensing.sense(None, 0.5, 1.0, 0.05)[1]}
     back = msg.encode(msg.Pose(1, 2, time.time(), -1, 0.35, 0.0, 0.0, 0.0))
     sensing.handle(("pose", spec.keys.pose((0, 0), 1), back, False, time.time()))
     guarded = {p for p, _, _ in sensing.sense(None, 0.5, 1.0, 0.05)[1]}
