@@ -5,6 +5,7 @@ and the body's next state, to 1e-12. A shortcut that disagrees fails here (the b
 
 from __future__ import annotations
 
+import math
 import zlib
 
 import numpy as np
@@ -98,10 +99,9 @@ def test_a_law_whose_shortcut_disagrees_fails_the_check(monkeypatch):
 
 def test_a_filter_whose_shortcut_disagrees_fails_the_check(monkeypatch):
     """The filter's float shortcuts letting every command through: the check sees each."""
-    monkeypatch.setattr(control, "_filter_floats", lambda safety, point, u_hat, *rest: (u_hat, None))
+    monkeypatch.setattr(control, "_filter_floats", lambda s, p, v, a, u_hat, *rest: (u_hat, None))
     with pytest.raises(AssertionError):
         disagreement("boids", 2, "point", "barrier")
-    monkeypatch.setattr(control, "_filter_inertia_floats", lambda s, p, v, a, u_hat, *rest: (u_hat, None))
     with pytest.raises(AssertionError):
         disagreement("boids", 2, "double-integrator", "barrier")
 
@@ -125,7 +125,7 @@ def test_the_float_filter_is_the_vectorized_filter(dims):
         centres = point + rng.uniform(-0.6, 0.6, size=(m, dims))
         radii = rng.uniform(0, 0.2, size=m)
         own, theirs = float(rng.choice([0.0, 0.05])), rng.choice([0.0, 0.05], size=k)  # look-aheads
-        got, done = control._filter_floats(s, tuple(point), tuple(u_hat),
+        got, done = control._filter_floats(s, tuple(point), (0.0,) * dims, math.inf, tuple(u_hat),
                                            [(tuple(x), float(a), float(t)) for x, a, t in zip(q, age, theirs)],
                                            [(*c, r) for c, r in zip(centres.tolist(), radii.tolist())], own)
         rows = sf.rows(s, 1, np.zeros(k, np.intp), point - q, age, np.zeros(m, np.intp), point - centres, radii,
@@ -137,3 +137,30 @@ def test_the_float_filter_is_the_vectorized_filter(dims):
         braked += bool(want.braked[0])
         detours += not np.allclose(sf.apply(u_hat[None], rows, detour=False).command, want.command)
     assert acted > 50 and braked > 5 and detours > 10, (acted, braked, detours)
+
+
+@pytest.mark.parametrize("dims", [2, 3])
+def test_a_body_that_stops_at_once_among_bodies_with_inertia_takes_the_detour_in_both_forms(dims):
+    """A point agent guarded against double integrators: (S4)'s rows, their braking distances kept.
+    Stalled by one just ahead, it turns right as it does among points, batched and in floats alike."""
+    rng = np.random.default_rng(20 + dims)
+    s = sf.Safety(distance=0.1, clearance=0.05, v_max=1.0, period=0.05, sensing_radius=1.0)
+    detours = 0
+    for _ in range(200):
+        point, u_hat = rng.uniform(-1, 1, size=dims), rng.uniform(-0.7, 0.7, size=dims)
+        k = int(rng.integers(1, 5))
+        q = point + rng.uniform(-0.5, 0.5, size=(k, dims))
+        q[0] = point + rng.uniform(0.1, 0.15) * (u_hat + rng.normal(0, 0.05, dims)) / np.linalg.norm(u_hat)
+        vel, age = rng.uniform(-0.1, 0.1, size=(k, dims)), rng.choice([0.0, 0.0, 0.05], size=k)
+        got, done = control._filter_floats(s, tuple(point), (0.0,) * dims, math.inf, tuple(u_hat),
+                                           [(tuple(x), float(a), 0.0, tuple(w), 1.5) for x, a, w in zip(q, age, vel)],
+                                           [])
+        inertia = sf.Inertia(np.zeros((1, dims)), np.array([math.inf]), sf.neighbour_stop(vel, age, 1.5, s.v_max))
+        rows = sf.rows(s, 1, np.zeros(k, np.intp), point - q, age, np.zeros(0, np.intp), np.zeros((0, dims)),
+                       np.zeros(0), inertia=inertia)
+        want = sf.apply(u_hat[None], rows)
+        np.testing.assert_allclose(got, want.command[0], atol=1e-12)
+        assert (done.flag if done is not None else 0) == int(want.flags()[0])
+        plain = sf.project(u_hat[None], rows.agent, rows.a, rows.b)
+        detours += not want.braked[0] and not np.allclose(plain, want.command)
+    assert detours > 20, detours

@@ -257,7 +257,8 @@ def apply_inertia(u_hat: np.ndarray, r: Rows) -> Filtered:
     the exact projection onto the rows about the braking command, which satisfies all of them (u - held
     is projected: the rows hold 0 there); an agent for which braking does not satisfy a row (at low speed
     near the edge, or data the bound cannot cover) brakes. The result is brought back along the segment
-    from braking, within ``reach`` of its velocity and the speed limit (both hold at either end)."""
+    from braking, within ``reach`` of its velocity and the speed limit (both hold at either end). A body that
+    stops at once among them takes the detour as :func:`apply` has it."""
     held, vel, reach = r.held, r.velocity, r.reach
     step = np.where(np.isfinite(reach), reach, 0.0)
     free = ~np.isfinite(reach)  # a body that stops at once: the command as the law gave it
@@ -269,6 +270,8 @@ def apply_inertia(u_hat: np.ndarray, r: Rows) -> Filtered:
     must = r.stale.copy()
     must[r.agent[shifted < -TOL]] = True
     u = held + project(wanted - held, r.agent, r.a, np.maximum(shifted, 0.0))
+    if free.any():  # its rows are about 0 (held is 0)
+        u = take_detour(wanted, u, r._replace(stale=must | ~free))
     u = _within(held, u, vel, np.where(free, np.inf, reach), r.cap)
     u[must] = held[must]
     return judged(wanted, u, must)

@@ -316,19 +316,10 @@ class ControlStep:
             raise LawFailed.of(law.name, exc, when) from None
         u_hat, acted = (v if type(v) is tuple else tuple(v.tolist())), None
         command = u_hat
-        # its own body has inertia, or a neighbour's has (an agent's rows all carry a bound, or none does)
-        if safety is not None and (inertial or (guarded and len(guarded[0]) > 3
-                                                and any(x[4] < math.inf for x in guarded))):
+        if safety is not None:
             point = bodies.tracked_point(position, heading, look) if look else position
-            command, acted = _filter_inertia_floats(safety, point, velocity, self.filter.accel, u_hat, guarded,
-                                                    obstacles, look, brake)
-        elif safety is not None:
-            if brake:
-                speed = math.hypot(*u_hat)
-                command, acted = (0.0,) * len(u_hat), Acted(speed > 0.0, speed > 0.0, True)
-            else:
-                point = bodies.tracked_point(position, heading, look) if look else position
-                command, acted = _filter_floats(safety, point, u_hat, guarded, obstacles, look)
+            command, acted = _filter_floats(safety, point, velocity, self.filter.accel if inertial else math.inf,
+                                            u_hat, guarded, obstacles, look, brake)
         if g.body.kind == "point":
             dt = self.dt
             if len(position) == 2:
@@ -469,84 +460,33 @@ def _column(values: list[float]) -> np.ndarray | float:
 # -- the plain-float shortcut of the filter, for one agent (ControlStep.one) -------------------------------
 
 
-def _filter_floats(safety: sf.Safety, point: tuple[float, ...], u_hat: tuple[float, ...],
-                   neighbours: Sequence[tuple[tuple[float, ...], float, float]], obstacles: Sequence[tuple[float, ...]],
-                   look: float = 0.0) -> tuple[tuple[float, ...], Acted | None]:
-    """:func:`zswarm.control.safety.apply` of :func:`~zswarm.control.safety.rows` for one agent at
-    ``point`` (``look`` ahead of its axle) with ``neighbours`` as (believed point, age, look-ahead) and
-    ``obstacles`` as (centre..., radius): the same rows and the same exact enumeration in floats. Most ticks
-    no row binds and the command passes at the cost of a few float operations. Returns the command and
-    what the filter did (None: nothing)."""
-    rate, v, dims = safety.kappa / safety.period, safety.v_max, len(point)
-    far = 2.0 * v * math.sqrt(2.0) / rate  # a gap this wide gives b >= |a| v_max for every row: none binds
-    distance, hair, oldest = safety.distance, 1.0 + sf.HAIR, safety.max_age
-    binding: list[tuple[tuple[float, ...], float]] = []
-    violated = stale = False
-    for q, age, theirs, *_ in neighbours:  # (a body with inertia's velocity and bound: none here)
-        d = math.dist(point, q)
-        widen = (look + theirs) * hair
-        gap = d - (distance + v * age) - widen  # the order of rows()' arithmetic
-        if gap >= far and age <= oldest - widen / v:
-            continue  # most neighbours, most ticks: nothing more is computed
-        max_age = oldest - widen / v
-        psi = [point[k] - q[k] for k in range(dims)]
-        b = 0.5 * rate * max(gap, 0.0)
-        spread = min(v * age / d, 1.0) if d > 0 else 1.0
-        cos = math.sqrt(1.0 - spread * spread)
-        if cos * b < v * math.sqrt(1.0 + (dims - 2) * spread * spread):
-            stale |= age > max_age or v * age >= d
-            unit = [c / d for c in psi] if d > 0 else [0.0] * dims
-            rows_j = [(tuple(-c for c in unit), cos * b)]
-            if spread > 0:
-                rows_j += [(tuple(-(cos * unit[k] - spread * e[k]) for k in range(dims)), b)
-                           for e in _tangents(unit)]
-            for a, bound in rows_j:
-                binding.append((a, bound))
-                violated |= sum(a[k] * u_hat[k] for k in range(dims)) - bound > sf.TOL
-    for obstacle in obstacles:
-        d = math.dist(point, obstacle[:dims])
-        b = rate * max(d - obstacle[dims] - safety.clearance - look * hair, 0.0)
-        if b < v:
-            a = tuple(-(point[k] - obstacle[k]) / d for k in range(dims)) if d > 0 else (0.0,) * dims
-            binding.append((a, b))
-            violated |= sum(a[k] * u_hat[k] for k in range(dims)) - b > sf.TOL
-    speed = math.hypot(*u_hat)
-    if stale:
-        return (0.0,) * dims, Acted(speed > 0.0, speed > 0.0, True)
-    if not violated:
-        return u_hat, None
-    binding = [r for r in binding if r[1] < speed * math.sqrt(sum(c * c for c in r[0])) + sf.TOL]
-    u = _project(u_hat, binding)
-    if math.sqrt(sum(c * c for c in u)) < sf.STALL_SHARE * speed:  # take_detour, in floats
-        cos, sin = math.cos(sf.DETOUR), math.sin(sf.DETOUR)
-        turned = (cos * u_hat[0] + sin * u_hat[1], -sin * u_hat[0] + cos * u_hat[1], *u_hat[2:])
-        fits = all(sum(a[k] * turned[k] for k in range(dims)) - b <= sf.TOL for a, b in binding)
-        alt = turned if fits else _project(turned, binding)
-        if math.sqrt(sum(x * x for x in alt)) > math.sqrt(sum(x * x for x in u)) + 1e-9 * speed:
-            u = alt
-    change = math.sqrt(sum((u[k] - u_hat[k]) ** 2 for k in range(dims)))
-    acted = change > 1e-9 * max(speed, 1.0)
-    return u, Acted(acted, acted and math.sqrt(sum(c * c for c in u)) < sf.STALL_SHARE * speed, False)
-
-
-def _filter_inertia_floats(safety: sf.Safety, point: tuple[float, ...], velocity: tuple[float, ...], accel: float,
-                           u_hat: tuple[float, ...], neighbours: Sequence[tuple], obstacles: Sequence[tuple[float, ...]],
-                           look: float, brake: bool) -> tuple[tuple[float, ...], Acted | None]:
-    """:func:`zswarm.control.safety.apply` of :func:`~zswarm.control.safety.rows` with inertia (S4) for one
-    agent (its own acceleration bound ``accel``, inf for a body that stops at once) and ``neighbours`` as
-    (point, age, look-ahead, velocity, accel): the same rows and the same exact enumeration, in floats."""
+def _filter_floats(safety: sf.Safety, point: tuple[float, ...], velocity: tuple[float, ...], accel: float,
+                   u_hat: tuple[float, ...], neighbours: Sequence[tuple], obstacles: Sequence[tuple[float, ...]],
+                   look: float = 0.0, brake: bool = False) -> tuple[tuple[float, ...], Acted | None]:
+    """:func:`zswarm.control.safety.apply` of :func:`~zswarm.control.safety.rows` for one agent at ``point``
+    (``look`` ahead of its axle; its ``velocity`` and acceleration bound ``accel``, inf for a body that stops
+    at once) with ``neighbours`` as (believed point, age, look-ahead[, velocity, accel]) and ``obstacles``
+    as (centre..., radius); ``brake``: its world is late. The same rows and the same exact enumeration, in
+    floats; most ticks no row binds and the command passes at the cost of a few float operations. Returns
+    the command and what the filter did (None: nothing)."""
     T, v, dims, hair = safety.period, safety.v_max, len(point), 1.0 + sf.HAIR
     rate = safety.kappa / T
     own = math.isfinite(accel) and accel > 0
-    speed2 = sum(c * c for c in velocity)
+    inert = own or any(len(x) > 3 and math.isfinite(x[4]) for x in neighbours)  # (S4)'s rows, as the batch's
+    speed2 = sum(c * c for c in velocity) if own else 0.0
     stop = speed2 / (2.0 * accel) if own else 0.0
-    pairs, least, stale = [], math.inf, brake
-    for q, age, theirs, vel_j, acc_j in neighbours:
+    far = 2.0 * v * math.sqrt(2.0) / rate  # a gap this wide gives b >= |a| v_max for every row: none binds
+    pairs, least = [], math.inf
+    for q, age, theirs, *motion in neighbours:
         d = math.dist(point, q)
-        grown = acc_j * age if math.isfinite(acc_j) else 0.0
-        s_j = min(math.sqrt(sum(c * c for c in vel_j)) + grown, v)
-        widen = (look + theirs) * hair + stop + (s_j * s_j / (2.0 * acc_j) if math.isfinite(acc_j) and acc_j > 0 else 0.0)
-        b = 0.5 * rate * max(d - (safety.distance + v * age) - widen, 0.0)
+        widen = (look + theirs) * hair + stop
+        if motion and math.isfinite(motion[1]) and motion[1] > 0:  # its braking distance
+            s_j = min(math.sqrt(sum(c * c for c in motion[0])) + motion[1] * age, v)
+            widen += s_j * s_j / (2.0 * motion[1])
+        gap = d - (safety.distance + v * age) - widen  # the order of rows()' arithmetic
+        if not own and gap >= far and age <= safety.max_age - widen / v:
+            continue  # most neighbours, most ticks: nothing more is computed
+        b = 0.5 * rate * max(gap, 0.0)
         least = min(least, b)
         pairs.append((q, age, d, widen, b))
     obstacle_rows = []
@@ -554,19 +494,22 @@ def _filter_inertia_floats(safety: sf.Safety, point: tuple[float, ...], velocity
         d = math.dist(point, o[:dims])
         b = rate * max(d - o[dims] - safety.clearance - look * hair - stop, 0.0)
         least = min(least, b)
-        obstacle_rows.append((tuple((point[k] - o[k]) / d for k in range(dims)) if d > 0 else (0.0,) * dims, b))
+        if inert or b < v:
+            obstacle_rows.append((tuple((point[k] - o[k]) / d for k in range(dims)) if d > 0 else (0.0,) * dims, b))
+    gain, extra, held, reach, wanted = (0.0,) * dims, 0.0, (0.0,) * dims, math.inf, u_hat
     if own:
         step2 = (T * accel) ** 2
         rho2 = min(step2, 2.0 * accel * T * least + 2.0 * speed2) if math.isfinite(least) else step2
-        gain = tuple(c / (accel * T) for c in velocity)
-        extra = (speed2 - 0.5 * rho2) / (accel * T)
+        gain, extra = tuple(c / (accel * T) for c in velocity), (speed2 - 0.5 * rho2) / (accel * T)
         speed = math.sqrt(speed2)
         slow = min(speed, T * accel) / speed if speed > 0 else 1.0
-        held = tuple(c * (1.0 - slow) for c in velocity)
-        reach = math.sqrt(rho2)
-    else:
-        gain, extra, held, reach = (0.0,) * dims, 0.0, (0.0,) * dims, math.inf
+        held, reach = tuple(c * (1.0 - slow) for c in velocity), math.sqrt(rho2)
+        gap = [u_hat[k] - velocity[k] for k in range(dims)]
+        norm = math.sqrt(sum(c * c for c in gap))
+        scale = min(1.0, reach / norm) if norm > 0 else 1.0
+        wanted = tuple(velocity[k] + gap[k] * scale for k in range(dims))
     rows_: list[tuple[tuple[float, ...], float]] = []
+    stale = brake
     for q, age, d, widen, b in pairs:
         spread = min(v * age / d, 1.0) if d > 0 else 1.0
         cos = math.sqrt(1.0 - spread * spread)
@@ -575,41 +518,46 @@ def _filter_inertia_floats(safety: sf.Safety, point: tuple[float, ...], velocity
         if spread > 0:
             mine += [(tuple(-(cos * unit[k] - spread * e[k]) + gain[k] for k in range(dims)), b + extra)
                      for e in _tangents(unit)]
-        if (age > safety.max_age - widen / v or v * age >= d) and any(
-                bound < v * math.sqrt(sum(c * c for c in a)) for a, bound in mine):
-            stale = True
-        rows_ += mine
+        if inert:  # every row kept; any of the pair's may bind
+            rows_ += mine
+            could = any(bound < v * math.sqrt(sum(c * c for c in a)) for a, bound in mine)
+        else:
+            could = cos * b < v * math.sqrt(1.0 + (dims - 2) * spread * spread)
+            rows_ += mine if could else []
+        stale |= could and (age > safety.max_age - widen / v or v * age >= d)
     rows_ += [(tuple(-n[k] + gain[k] for k in range(dims)), b + extra) for n, b in obstacle_rows]
-    if own:
-        gap = [u_hat[k] - velocity[k] for k in range(dims)]
-        norm = math.sqrt(sum(c * c for c in gap))
-        scale = min(1.0, reach / norm) if norm > 0 else 1.0
-        wanted = tuple(velocity[k] + gap[k] * scale for k in range(dims))
-    else:
-        wanted = u_hat
-    shifted = [(a, b - sum(a[k] * held[k] for k in range(dims))) for a, b in rows_]
+    shifted = [(a, b - sum(a[k] * held[k] for k in range(dims))) for a, b in rows_]  # about braking
     stale |= any(b < -sf.TOL for _, b in shifted)
-    if stale:
-        u = held
-    else:
-        w = tuple(wanted[k] - held[k] for k in range(dims))
-        shifted = [(a, max(b, 0.0)) for a, b in shifted]
-        if any(sum(a[k] * w[k] for k in range(dims)) - b > sf.TOL for a, b in shifted):
-            size = math.sqrt(sum(c * c for c in w))
-            w = _project(w, [r for r in shifted if r[1] < size * math.sqrt(sum(c * c for c in r[0])) + sf.TOL])
-        u = tuple(held[k] + w[k] for k in range(dims))
-        u = tuple(sf._within(np.array([held]), np.array([u]), np.array([velocity], dtype=float), np.array([reach]),
-                             v)[0].tolist()) if _outside(u, velocity, reach, v) else u
     speed = math.sqrt(sum(c * c for c in wanted))
+    w = tuple(wanted[k] - held[k] for k in range(dims))
+    u = held if stale else wanted
+    if not stale and any(sum(a[k] * w[k] for k in range(dims)) - b > sf.TOL for a, b in shifted):
+        binding = [(a, max(b, 0.0)) for a, b in shifted]
+        size = math.sqrt(sum(c * c for c in w))
+        w = _project(w, [r for r in binding if r[1] < size * math.sqrt(sum(c * c for c in r[0])) + sf.TOL])
+        if not own:  # take_detour, in floats
+            w = _detour(wanted, w, binding, speed)
+        u = tuple(held[k] + w[k] for k in range(dims))
+    if inert and not stale and ((math.isfinite(reach) and math.dist(u, velocity) > reach)
+                                or math.sqrt(sum(c * c for c in u)) > v):
+        u = tuple(sf._within(np.array([held]), np.array([u]), np.array([velocity], dtype=float),
+                             np.array([reach]), v)[0].tolist())
     moved = math.sqrt(sum((u[k] - wanted[k]) ** 2 for k in range(dims))) > 1e-9 * max(speed, 1.0)
     if not (moved or stale):
         return wanted, None
     return u, Acted(moved, moved and math.sqrt(sum(c * c for c in u)) < sf.STALL_SHARE * speed, stale)
 
 
-def _outside(u, velocity, reach: float, cap: float) -> bool:
-    """Whether ``u`` lies beyond ``reach`` of ``velocity`` or the speed limit (:func:`zswarm.control.safety._within`)."""
-    return (math.isfinite(reach) and math.dist(u, velocity) > reach) or math.sqrt(sum(c * c for c in u)) > cap
+def _detour(u_hat: tuple[float, ...], u: tuple[float, ...], rows_: list, speed: float) -> tuple[float, ...]:
+    """:func:`zswarm.control.safety.take_detour` for one agent, in floats."""
+    size = math.sqrt(sum(c * c for c in u))
+    if size >= sf.STALL_SHARE * speed:
+        return u
+    cos, sin = math.cos(sf.DETOUR), math.sin(sf.DETOUR)
+    turned = (cos * u_hat[0] + sin * u_hat[1], -sin * u_hat[0] + cos * u_hat[1], *u_hat[2:])
+    fits = all(sum(a[k] * turned[k] for k in range(len(u))) - b <= sf.TOL for a, b in rows_)
+    alt = turned if fits else _project(turned, rows_)
+    return alt if math.sqrt(sum(x * x for x in alt)) > size + 1e-9 * speed else u
 
 
 def _tangents(unit: list[float]) -> list[tuple[float, ...]]:
