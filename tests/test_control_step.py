@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from zswarm.control import safety as sf
+from zswarm.control import one_filter
 from zswarm.control import step as control
 from zswarm.control.step import BodyState, Guard, control_step
 from zswarm.laws.contract import Observations
@@ -99,7 +100,7 @@ def test_a_law_whose_shortcut_disagrees_fails_the_check(monkeypatch):
 
 def test_a_filter_whose_shortcut_disagrees_fails_the_check(monkeypatch):
     """The filter's float shortcuts letting every command through: the check sees each."""
-    monkeypatch.setattr(control, "_filter_floats", lambda s, p, v, a, u_hat, *rest: (u_hat, None))
+    monkeypatch.setattr(control, "filter_floats", lambda s, p, v, a, u_hat, *rest: (u_hat, None))
     with pytest.raises(AssertionError):
         disagreement("boids", 2, "point", "barrier")
     with pytest.raises(AssertionError):
@@ -125,7 +126,7 @@ def test_the_float_filter_is_the_vectorized_filter(dims):
         centres = point + rng.uniform(-0.6, 0.6, size=(m, dims))
         radii = rng.uniform(0, 0.2, size=m)
         own, theirs = float(rng.choice([0.0, 0.05])), rng.choice([0.0, 0.05], size=k)  # look-aheads
-        got, done = control._filter_floats(s, tuple(point), (0.0,) * dims, math.inf, tuple(u_hat),
+        got, done = one_filter.filter_floats(s, tuple(point), (0.0,) * dims, math.inf, tuple(u_hat),
                                            [(tuple(x), float(a), float(t)) for x, a, t in zip(q, age, theirs)],
                                            [(*c, r) for c, r in zip(centres.tolist(), radii.tolist())], own)
         rows = sf.rows(s, 1, np.zeros(k, np.intp), point - q, age, np.zeros(m, np.intp), point - centres, radii,
@@ -152,7 +153,7 @@ def test_a_body_that_stops_at_once_among_bodies_with_inertia_takes_the_detour_in
         q = point + rng.uniform(-0.5, 0.5, size=(k, dims))
         q[0] = point + rng.uniform(0.1, 0.15) * (u_hat + rng.normal(0, 0.05, dims)) / np.linalg.norm(u_hat)
         vel, age = rng.uniform(-0.1, 0.1, size=(k, dims)), rng.choice([0.0, 0.0, 0.05], size=k)
-        got, done = control._filter_floats(s, tuple(point), (0.0,) * dims, math.inf, tuple(u_hat),
+        got, done = one_filter.filter_floats(s, tuple(point), (0.0,) * dims, math.inf, tuple(u_hat),
                                            [(tuple(x), float(a), 0.0, tuple(w), 1.5) for x, a, w in zip(q, age, vel)],
                                            [])
         inertia = sf.Inertia(np.zeros((1, dims)), np.array([math.inf]), sf.neighbour_stop(vel, age, 1.5, s.v_max))
