@@ -1,25 +1,6 @@
-"""``python -m agents.fleet``: import the agent program once, then fork one process per agent.
-
-An agent process spends most of its start importing (Python, numpy, Zenoh's bindings, msgpack); a
-hundred of them starting at once on two cores take tens of seconds, and each keeps a private copy of
-what it imported. The fleet imports everything once and forks each agent from itself before any Zenoh
-session exists; each agent is still its own OS process with its own Zenoh session and its own pid, and
-the imported pages stay shared between them until written.
-
-Each agent is a process group of its own (a terminal's Ctrl-C reaches the launcher, which stops the
-agents in order) inside the fleet's session, not a session of its own: on Linux with autogroup
-scheduling (the default on desktop and server kernels) every session is a group that gets an equal
-share of the CPU, so a hundred agents in a hundred sessions left the router and the world a hundredth
-each. Starved, the router read the agents' sockets seconds late, and agents steered and filtered on
-poses up to 30 s old (docs/safety.md, "A machine that falls behind"). In one session the agents
-together weigh what the router weighs: on a machine too small for the swarm, the agents tick late
-(their ticks are counted and skipped) while the poses they do send arrive fresh.
-
-Protocol (one line each, on stdin and stdout): the launcher writes ``spawn NAME ARG...`` (JSON, the
-agent's command line), the fleet answers ``pid NAME PID``, and ``exit NAME CODE`` when that agent
-ends (CODE as ``subprocess`` gives it: negative for a signal). End of input: the fleet stops its
-agents (SIGTERM) and exits once they have. Agents die with the fleet, the fleet with its launcher.
-"""
+"""``python -m agents.fleet``: import the agent program once, then fork one process per agent, each with
+its own Zenoh session and pid, the imported pages shared until written; why, and its protocol on stdin
+and stdout: docs/architecture.md, "An agent's tick"."""
 
 from __future__ import annotations
 

@@ -1,18 +1,6 @@
-"""The free clock: one agent's life is a loop at 1/period on an asyncio event loop (uvloop's, where it
-is installed: docs/benchmarks.md, "An agent against an earlier version").
-
-Every tick it takes in what arrived since the last one (samples wait in Zenoh's ring channels, or,
-under an injected delay, in the bridge's inbox stamped with the time they arrived; both pass the fault
-injector), asks for what it lacks without waiting for the answer (obstacles, the poses of cells it
-just entered: the replies join the inbox), steps its control law and publishes its pose. No Python
-code runs between ticks but the one stamped subscription to a neighbour's poses (the latency figure,
-one second in five: :mod:`agents.probe`): this is what keeps an agent close to the middleware's
-own cost.
-
-Each agent ticks at a phase of its own in the period (:func:`first_tick`). A late tick is counted and
-the schedule moves on (never a backlog of ticks). The run ends on the world's final tick or when
-``stopped()`` says so (SIGINT, SIGTERM).
-"""
+"""The free clock: one agent's life as a loop at 1/period on an asyncio event loop (uvloop's where it is
+installed), at a phase of its own in the period (:func:`first_tick`); what a tick does:
+docs/architecture.md, "An agent's tick"."""
 
 from __future__ import annotations
 

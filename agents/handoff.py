@@ -1,22 +1,7 @@
-"""An agent moving between processes (between nodes of a cluster): the running one hands its state to
-the one that takes over, make-before-break.
-
-The driver starts the new process with ``--takeover`` on the node that now holds the agent's
-neighbours (``zswarm run --migrate-every``). It opens its session, asks the world for obstacles and
-enters the cells around where the driver last saw the agent, then asks the running process for its
-state (a Zenoh query on ``keys.handoff(id)``, which every process of a movable run answers). The
-running one answers at the end of its next tick, after that tick's pose, and stops moving; the new
-one sets its body and counters to the state and ticks on, and says it has the state (``?taken``),
-upon which the running one leaves (an answer that was lost is given again to the next ask, the same
-state: the agent did not move meanwhile). The new process declares its liveliness token before it
-asks: Zenoh keeps one token alive while either process holds it, so no neighbour and not the world
-sees the agent leave; its neighbours miss about one tick of its poses, well within their staleness
-bound.
-
-What moves: the body (position, velocity, heading, step count), the pose sequence number (receivers
-see no gap) and every counter and histogram of its stats (the run's totals lose nothing). What does
-not: the neighbour table (the new process hears its cells anew, as an agent that joins does).
-"""
+"""An agent moving between processes (between nodes of a cluster), make-before-break: the process that
+takes over (``--takeover``) declares the agent's liveliness token, asks the running one for its state
+(body, pose sequence number, counters; not the neighbour table) and says it has it, upon which the
+running one leaves (docs/cluster.md, "Placement: agents that move with the swarm")."""
 
 from __future__ import annotations
 

@@ -1,18 +1,7 @@
-"""The transport latency, timed on one neighbour's poses heard through a subscription stamped on arrival.
-
-Poses reach an agent through ring channels, which carry no arrival time. One neighbour's poses, the
-nearest one heard within the subscription radius and holding a liveliness token, are heard a second
-time through a stamped subscription: one publish -> router -> subscriber trip, the path every
-neighbour's pose takes. Its poses reach the agent's session for the cells anyway, so the router sends
-nothing more. Not the agent's own pose: Zenoh hands a publication to a subscriber of the same session
-directly, without the router, so an echo would time the session, not the transport.
-
-The probe listens in windows: :data:`ON_S` seconds in every :data:`EVERY_S` (from the agent's first
-call), and holds no subscription in between. A sample crosses from a Zenoh thread into Python through
-a callback, which costs several times what a sample taken from a ring channel costs, so an agent that
-probed all the time spent about a tenth of its tick on the measurement. The windows sample the latency
-uniformly in time: 20 of a neighbour's poses every 5 s at 20 Hz, thousands in a minute of a swarm.
-"""
+"""The transport latency, timed on the nearest live neighbour's poses heard a second time through a
+subscription stamped on arrival, :data:`ON_S` seconds in every :data:`EVERY_S` (docs/architecture.md,
+"An agent's tick"). Not the agent's own pose: Zenoh hands it to a subscriber of the same session
+without the router."""
 
 from __future__ import annotations
 

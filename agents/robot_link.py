@@ -1,18 +1,6 @@
-"""An agent beside a ROS 2 robot: the robot is its body.
-
-The agent takes its pose from the robot's odometry (``<namespace>/odom``, nav_msgs/msg/Odometry, or a
-geometry_msgs/msg/PoseStamped topic), turned from the robot's odom frame into the world's, and sends
-its desired velocity as ``<namespace>/cmd_vel`` (geometry_msgs/msg/Twist): a forward speed and a turn
-rate, worked out as the unicycle body does (:func:`zswarm.control.body.unicycle_inputs`) and never above
-the robot's limits or the scenario's v_max. On rmw_zenoh every command carries the attachment a ROS 2
-subscriber needs (:class:`zswarm.ros.wire.Attachment`).
-
-Safety at the boundary: a sample that does not decode is counted by reason and dropped; a robot whose
-odometry stops for ``odom_timeout`` seconds is held (sent a zero Twist each tick) until its odometry
-comes back, and its agent leaves the swarm once it has been silent ``odom_lost`` seconds; an agent that
-stops (cleanly or not) leaves its robot stopped: it sends a zero Twist when it can, and the robot's own
-command timeout stops it when it cannot. docs/robots.md says why.
-"""
+"""An agent beside a ROS 2 robot: the robot is its body. Its pose from the robot's odometry, its command
+as ``cmd_vel`` worked out as the unicycle body does (:func:`zswarm.control.body.unicycle_inputs`); a
+robot whose odometry stops is held, and one whose agent stops is left stopped (docs/robots.md)."""
 
 from __future__ import annotations
 

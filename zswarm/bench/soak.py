@@ -1,20 +1,6 @@
-"""A long run under loss, watched for leaks and a growing backlog (``zswarm bench soak``).
-
-Starts a router, the world and N agent processes (``bench-field``: constant density, so the traffic
-is steady) with seeded Bernoulli loss on every link, and watches from outside:
-
-* memory: the resident set (VmRSS) of every process, sampled every few seconds; after a warm-up, a
-  least-squares slope per process (MB/min) and the growth from the first to the last sample;
-* backlog: each agent's stats message (once a second) carries the longest inbound queue it saw at a
-  tick and how late its latest tick started, over that second; the harness subscribes to them (it
-  only listens) and compares the first and second halves of the run after the warm-up, together with
-  the share of late ticks in each half.
-
-Memory is *flat* when no process grows faster than ``FLAT_MB_PER_MIN`` after the warm-up (one hour
-at that rate would be 60 MB). There is *no growing backlog* when the second half's inbound queue
-(99th percentile over agents and seconds) is at most twice the first half's plus 10 messages, and
-its share of late ticks at most 2 points above the first half's.
-"""
+"""A long run under loss, watched from outside for leaks and a growing backlog (``zswarm bench soak``):
+each process's resident set, and each agent's inbound queue and late ticks, in the first and second
+halves after a warm-up; flat and steady as docs/reliability.md defines them."""
 
 from __future__ import annotations
 

@@ -1,23 +1,7 @@
 """One machine of a cluster run: its Zenoh router and its share of agents, as ordinary OS processes.
-
-:class:`NodeActor` is a plain class; :mod:`zswarm.cluster.hosts` makes it a Ray actor pinned to its node
-(``num_cpus=0``), one per node. It starts the node's router and a fleet that forks the node's agents
-(as ``zswarm run`` does on one machine), and answers the driver's polls with the agents that ended and
-the lines they wrote to stderr, prefixed with the node and the agent.
-
-Every child gets ``PR_SET_PDEATHSIG``: when the actor's worker dies (Ray's raylet also kills its
-process group and its children), the router and the fleet die with it and the fleet's agents die with
-the fleet, so a driver that is killed, or a node Ray drops, leaves no zswarm process behind. The router
-and the fleet are sessions of their own (:func:`zswarm.host.procs.start_router`,
-:class:`zswarm.host.procs.Fleet`): under Linux's autogroup scheduling the router then gets a group's
-share of the CPU and the node's agents together another, rather than each a thread's share among
-the Ray worker's.
-
-Under ``--secure`` a node makes its own keys (:meth:`NodeActor.identities`) in a folder only its user
-reads, and is handed back the certificates the driver's CA signed for them (:meth:`NodeActor.install`):
-no private key crosses the network. The folder goes when the node stops, or, if its actor was killed
-outright, when the next node actor of this user starts on that machine.
-"""
+:class:`NodeActor` is a plain class that :mod:`zswarm.cluster.hosts` makes a Ray actor pinned to its node;
+every child dies with the actor's worker (``PR_SET_PDEATHSIG``), and under ``--secure`` a node makes its
+own keys: docs/cluster.md."""
 
 from __future__ import annotations
 

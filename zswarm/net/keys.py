@@ -1,21 +1,4 @@
-"""Every key expression of a run, built in one place.
-
-Key space of a run (``RUN`` is the run id, cells are ``floor(x/size)``, ``floor(y/size)``, and in a
-3-D run ``floor(z/size)``: voxels, one more key segment):
-
-    zswarm/RUN/pose/CX/CY/ID   agent ID's pose, published into the cell it is in; each agent also
-                               answers a queryable there with its latest pose (3-D: pose/CX/CY/CZ/ID)
-    zswarm/RUN/alive/ID        liveliness token of agent ID
-    zswarm/RUN/in/CX/CY/ID     liveliness token of agent ID in the cell it is in (moved with it): who
-                               is in a cell, known without its poses (3-D: in/CX/CY/CZ/ID)
-    zswarm/RUN/prey            the prey's position (published by the world)
-    zswarm/RUN/tick            lockstep ticks (published by the world)
-    zswarm/RUN/obstacles       the world's queryable: ``?x=..;y=..;r=..`` (3-D: ``;z=..``) answers
-                               the obstacles within r
-    zswarm/RUN/stats/ID        agent ID's transport counters (for the world's summary)
-    zswarm/RUN/control         run control (end of run)
-    zswarm/RUN/world/started   the world's liveliness token, held from the start of its clock to its end
-"""
+"""Every key expression of a run, built in one place; the key space is drawn in docs/running.md."""
 
 from __future__ import annotations
 

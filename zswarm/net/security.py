@@ -1,27 +1,6 @@
-"""TLS and access control for a swarm: the Zenoh configuration of each role.
-
-The router is the only place every message passes, so it enforces the rules. Every session must
-present a certificate signed by the swarm's CA (mutual TLS: no certificate, no connection), and the
-router's access control gives rights by the certificate's common name:
-
-========  ==========================================================================================
-role      may send (router ingress)
-========  ==========================================================================================
-agent     poses ``zswarm/*/pose/**`` (put, queryable, reply), ``zswarm/*/stats/*``,
-          liveliness ``zswarm/*/alive/*``, its state to a process that takes it over ``zswarm/*/handoff/*``
-agent-I   (made with ``agents=N``, instead of the shared ``agent``) the same, but only for keys
-          that end in its own id I: an agent cannot speak for another
-world     ``zswarm/*/prey``, ``zswarm/*/tick``, ``zswarm/*/control``, ``zswarm/*/world/taken/*`` (put), and answers
-          ``zswarm/*/obstacles`` and ``zswarm/*/world/positions`` (queryable, reply)
-both      subscribe, query and watch liveliness anywhere under ``zswarm/**``, and receive from it
-router    (a router of the mesh, ``--routers K`` or a cluster's node k, each with its own identity:
-router-k  ``router`` for the first, ``router-k`` for the others) forward anything under ``zswarm/**``:
-          what it forwards its own access control let in. The access control lists the run's routers
-          by name: one left out of the list (edit its ``routers`` subject) is shut out of the mesh
-anyone    nothing: the default is deny, so a session with another name (``guest``) is connected
-          but cannot publish, subscribe, query or answer
-========  ==========================================================================================
-"""
+"""TLS and access control for a swarm: the Zenoh configuration of each role. The router, where every
+message passes, enforces the rules: mutual TLS against the swarm's CA, rights by the certificate's
+common name, deny by default (the table of roles: docs/running.md, "Secure runs")."""
 
 from __future__ import annotations
 

@@ -1,21 +1,6 @@
-"""The robots file: which agent drives which ROS 2 robot, and how its topics are reached.
-
-```toml
-route = "rmw_zenoh"        # or "ros2dds" (zenoh-bridge-ros2dds)
-distro = "jazzy"           # humble | jazzy | kilted | rolling
-domain_id = 0
-bridge_namespace = ""      # ros2dds only: the bridge's namespace, if it has one
-[[robot]]
-id = 0                           # the agent's id
-namespace = "/robot0"            # its topics: <namespace>/odom, <namespace>/cmd_vel
-odom_origin = [0.0, 0.0, 0.0]    # x, y, yaw of the robot's odom frame in the world
-max_linear = 1.0                 # m/s (never above the scenario's v_max)
-max_angular = 4.0                # rad/s
-pose_topic = ""                  # a geometry_msgs/msg/PoseStamped topic to read instead of odom
-```
-
-Every mistake is one :class:`~zswarm.errors.UsageError` line naming the file and the field.
-"""
+"""The robots file: which agent drives which ROS 2 robot, and how its topics are reached (every field:
+``examples/robots.toml``, docs/robots.md). Every mistake is one :class:`~zswarm.errors.UsageError`
+line naming the file and the field."""
 
 from __future__ import annotations
 

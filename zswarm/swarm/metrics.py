@@ -1,22 +1,6 @@
-"""Swarm metrics, per step and summarized: the same code for the simulator, the world and replay.
-
-Per step (:func:`step_metrics`), from positions, velocities and the prey:
-
-- ``mean_goal_distance``, ``centroid_goal_distance``: to the prey/goal;
-- ``min_pair_distance``, ``colliding_pairs`` (closer than 2 robot_radius);
-- ``min_obstacle_clearance`` (|P - C| - rho, the |psi^o| that Props 1-2 bound) and
-  ``obstacle_contacts`` (clearance below robot_radius);
-- ``cohesion``: the largest distance to the centroid (Prop 3's epsilon bounds it);
-- ``components`` of the sensing graph, ``union`` = (N - components)/(N - 1) and
-  ``algebraic_connectivity`` (Fiedler value of its Laplacian; computed for N <= 400, else NaN);
-- ``spacing_error``: mean |nearest-neighbour distance - d^f| over agents with a neighbour;
-- ``median_nearest``: the median nearest-neighbour distance over agents with a neighbour within the
-  sensing radius (the swarm's spacing: it shrinks when the swarm is crushed);
-- ``order``: |sum v_i| / sum |v_i| (velocity alignment; 1 = all move alike);
-- ``energy``: sum of the agents' potentials U_i (eq 35), the Lyapunov trace.
-
-:class:`Summary` folds a run's steps into the summary keys of ``zswarm sim --json``.
-"""
+"""Swarm metrics, per step (:func:`step_metrics`) and summarized (:class:`Summary`, the keys of
+``zswarm sim --json``): the same code for the simulator, the world and replay. What each one
+measures: docs/simulation.md."""
 
 from __future__ import annotations
 

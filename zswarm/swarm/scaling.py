@@ -1,28 +1,7 @@
-"""How a registered scenario grows to N agents (``--set n_agents=N``): one rule, written down here.
-
-A scenario is designed at its own size N0. Asked for N agents, it keeps what made it work there:
-
-- **density and room**: the layout is magnified about the goal by f = sqrt(N/N0): the spawn box
-  (so the density at spawn is kept), the obstacles' centres (so the gaps a swarm f times wider
-  must pass grow with it; the obstacles keep their radius, the prey its motion) and the capture
-  radius (the centroid of a swarm f times wider is within f times the distance of the prey);
-- **the goal's pull at the start**: with D(N) the distance from the spawn box's centre to the goal,
-  a grown scenario (N > N0) gets l_g = max(l_g, D(N)/sqrt2), so the centre of the spawn starts where
-  the goal's pull peaks instead of in the Gaussian tail of eq 7, and c_g and c_o grow by the same
-  factor (the peak pull c_g/l_g and Props 1-2's ratio c_g/c_o are unchanged). At N <= N0 the
-  scenario keeps its own (the paper's) values;
-- **time to get there**: the duration is at least 2 D(N)/v_max + 20 s (the swarm must cover D at
-  less than v_max, then settle);
-- **the time step**: dt is halved until the design's time step check holds (a stronger c_o makes the
-  obstacle's push steeper, and explicit Euler would bounce an agent off it: k dt <= 1);
-- **the interaction**: the paper's (eqs 26-28) up to :data:`PAPER_MAX_N` agents, where the default
-  set passes every guideline; ``scalable`` above it (docs/scaling.md: the paper's sum squeezes
-  larger swarms onto each other).
-
-``large-swarm`` and ``bench-field`` are built for any N by their own functions; ``bench-field`` takes
-the interaction rule, ``large-swarm`` is ``scalable`` at every N (with its long goal range the paper's
-sum fails the swarm check already at N = 10). An explicit ``--set`` of any of these values wins over the rule.
-"""
+"""How a registered scenario grows to N agents (``--set n_agents=N``): one rule, its layout magnified
+about the goal, its goal range, duration and time step grown with it, the paper's interaction up to
+:data:`PAPER_MAX_N` agents (docs/scaling.md, "Scenarios that can be won, at any N"). An explicit
+``--set`` of any of these values wins over the rule."""
 
 from __future__ import annotations
 

@@ -1,20 +1,8 @@
-"""The one step loop and the one per-step tally of a study's runs: B runs, a single run being B = 1.
-
-:func:`drive` steps an engine (the batched simulator, or the reference simulator seen as a batch of one
-by :class:`zswarm.sim.outcome.OneRun`) and folds, at every step, the outcome a study of many runs needs
-into :class:`OutcomeTally`, with each key as :class:`zswarm.swarm.metrics.Summary` defines it:
-
-- collisions: onsets of pairs of the sensing graph closer than 2 d^r; obstacle contacts: onsets of a
-  sensed obstacle's clearance below d^r (:class:`zswarm.swarm.metrics.Onsets`, the rule Summary uses);
-- the closest pair of the sensing graph, the closest clearance to a sensed obstacle;
-- capture: the first step the centroid is within the capture radius;
-- at the end, the groups of the sensing graph and the median nearest-neighbour distance.
-
-An engine gives, each step, its agents' positions (B, N, D), its prey (B, D) and what each run senses
-(:class:`Sensed`): the pairs of the sensing graph as run-indexed lists, from a cell grid for one large run
-or from dense blocks for a batch. Nothing per step a recording needs (the Fiedler value alone is an
-N^3 eigensolve) is computed here.
-"""
+"""The one step loop (:func:`drive`) and the one per-step tally of a study's runs
+(:class:`OutcomeTally`): B runs, a single run being B = 1; each key as
+:class:`zswarm.swarm.metrics.Summary` defines it (docs/architecture.md, "One loop and one tally"). An
+engine gives, each step, its positions (B, N, D), its prey (B, D) and what each run senses
+(:class:`Sensed`)."""
 
 from __future__ import annotations
 

@@ -1,23 +1,7 @@
-"""The tune's pipeline after its settings are checked: search, choose, compare, write.
-
-1. :func:`search_phase`: CMA-ES over the space (:mod:`zswarm.tune.search`), the starting set beside it;
-2. :func:`choose`: the finalists re-run on validation seeds, the best against the start on held-out
-   seeds (:mod:`zswarm.tune.compare`), ``best.toml`` (the start, when the best does not beat it), the
-   design report and ``comparison.json``;
-3. :func:`finish`: ``tune.rrd`` and ``result.json``.
-
-``zswarm tune`` (:mod:`zswarm.cli.tune`) checks the settings, runs these, and adds the distributed
-confirmation between 2 and 3 when asked. What it writes in ``--out DIR``:
-
-- ``best.toml``: the best set (``--params DIR/best.toml`` for every other command);
-- ``design.json`` / ``design.txt``: its design report;
-- ``comparison.json``: the best set against the starting set on held-out seeds it never tuned on
-  (under the tune's faults, and fault-free when those are not);
-- ``tune.rrd`` and ``tune.png``: the search (objective and parameter paths) as a Rerun recording and a
-  figure; ``history.jsonl`` / ``tune.json``: every candidate and the settings, from which an
-  interrupted tune resumes; ``result.json``: all of it; with ``--confirm``, ``confirm.json`` and the
-  distributed runs' recordings under ``confirm/``.
-"""
+"""The tune's pipeline after its settings are checked: :func:`search_phase` (CMA-ES,
+:mod:`zswarm.tune.search`), :func:`choose` (finalists on validation seeds, the best against the start
+on held-out seeds) and :func:`finish`; ``zswarm tune`` (:mod:`zswarm.cli.tune`) adds the distributed
+confirmation between the last two. What it writes: docs/tuning.md."""
 
 from __future__ import annotations
 
