@@ -1,28 +1,8 @@
-"""Collisions judged at one instant, from poses sent at different times (the free clock's judge).
-
-A free-clock world holds each agent's latest pose, and under load the poses it holds were sent seconds
-apart: two of them can overlap although the agents were never at those places at once, and two agents
-can touch between two of the world's looks. This judge counts a collision only where two agents were
-closer than 2 d^r *at the same instant*, on the senders' clock:
-
-- an agent's body moves only when it ticks (by one step of the law, whatever the wall time between
-  ticks) and publishes its pose right after; so its position at time t is that of its latest pose
-  stamped at or before t (a zero-order hold, exact for the simulated bodies);
-- an instant is judged once every agent's poses up to it are in: the judged time t_c is the oldest
-  latest stamp among the agents, leaving out ones that left and ones *silent*, from which nothing has
-  arrived for ``silence`` seconds of the receiver's clock (a starved or stopped process does not move:
-  its last pose holds); an agent whose poses keep arriving, however old, holds t_c back;
-- between two judgements, the stamps of the poses are the instants where a distance can change; each
-  pair that can come within reach in the interval (bounded by how far each agent moved in it) is walked
-  through those instants, and an onset (a pair entering contact) counts once, as
-  :class:`zswarm.swarm.metrics.Summary` counts the world's snapshots.
-
-Sequence numbers the judge never saw (poses lost on the way) are counted as ``gaps``. Over a gap the
-hold is an approximation: a contact at an instant where either agent's position is not known exactly
-(its pose in force is not followed by the next sequence number, and the instant is not its own stamp)
-is counted apart, as ``uncertain``, not as a collision. A pose stamped at or before an instant already
-judged arrives too late to change it and is counted as ``late``.
-"""
+"""Collisions judged at one instant, from poses sent at different times (the free clock's judge): two
+agents collide only where they were closer than 2 d^r at the same instant on the senders' clock, each
+held at its newest pose stamped at or before it; lost poses are ``gaps``, contacts they leave unsure
+``uncertain``, poses after their instant was judged ``late`` (docs/safety.md, "Counting collisions at
+one instant")."""
 
 from __future__ import annotations
 
