@@ -13,7 +13,7 @@ from typing import Sequence
 
 from world.recorder import WorldRecorder
 from world.intake import BATCH_FROM
-from world.world import World
+from world.world import HOLD_MAX_S, World
 from zswarm.args import Parser, UsageError, id_ranges, positive_seconds, run_main, seconds
 from zswarm.files import check_run_files
 from zswarm.net import messages as msg
@@ -43,6 +43,9 @@ def build_parser() -> Parser:
                         help="wait this long for all agents to be alive before starting (default 30 s)")
     parser.add_argument("--step-timeout", type=seconds, default=5.0,
                         help="lockstep: longest wait for the poses of a step (default 5 s)")
+    parser.add_argument("--hold-at", type=lambda t: sorted(float(x) for x in t.split(",")), default=[],
+                        metavar="T,...", help="lockstep: hold the clock at these run times until SIGUSR1 says the "
+                        f"fault due there is staged (at most {HOLD_MAX_S:g} s; the launcher sets it)")
     parser.add_argument("--resume", action="store_true",
                         help="this world replaces one that died: keep --record (and its segments) as it is, "
                              "recover the run so far from it and record the rest into the next segment "
@@ -88,6 +91,7 @@ async def run_world(args: argparse.Namespace, spec: RunSpec, viewer: Viewer | No
                     batches={"pose": world.take_poses} if batched else None)
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, world.stop.set)
+    loop.add_signal_handler(signal.SIGUSR1, world.go.set)
     keys = spec.keys
     declared = []
     try:
@@ -108,7 +112,7 @@ async def run_world(args: argparse.Namespace, spec: RunSpec, viewer: Viewer | No
         declared.append(session.liveliness().declare_token(keys.world_started))
         print(f"world: started with {len(world.census.alive)} agents alive", flush=True)
         if spec.clock == "lockstep":
-            await world.run_lockstep(spec.steps, args.progress, args.step_timeout)
+            await world.run_lockstep(spec.steps, args.progress, args.step_timeout, args.hold_at)
         else:
             await world.run_free(bridge, spec.steps, args.progress)
         expected = world.census.alive | world.census.cut_off  # a world cut off still waits for those

@@ -43,6 +43,8 @@ from zswarm.net.runspec import RunSpec
 from zswarm.net.watch import how_gone
 
 STALL = 1.0  # seconds behind its clock at which the world logs a stall event
+#: lockstep: the longest a clock held for a fault's staging waits (``--hold-at``)
+HOLD_MAX_S = 5.0
 
 
 TICK_QOS = {"congestion_control": zenoh.CongestionControl.BLOCK, "priority": zenoh.Priority.INTERACTIVE_HIGH,
@@ -133,6 +135,7 @@ class World:
         self.pose_arrived = asyncio.Event()  # lockstep waits on it; set per pose only then
         self.wake_on_pose = spec.clock == "lockstep"
         self.stop = asyncio.Event()
+        self.go = asyncio.Event()  # lockstep: the fault its clock was held for is staged (SIGUSR1)
         self.started_wall = time.time()
         self.resumed: Resumed | None = None
         self.last_seen: tuple[float, np.ndarray, np.ndarray] | None = None  # (t, ids, positions) observed last
@@ -420,15 +423,26 @@ class World:
             clock.t = t_new
             clock.step += 1
 
-    async def run_lockstep(self, steps: int, progress: float, step_timeout: float) -> None:
+    async def run_lockstep(self, steps: int, progress: float, step_timeout: float, holds: list[float] = ()) -> None:
         """Tick k goes out once every live agent's pose of step k-1 is in (or ``step_timeout`` passed),
-        before step k-1 is measured and recorded: the agents compute step k while the world records."""
+        before step k-1 is measured and recorded: the agents compute step k while the world records.
+        ``holds``: run times at which the launcher stages a fault; the tick after each waits until it says
+        it has (:attr:`go`), so that the fault starts at its time on the run's clock however late the
+        launcher looks."""
         clock = self.clock
         last_print = -math.inf
+        holds = list(holds)
         self.publish(self.keys.tick, msg.Tick(clock.step, time.time(), *map(float, self.prey)))
         while not self.stop.is_set():
             k = clock.step
             await self._await_poses(k, step_timeout)
+            if holds and clock.t >= holds[0] - 1e-9:
+                holds = [h for h in holds if h > clock.t + 1e-9]
+                try:
+                    await asyncio.wait_for(self.go.wait(), HOLD_MAX_S)
+                except asyncio.TimeoutError:
+                    pass
+                self.go.clear()
             poses = self.intake.at_step(k, self.census.alive)
             prey = None
             if k < steps and not self.stop.is_set() and not self.held_prey():

@@ -279,6 +279,9 @@ class Launch:
             extra += ["--trajectory", str(plan.trajectory)]
         if plan.end_after_capture is not None:
             extra += ["--end-after-capture", repr(plan.end_after_capture)]
+        holds = sorted({e.at * self.spec.time_scale for e in self.pending if e.action in FAULT_STARTS})
+        if self.spec.clock == "lockstep" and holds:  # each fault's start is staged on the run's held clock
+            extra += ["--hold-at", ",".join(f"{h:g}" for h in holds)]
         if resume:
             extra.append("--resume")
         elif plan.design is not None:  # judged before the run started: the world need not judge it again
@@ -381,6 +384,8 @@ class Launch:
             if due:
                 self.pending.remove(event)
                 self._stage(event, wall)
+                if lockstep and event.action in FAULT_STARTS and self.world is not None and self.world.alive():
+                    self.world.proc.send_signal(signal.SIGUSR1)  # its clock, held for this, goes on
 
     def _let_go(self, wall: float | None) -> None:
         """The run is over: a process still paused is let go now, and a fault that never began is said."""
