@@ -279,9 +279,9 @@ class Launch:
             extra += ["--trajectory", str(plan.trajectory)]
         if plan.end_after_capture is not None:
             extra += ["--end-after-capture", repr(plan.end_after_capture)]
-        holds = sorted({e.at * self.spec.time_scale for e in self.pending if e.action in FAULT_STARTS})
-        if self.spec.clock == "lockstep" and holds:  # each fault's start is staged on the run's held clock
-            extra += ["--hold-at", ",".join(f"{h:g}" for h in holds)]
+        if self.spec.clock == "lockstep":  # each fault's start is staged on the run's held clock
+            holds = sorted({e.at * self.spec.time_scale for e in self.pending if e.action in FAULT_STARTS})
+            extra += ["--hold-at", ",".join(f"{h:g}" for h in holds)] if holds else []
         if resume:
             extra.append("--resume")
         elif plan.design is not None:  # judged before the run started: the world need not judge it again
@@ -373,6 +373,7 @@ class Launch:
         answer), the world's last tick; it ends (unpause, restart, resume) as many wall seconds after it
         started as it was asked to last."""
         lockstep = self.spec.clock == "lockstep" and self.watch is not None
+        started = False
         for event in list(self.pending):
             key = event.what or event.action.rsplit("_", 1)[1]  # what a fault's start and its end share
             if event.action in FAULT_STARTS:
@@ -384,8 +385,10 @@ class Launch:
             if due:
                 self.pending.remove(event)
                 self._stage(event, wall)
-                if lockstep and event.action in FAULT_STARTS and self.world is not None and self.world.alive():
-                    self.world.proc.send_signal(signal.SIGUSR1)  # its clock, held for this, goes on
+                started |= event.action in FAULT_STARTS
+        # once for the faults due at one held time: a second signal would let the next hold pass at once
+        if lockstep and started and self.world is not None and self.world.alive():
+            self.world.proc.send_signal(signal.SIGUSR1)  # its clock, held for these, goes on
 
     def _let_go(self, wall: float | None) -> None:
         """The run is over: a process still paused is let go now, and a fault that never began is said."""
