@@ -16,11 +16,6 @@ from zswarm.net import messages as msg
 from zswarm.net.keys import Keys
 from zswarm.net.poses import vouched_by
 
-#: How long every answer about a member token must leave it out before it counts as gone (seconds): under
-#: load Zenoh leaves held tokens out of answers for up to 2.25 s on end (docs/safety.md); a removal that
-#: never came brakes an agent beside a neighbour's old pose this much longer.
-ABSENT_FOR_S = 5.0
-
 
 class Membership:
     def __init__(self, keys: Keys, agent_id: int) -> None:
@@ -34,12 +29,9 @@ class Membership:
         # the cell their newest pose is in: whether each holds a token in those cells is asked about
         # again (agents.outreach.Outreach.check_members)
         self.doubted: dict[int, set[tuple[int, ...]]] = {}
-        # (id, cell): its member token was seen to leave that cell (a live removal, or asks that found
-        # nobody holds it for a whole lease), the one sign a quiet neighbour is let go on (agents.guard)
+        # (id, cell): its member token was seen to leave that cell (a live removal, or an ask that found
+        # nobody holds it), the one sign a quiet neighbour is let go on (agents.guard)
         self.gone_from: set[tuple[int, tuple[int, ...]]] = set()
-        # (id, cell) -> when the first of the asks about it since one last found it held found it absent
-        self.absent_since: dict[tuple[int, tuple[int, ...]], float] = {}
-        self.absent_for = ABSENT_FOR_S
         self.listening: set[tuple[int, ...]] = set()  # the cells it listens to (agents.cell_view)
         # the member keys of cells it listens to whose "who is here" ask got no reply: asked again
         # (agents.outreach); a frozen or stalled router let a neighbour already there go unknown, and,
@@ -71,7 +63,6 @@ class Membership:
         if live:
             self.member_news.add((who, cell))
             self.member_live_at[(who, cell)] = time.time()
-            self.absent_since.pop((who, cell), None)
         elif (who, cell) in self.member_news:
             return
         if not deleted:
@@ -103,20 +94,15 @@ class Membership:
         parsed = self.keys.member_of(key.removesuffix("*") + "0")  # the cell's members: ".../in/CELL/*"
         return None if parsed is None else parsed[0]
 
-    def member_asked(self, key: str, held: bool, asked: float) -> None:
-        """The member token ``key`` was asked about at ``asked``, and the answer ``held`` it or not (a
-        token's removal can miss an agent that took the token in from the answer to its ask on entering
-        the cell). One answer without it proves nothing (Zenoh leaves out tokens that are held from some
-        answers under load): it is no longer in that cell once every answer since one that held it has
-        left it out for :attr:`absent_for` seconds and no live change of it came since (docs/safety.md)."""
+    def member_gone(self, key: str, asked: float) -> None:
+        """The member token ``key`` was asked about at ``asked`` and nobody holds it: it is no longer in
+        that cell, unless a live change of it came since (a token's removal can miss an agent that took the
+        token in from the answer to its ask on entering the cell: docs/safety.md)."""
         parsed = self.keys.member_of(key)
         if parsed is None:
             return
         cell, who = parsed
-        if held or cell not in self.listening or self.member_live_at.get((who, cell), -math.inf) >= asked:
-            self.absent_since.pop((who, cell), None)
-            return
-        if asked - self.absent_since.setdefault((who, cell), asked) >= self.absent_for:
+        if self.member_live_at.get((who, cell), -math.inf) < asked and cell in self.listening:
             self._not_in(who, {cell})
             self.gone_from.add((who, cell))
 
@@ -132,7 +118,6 @@ class Membership:
         self.member_news = {(who, cell) for who, cell in self.member_news if cell not in gone}
         self.member_live_at = {k: t for k, t in self.member_live_at.items() if k[1] not in gone}
         self.gone_from = {(who, cell) for who, cell in self.gone_from if cell not in gone}
-        self.absent_since = {k: t for k, t in self.absent_since.items() if k[1] not in gone}
         for who in list(self.members):
             self._not_in(who, gone)
 

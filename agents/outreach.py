@@ -77,8 +77,8 @@ class Outreach:
 
     def check_members(self, now: float) -> None:
         """Ask again about the member tokens on which the safety filter's verdict on a silent neighbour
-        rests (:attr:`agents.membership.Membership.doubted`): one that no answer holds for a whole lease is
-        a sign it left that cell (:meth:`agents.membership.Membership.member_asked`). Each token at most once every
+        rests (:attr:`agents.membership.Membership.doubted`): one nobody holds is a sign it left that cell
+        (:meth:`agents.membership.Membership.member_gone`). Each token at most once every
         :data:`MEMBER_CHECK_S` seconds."""
         s = self.sensing.membership
         if not s.doubted:
@@ -87,7 +87,7 @@ class Outreach:
             for cell in cells:
                 if now - self.member_asked.get((who, cell), -math.inf) >= MEMBER_CHECK_S:
                     self.member_asked[(who, cell)] = now
-                    self.bridge.token_held_into_inbox(self.keys.member(cell, who), "in-asked", 1.0)
+                    self.bridge.token_absent_into_inbox(self.keys.member(cell, who), "in-gone", 1.0)
         s.doubted.clear()
 
     def follow_probe(self, now: float) -> None:

@@ -158,8 +158,8 @@ class Sensing:
         if tag in ("in", "in-now"):
             self.membership.member(key, deleted, live=tag == "in")
             return
-        if tag == "in-asked":
-            self.membership.member_asked(key, held=not deleted, asked=received)
+        if tag == "in-gone":
+            self.membership.member_gone(key, asked=received)
             return
         if tag == "in-unanswered":
             self.membership.unanswered_ask(key)

@@ -402,7 +402,6 @@ def test_a_quiet_neighbour_whose_member_token_is_in_the_cells_is_guarded_whateve
     from zswarm.swarm.faults import FaultModel
     from zswarm.net import messages as msg
     from zswarm.net.runspec import RunSpec
-    from agents.membership import ABSENT_FOR_S
     from zswarm.sim.batch_channel import BatchChannel
 
     spec = RunSpec(scenario_name="moving-prey")  # R = 1, v_max = 1, dt = 0.05: cells reach 1.1
@@ -426,15 +425,7 @@ def test_a_quiet_neighbour_whose_member_token_is_in_the_cells_is_guarded_whateve
         sensing.handle(("in-answered", keys.cell_members(c), b"", False, now))
     # but no sign that it left the cell it was heard in: still guarded, and its token there asked about
     assert set(guarded()) == {(0.5, 0.0), (-0.9, 0.0)} and sensing.membership.doubted == {3: {cell}}
-    absent = lambda t, held=False: sensing.handle(("in-asked", keys.member(cell, 3), b"", not held, t))  # noqa: E731
-    absent(now + 1.0)  # an ask found nobody holds it: no proof (Zenoh leaves held tokens out of some answers)
-    assert set(guarded()) == {(0.5, 0.0), (-0.9, 0.0)}
-    absent(now + 1.0 + ABSENT_FOR_S - 0.01)
-    absent(now + 1.5 + ABSENT_FOR_S, held=True)  # an answer that holds it starts the wait again
-    absent(now + 2.0 + ABSENT_FOR_S)
-    absent(now + 1.9 + 2 * ABSENT_FOR_S)
-    assert set(guarded()) == {(0.5, 0.0), (-0.9, 0.0)}
-    absent(now + 2.0 + 2 * ABSENT_FOR_S)  # every answer for ABSENT_FOR_S: it left
+    sensing.handle(("in-gone", keys.member(cell, 3), b"", True, now + 1.0))  # the ask: nobody holds it
     assert set(guarded()) == {(0.5, 0.0)}
     sensing.handle(("in", keys.member(cell, 3), b"", False, now))
     sensing.handle(("in", keys.member(keys.cell(0.0, 0.0), 0), b"", False, now))  # its own: ignored
@@ -535,10 +526,8 @@ def test_a_member_token_nobody_holds_any_longer_is_asked_about_and_let_go():
     token's removal never reached an agent (it had taken the token in from its question on entering
     the cell), and the agent braked beside where that neighbour was last heard for as long as it
     stayed (35 s, the CI failure of the hostile flood). A token the filter relies on alone is now
-    asked about again, over real Zenoh sessions here: one that no answer holds for ABSENT_FOR_S (made
-    short here) is let go, one that is held stays, and a live change that comes after the question wins
-    over its answer. One answer is not enough: under load Zenoh answered some asks at once without a
-    token that was held, and a frozen neighbour was let go (docs/safety.md)."""
+    asked about again, over real Zenoh sessions here: one nobody holds is let go, one that is held
+    stays, and a live change that comes after the question wins over its answer."""
     import time
 
     import zenoh
@@ -574,27 +563,18 @@ def test_a_member_token_nobody_holds_any_longer_is_asked_about_and_let_go():
             sensing.handle(("in-answered", keys.cell_members(cell), b"", False, now))
         guarded = lambda: {p for p, _, _ in sensing.sense(None, 0.5, 1.0, 0.05)[1]}  # noqa: E731
         assert guarded() == {at[1], at[3], at[4]} and set(sensing.membership.doubted) == {3, 4}
-        sensing.membership.absent_for = 1.5  # two asks, MEMBER_CHECK_S apart, are not enough
         time.sleep(0.5)  # the holder's token has reached the other session
-        answers = {3: [], 4: []}
+        reach.check_members(time.time())
         deadline = time.monotonic() + 10.0
         while 3 in sensing.membership.members and time.monotonic() < deadline:
-            sensing.sense(None, 0.5, 1.0, 0.05)  # as an agent's tick: doubted again
-            reach.check_members(time.time())
-            for item in bridge.inbox:
-                if item[0] == "in-asked":
-                    answers[keys.member_of(item[1])[1]].append((item[4], item[3]))
             bridge.drain()
             time.sleep(0.05)
         assert 3 not in sensing.membership.members and sensing.membership.members[4] == {cells[4]}
-        # let go on its third answer, 2 s after the first: nobody held it in any; 4's held in each
-        assert [gone for _, gone in answers[3]] == [True] * 3 and answers[3][2][0] - answers[3][0][0] >= 1.5
-        assert answers[4] and not any(gone for _, gone in answers[4])
         assert guarded() == {at[1], at[4]}
         # asked again no sooner than MEMBER_CHECK_S; a live change after a question wins over its answer
         asked = time.time()
         sensing.handle(("in", keys.member(cells[3], 3), b"", False, asked + 0.1))
-        sensing.handle(("in-asked", keys.member(cells[3], 3), b"", True, asked))
+        sensing.handle(("in-gone", keys.member(cells[3], 3), b"", True, asked))
         assert sensing.membership.members[3] == {cells[3]}
         token.undeclare()
         bridge.close()

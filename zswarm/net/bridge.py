@@ -218,12 +218,10 @@ class Bridge:
                 append((said, key, b"", False, now()))
         self.session.liveliness().get(key, zenoh.handlers.Callback(on_reply, on_done), timeout=timeout)
 
-    def token_held_into_inbox(self, key: str, tag: str, timeout: float) -> None:
-        """Ask whether anybody holds the liveliness token ``key`` and return at once; once the answer
-        came, a ``tag`` sample stamped with the time it was asked joins the inbox, deleted if the answer
-        held no token. A query that ran out its time with no reply says nothing: its router did not
-        answer. An answer without the token is no proof that nobody holds it: under load Zenoh answers
-        some asks at once without tokens that are held (docs/safety.md)."""
+    def token_absent_into_inbox(self, key: str, tag: str, timeout: float) -> None:
+        """Ask whether anybody holds the liveliness token ``key`` and return at once; if the answer came
+        and held no token, a ``tag`` sample (deleted, stamped with the time it was asked) joins the
+        inbox. A query that ran out its time with no reply says nothing: its router did not answer."""
         asked, started, held = time.time(), time.monotonic(), []
 
         def on_reply(reply: Any) -> None:
@@ -231,8 +229,8 @@ class Bridge:
                 held.append(True)
 
         def on_done() -> None:
-            if not self.closed and not _ran_out(started, timeout):
-                self.inbox.append((tag, key, b"", not held, asked))
+            if not self.closed and not held and not _ran_out(started, timeout):
+                self.inbox.append((tag, key, b"", True, asked))
         self.session.liveliness().get(key, zenoh.handlers.Callback(on_reply, on_done), timeout=timeout)
 
     def close(self) -> None:
